@@ -1,0 +1,78 @@
+"""Entry point of the ``bayes-rcsa`` command line.
+
+Every sub-command lives in its own module in this package and exposes
+``register(subparsers)``, which adds its parser and sets ``func`` to a
+callable ``run(args) -> int``.  Errors derived from
+:class:`bayes_rcsa.errors.BayesRCSAError` (and unreadable files) are printed
+as one line on stderr with exit status 2, without a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from .. import __version__
+from ..errors import BayesRCSAError
+
+__all__ = ["main", "build_parser", "COMMANDS"]
+
+# Order of appearance in --help; each name is a module of bayes_rcsa.cli.
+COMMANDS = (
+    "demo",
+    "simulate",
+    "synthesize",
+    "spindle",
+    "identify",
+    "predict",
+    "identifiability",
+    "lobes",
+)
+
+
+class _OneLineParser(argparse.ArgumentParser):
+    """argparse that reports usage errors on one line (exit status 2)."""
+
+    def error(self, message: str):  # noqa: D401 - argparse API
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _OneLineParser(
+        prog="bayes-rcsa",
+        description="Bayesian receptance coupling for tool-point FRFs, tool-holder contact identification "
+        "and chatter stability.",
+    )
+    parser.add_argument("--version", action="version", version=f"bayes-rcsa {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_OneLineParser)
+    sub.required = True
+    for name in COMMANDS:
+        try:
+            module = importlib.import_module(f"{__package__}.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name == f"{__package__}.{name}":
+                continue  # sub-command not part of this build
+            raise
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except BayesRCSAError as exc:
+        print(f"bayes-rcsa {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
+        print(f"bayes-rcsa {args.command}: error: {exc.strerror or exc}: {exc.filename}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"bayes-rcsa {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,36 @@
+"""Exception hierarchy of bayes_rcsa.
+
+Every error a user can trigger with a file, a setup key or a command-line
+value derives from :class:`BayesRCSAError`; the command line turns these into
+one line on stderr and exit status 2.  Anything else escaping is a bug.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "BayesRCSAError",
+    "DataError",
+    "SetupError",
+    "ModelError",
+    "ConvergenceError",
+]
+
+
+class BayesRCSAError(Exception):
+    """Base class of all errors raised deliberately by bayes_rcsa."""
+
+
+class DataError(BayesRCSAError, ValueError):
+    """A measurement or receptance file is missing, malformed or unusable."""
+
+
+class SetupError(BayesRCSAError, ValueError):
+    """A setup file, geometry, material or option is inconsistent or invalid."""
+
+
+class ModelError(BayesRCSAError, ValueError):
+    """A model was asked for something outside its domain (e.g. extrapolation)."""
+
+
+class ConvergenceError(BayesRCSAError, RuntimeError):
+    """A sampler or optimiser did not reach the requested convergence."""

@@ -1,0 +1,75 @@
+"""Compiled inner loop of the batched tool-point FRF (the sampler's hot path).
+
+One fused loop over (parameter set, configuration, frequency line) evaluates
+
+    h = t22 - (p (e11 Kt + 1) Kx + q (e00 Kx + 1) Kt - r Kx Kt)
+              / ((e00 Kx + 1)(e11 Kt + 1) - g Kx Kt)
+
+with Kx = k_xf + i w c_xf and Kt = k_thetaM + i w c_thetaM.  This is the
+elastic-coupling formula of :mod:`bayes_rcsa.model.assembly` multiplied
+through by Kx Kt so that each line needs a single real division; numpy would
+need about fifteen full-size temporaries for the same expression, which makes
+it memory-bound (see benchmarks/forward.py for the comparison).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["pack_coefficients", "tool_point_kernel"]
+
+_ORDER = ("t22", "e00", "e11", "g", "p", "q", "r")
+
+
+def pack_coefficients(arrays: dict) -> np.ndarray:
+    """Pack the cached complex coefficients into a (14, n_lines) real array."""
+    n = arrays["t22"].size
+    out = np.empty((14, n))
+    for i, name in enumerate(_ORDER):
+        out[2 * i] = arrays[name].real
+        out[2 * i + 1] = arrays[name].imag
+    return out
+
+
+@njit(cache=True, fastmath=False, nogil=True)
+def tool_point_kernel(kx, kt, cx, ct, starts, omega, C, out):  # pragma: no cover - compiled
+    """Fill ``out`` (n_sets, n_lines) complex with the tool-point receptance.
+
+    Parameters
+    ----------
+    kx, kt, cx, ct : (n_sets, n_configs) float64
+    starts : (n_configs + 1,) int64, first line of each configuration
+    omega : (n_lines,) rad/s
+    C : (14, n_lines) packed coefficients from :func:`pack_coefficients`
+    out : (n_sets, n_lines) complex128
+    """
+    n_sets, n_cfg = kx.shape
+    for s in range(n_sets):
+        for c in range(n_cfg):
+            kxr = kx[s, c]
+            ktr = kt[s, c]
+            cxs = cx[s, c]
+            cts = ct[s, c]
+            for j in range(starts[c], starts[c + 1]):
+                kxi = omega[j] * cxs
+                kti = omega[j] * cts
+                axr = C[2, j] * kxr - C[3, j] * kxi + 1.0
+                axi = C[2, j] * kxi + C[3, j] * kxr
+                btr = C[4, j] * ktr - C[5, j] * kti + 1.0
+                bti = C[4, j] * kti + C[5, j] * ktr
+                kkr = kxr * ktr - kxi * kti
+                kki = kxr * kti + kxi * ktr
+                t1r = C[8, j] * btr - C[9, j] * bti
+                t1i = C[8, j] * bti + C[9, j] * btr
+                t2r = C[10, j] * axr - C[11, j] * axi
+                t2i = C[10, j] * axi + C[11, j] * axr
+                numr = (t1r * kxr - t1i * kxi) + (t2r * ktr - t2i * kti) - (C[12, j] * kkr - C[13, j] * kki)
+                numi = (t1r * kxi + t1i * kxr) + (t2r * kti + t2i * ktr) - (C[12, j] * kki + C[13, j] * kkr)
+                denr = axr * btr - axi * bti - (C[6, j] * kkr - C[7, j] * kki)
+                deni = axr * bti + axi * btr - (C[6, j] * kki + C[7, j] * kkr)
+                inv = 1.0 / (denr * denr + deni * deni)
+                out[s, j] = complex(
+                    C[0, j] - (numr * denr + numi * deni) * inv,
+                    C[1, j] - (numi * denr - numr * deni) * inv,
+                )

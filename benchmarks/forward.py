@@ -1,0 +1,66 @@
+"""Forward-model benchmark: batched tool-point FRFs after caching.
+
+Case of issue 2: 64 contact parameter sets x 2 clamping lengths x 800
+frequency lines.  Prints median times and ratios against a naive loop (one
+parameter set and one frequency at a time, numpy.linalg.inv per 2x2 block),
+measured in the same run.  Run: ``python benchmarks/forward.py``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from _bench_setup import example_model, median_time
+from bayes_rcsa.model import Configuration, ConfigurationStack
+
+N_SETS, N_FREQ, LENGTHS = 64, 800, (0.025, 0.040)
+
+
+def naive(caches, kx, kt, cx, ct):
+    """One parameter set and one frequency at a time, general 2x2 algebra with numpy.linalg.inv."""
+    out = np.empty((kx.shape[0], sum(c.frequency_hz.size for c in caches)), complex)
+    for s in range(kx.shape[0]):
+        col = 0
+        for ci, c in enumerate(caches):
+            t = c.tool
+            for j, w in enumerate(c.omega):
+                K = np.diag([kx[s, ci] + 1j * w * cx, kt[s, ci] + 1j * w * ct])
+                D = c.holder_tip[j] + t.r11[j] + np.linalg.inv(K)
+                out[s, col] = (t.r22[j] - t.r21[j] @ np.linalg.inv(D) @ t.r12[j])[0, 0]
+                col += 1
+    return out
+
+
+def main() -> None:
+    model = example_model()
+    freq = np.linspace(300.0, 4000.0, N_FREQ)
+    rng = np.random.default_rng(20261122)
+    kx = rng.uniform(1e6, 4e6, (N_SETS, len(LENGTHS)))
+    kt = rng.uniform(1e5, 1e6, (N_SETS, len(LENGTHS)))
+    cx, ct = 10.0, 5e-4
+
+    t_pre = median_time(lambda: model.precompute(Configuration(LENGTHS[0]), freq), repeats=5)
+    caches = [model.precompute(Configuration(cl), freq) for cl in LENGTHS]
+    stack = ConfigurationStack(caches)
+    stack.frf(kx, kt, cx, ct)  # compile / warm up
+
+    t_kernel = median_time(lambda: stack.frf(kx, kt, cx, ct), repeats=15, number=20)
+    t_numpy = median_time(lambda: stack.frf_numpy(kx, kt, cx, ct), repeats=9, number=5)
+    few = 4  # the naive loop is slow: time 4 sets and scale to 64
+    t_naive = median_time(lambda: naive(caches, kx[:few], kt[:few], cx, ct), repeats=3) * N_SETS / few
+
+    ref = naive(caches, kx[:few], kt[:few], cx, ct)
+    err = np.max(np.abs(stack.frf(kx, kt, cx, ct)[:few] - ref)) / np.max(np.abs(ref))
+
+    print(f"Tool-point FRF: {N_SETS} parameter sets x {len(LENGTHS)} clamping lengths x {N_FREQ} lines")
+    print(f"{'path':<44}{'median':>14}{'vs naive':>12}")
+    print(f"{'precompute per clamping length':<44}{t_pre * 1e3:>11.2f} ms{'':>12}")
+    print(f"{'ConfigurationStack.frf (compiled kernel)':<44}{t_kernel * 1e3:>11.3f} ms{t_naive / t_kernel:>11.0f}x")
+    print(f"{'ConfigurationStack.frf_numpy':<44}{t_numpy * 1e3:>11.3f} ms{t_naive / t_numpy:>11.0f}x")
+    print(f"{'naive loop (set x line, np.linalg.inv)':<44}{t_naive * 1e3:>11.1f} ms{1:>11.0f}x")
+    print(f"max relative difference kernel vs naive: {err:.1e}")
+    print(f"target: <= 2 ms for the batched evaluation -> {'met' if t_kernel <= 2e-3 else 'NOT met'}")
+
+
+if __name__ == "__main__":
+    main()
