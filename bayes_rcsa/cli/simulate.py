@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     ct = parse_float(args.ctheta, "--ctheta")
     if cx < 0 or ct < 0:
         raise SetupError("--cx/--ctheta: expected damping >= 0")
-    setup = load_setup(args.setup, load_data=False)
+    setup = load_setup(args.setup, load_data=False, load_spindle=True)
     tool = args.tool
     if tool is None:
         if len(setup.tools) != 1:

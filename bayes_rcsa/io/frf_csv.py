@@ -136,7 +136,7 @@ def check_finite_columns(columns: dict[str, np.ndarray], lines: np.ndarray, path
         bad = ~np.isfinite(col)
         if bad.any():
             i = int(np.argmax(bad))
-            raise DataError(f"{path}: line {lines[i]}, column {name!r}: {col[i]!r} (NaN or inf) is not allowed")
+            raise DataError(f"{path}: line {lines[i]}, column {name!r}: {float(col[i])!r} (NaN or inf) is not allowed")
 
 
 def check_frequency_column(f: np.ndarray, lines: np.ndarray, path: Path) -> None:
@@ -144,12 +144,12 @@ def check_frequency_column(f: np.ndarray, lines: np.ndarray, path: Path) -> None
     bad = f <= 0
     if bad.any():
         i = int(np.argmax(bad))
-        raise DataError(f"{path}: line {lines[i]}, column 'frequency_hz': {f[i]!r} Hz, expected frequencies > 0")
+        raise DataError(f"{path}: line {lines[i]}, column 'frequency_hz': {float(f[i])!r} Hz, expected frequencies > 0")
     step = np.diff(f) <= 0
     if step.any():
         i = int(np.argmax(step)) + 1
         raise DataError(
-            f"{path}: line {lines[i]}, column 'frequency_hz': {f[i]!r} Hz after {f[i - 1]!r} Hz, "
+            f"{path}: line {lines[i]}, column 'frequency_hz': {float(f[i])!r} Hz after {float(f[i - 1])!r} Hz, "
             "expected strictly increasing frequencies"
         )
 
@@ -186,7 +186,9 @@ def read_frf_csv(path) -> FRF:
         bad = (coherence < 0) | (coherence > 1)
         if bad.any():
             i = int(np.argmax(bad))
-            raise DataError(f"{path}: line {lines[i]}, column 'coherence': {coherence[i]!r}, expected a value in [0, 1]")
+            raise DataError(
+                f"{path}: line {lines[i]}, column 'coherence': {float(coherence[i])!r}, expected a value in [0, 1]"
+            )
     return FRF(f, columns["real"] + 1j * columns["imag"], coherence, source=str(path))
 
 

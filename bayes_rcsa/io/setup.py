@@ -119,7 +119,18 @@ class Setup:
         return (min(lengths), max(lengths))
 
 
-def load_setup(path, load_data: bool = True) -> Setup:  # implemented below by the I/O layer
+def load_setup(path, load_data: bool = True, load_spindle: bool | None = None) -> Setup:
+    """Parse a setup file.
+
+    Parameters
+    ----------
+    path : str or Path
+    load_data : bool
+        Read the measurement files (and, by default, the spindle files).
+    load_spindle : bool or None
+        Read the spindle files; ``None`` follows ``load_data``.  Simulation
+        needs the spindle but not the measurements.
+    """
     from ._setup_parser import parse_setup
 
-    return parse_setup(Path(path), load_data=load_data)
+    return parse_setup(Path(path), load_data=load_data, load_spindle=load_spindle)

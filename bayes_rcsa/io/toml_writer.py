@@ -1,0 +1,143 @@
+"""A small TOML emitter for setup-like documents (the standard library only reads TOML).
+
+Layout rules, chosen so that generated setup files look like the example in
+docs/setup.example.toml:
+
+- a dict value becomes a ``[table]`` (nested: ``[a.b]``);
+- a list of dicts at the top level becomes an array of tables
+  (``[[measurement]]``); deeper down (e.g. ``segments``) it becomes an array
+  of inline tables, one per line;
+- floats are written with ``repr`` (shortest exact form), so
+  ``tomllib.loads(dump_toml(d)) == d`` holds bit for bit;
+- keys whose value is ``None`` are omitted (TOML has no null).
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import re
+from pathlib import PurePath
+from typing import Any
+
+__all__ = ["dump_toml"]
+
+_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
+_ESCAPES = {'"': '\\"', "\\": "\\\\", "\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f", "\r": "\\r"}
+
+
+def _key(k) -> str:
+    if not isinstance(k, str):
+        raise TypeError(f"TOML keys must be strings, got {k!r}")
+    return k if _BARE_KEY.match(k) else _string(k)
+
+
+def _string(s: str) -> str:
+    out = []
+    for ch in s:
+        if ch in _ESCAPES:
+            out.append(_ESCAPES[ch])
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append(f"\\u{ord(ch):04X}")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
+
+
+def _float(x: float) -> str:
+    if math.isnan(x):
+        return "nan"
+    if math.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    text = repr(float(x))
+    # repr writes "1e-05" / "1e+16" (valid TOML); only a bare integer form would not be.
+    return text if any(c in text for c in ".eE") else text + ".0"
+
+
+def _is_table(v) -> bool:
+    return isinstance(v, dict)
+
+
+def _is_table_array(v) -> bool:
+    return isinstance(v, (list, tuple)) and len(v) > 0 and all(isinstance(e, dict) for e in v)
+
+
+def _value(v, indent: str = "") -> str:
+    """Inline representation of a value (scalars, arrays, inline tables)."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, numbers.Integral):
+        return str(int(v))
+    if isinstance(v, numbers.Real):
+        return _float(float(v))
+    if isinstance(v, str):
+        return _string(v)
+    if isinstance(v, PurePath):
+        return _string(v.as_posix())
+    if isinstance(v, dict):
+        items = [f"{_key(k)} = {_value(x)}" for k, x in v.items() if x is not None]
+        return "{ " + ", ".join(items) + " }" if items else "{}"
+    if hasattr(v, "tolist") and not isinstance(v, (list, tuple)):  # numpy arrays
+        v = v.tolist()
+    if isinstance(v, (list, tuple)):
+        if any(e is None for e in v):
+            raise TypeError("TOML arrays cannot hold None")
+        if _is_table_array(v):
+            inner = indent + "  "
+            return "[\n" + "".join(f"{inner}{_value(e, inner)},\n" for e in v) + indent + "]"
+        return "[" + ", ".join(_value(e, indent) for e in v) + "]"
+    raise TypeError(f"cannot write {type(v).__name__} value {v!r} as TOML")
+
+
+def _emit_table(lines: list[str], table: dict, path: list[str], root: bool) -> None:
+    scalars, tables, arrays = [], [], []
+    for k, v in table.items():
+        if v is None:
+            continue
+        if _is_table(v):
+            tables.append((k, v))
+        elif root and _is_table_array(v):
+            arrays.append((k, v))
+        else:
+            scalars.append((k, v))
+    for k, v in scalars:
+        lines.append(f"{_key(k)} = {_value(v)}")
+    for k, v in tables:
+        sub = path + [_key(k)]
+        # A table holding only sub-tables needs no header of its own.
+        if not all(_is_table(x) for x in v.values() if x is not None) or not v:
+            lines.extend(["", f"[{'.'.join(sub)}]"])
+        _emit_table(lines, v, sub, root=False)
+    for k, v in arrays:
+        for entry in v:
+            lines.extend(["", f"[[{'.'.join(path + [_key(k)])}]]"])
+            for ek, ev in entry.items():
+                if ev is not None:
+                    lines.append(f"{_key(ek)} = {_value(ev)}")
+
+
+def dump_toml(data: dict[str, Any]) -> str:
+    """Serialise a dict to TOML text.
+
+    Parameters
+    ----------
+    data : dict
+        Values may be str, bool, int, float (numpy scalars and arrays too),
+        pathlib paths (written as POSIX strings), lists, and nested dicts.
+
+    Returns
+    -------
+    str
+        TOML that :func:`tomllib.loads` parses back to ``data`` (with tuples
+        and arrays as lists, paths as strings and ``None`` entries dropped).
+
+    Raises
+    ------
+    TypeError
+        For values TOML cannot represent (e.g. ``None`` inside an array).
+    """
+    if not isinstance(data, dict):
+        raise TypeError("dump_toml expects a dict at the top level")
+    lines: list[str] = []
+    _emit_table(lines, data, [], root=True)
+    return "\n".join(lines).lstrip("\n") + "\n"
