@@ -203,6 +203,27 @@ def mesh(segments: Sequence[tuple[float, RefSection]], h_max: float) -> tuple[li
     return elements, boundaries
 
 
+def _inv(a: np.ndarray) -> np.ndarray:
+    """Inverse of a stack (n, 2, 2) by the adjugate (numpy's batched LAPACK call
+    has a large per-matrix overhead for 2x2 systems)."""
+    det = a[:, 0, 0] * a[:, 1, 1] - a[:, 0, 1] * a[:, 1, 0]
+    out = np.empty_like(a)
+    out[:, 0, 0] = a[:, 1, 1] / det
+    out[:, 1, 1] = a[:, 0, 0] / det
+    out[:, 0, 1] = -a[:, 0, 1] / det
+    out[:, 1, 0] = -a[:, 1, 0] / det
+    return out
+
+
+def _mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Product of stacks of 2x2 matrices, (n, 2, 2) each."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape), dtype=complex)
+    for i in (0, 1):
+        for k in (0, 1):
+            out[:, i, k] = a[:, i, 0] * b[:, 0, k] + a[:, i, 1] * b[:, 1, k]
+    return out
+
+
 def _grounded(ground: Ground | None, node: int, omega: np.ndarray) -> np.ndarray | float:
     if ground and node in ground:
         return ground[node](omega)
@@ -220,9 +241,9 @@ def end_point_receptance(links: Sequence, omega: np.ndarray, ground: Ground | No
     for node, link in enumerate(links, start=1):
         D = link.dynamic_stiffness(omega)
         X = S + D[:, :2, :2]
-        S = D[:, 2:, 2:] - D[:, 2:, :2] @ np.linalg.solve(X, D[:, :2, 2:])
+        S = D[:, 2:, 2:] - _mul(D[:, 2:, :2], _mul(_inv(X), D[:, :2, 2:]))
         S = S + _grounded(ground, node, omega)
-    return np.linalg.inv(S)
+    return _inv(S)
 
 
 def end_stiffness(links: Sequence, omega: np.ndarray, ground: Ground | None = None) -> np.ndarray:
@@ -236,13 +257,14 @@ def end_stiffness(links: Sequence, omega: np.ndarray, ground: Ground | None = No
         D = link.dynamic_stiffness(omega)
         X = T[:, 2:, 2:] + D[:, :2, :2]
         Tff, Tfc, Tcf = T[:, :2, :2], T[:, :2, 2:], T[:, 2:, :2]
-        Xi_Tcf = np.linalg.solve(X, Tcf)
-        Xi_Dcn = np.linalg.solve(X, D[:, :2, 2:])
+        Xi = _inv(X)
+        Xi_Tcf = _mul(Xi, Tcf)
+        Xi_Dcn = _mul(Xi, D[:, :2, 2:])
         new = np.empty_like(T)
-        new[:, :2, :2] = Tff - Tfc @ Xi_Tcf
-        new[:, :2, 2:] = -Tfc @ Xi_Dcn
-        new[:, 2:, :2] = -D[:, 2:, :2] @ Xi_Tcf
-        new[:, 2:, 2:] = D[:, 2:, 2:] - D[:, 2:, :2] @ Xi_Dcn + _grounded(ground, node, omega)
+        new[:, :2, :2] = Tff - _mul(Tfc, Xi_Tcf)
+        new[:, :2, 2:] = -_mul(Tfc, Xi_Dcn)
+        new[:, 2:, :2] = -_mul(D[:, 2:, :2], Xi_Tcf)
+        new[:, 2:, 2:] = D[:, 2:, 2:] - _mul(D[:, 2:, :2], Xi_Dcn) + _grounded(ground, node, omega)
         T = new
     return T
 
@@ -266,14 +288,17 @@ def global_matrices(links: Sequence[BeamElement], ground_static: dict[int, np.nd
 
 
 def natural_frequencies(links: Sequence[BeamElement], n_modes: int, skip: int = 0,
-                        ground_static: dict[int, np.ndarray] | None = None) -> np.ndarray:
+                        ground_static: dict[int, np.ndarray] | None = None,
+                        clamped_nodes: Sequence[int] = ()) -> np.ndarray:
     """Undamped natural frequencies, rad/s, modes ``skip .. skip + n_modes - 1``.
 
     Uses the real parts of the stiffness (undamped structure); ``skip`` drops
-    rigid-body modes of free structures.
+    rigid-body modes of free structures; ``clamped_nodes`` have both DOFs
+    removed (u = psi = 0).
     """
     K, M = global_matrices(links, ground_static)
-    K = K.real
+    keep = np.setdiff1d(np.arange(K.shape[0]), [2 * n + i for n in clamped_nodes for i in (0, 1)])
+    K, M = K.real[np.ix_(keep, keep)], M[np.ix_(keep, keep)]
     lam = scipy.linalg.eigh(K, M, eigvals_only=True, subset_by_index=[0, skip + n_modes - 1])
     return np.sqrt(np.abs(lam[skip:]))
 
@@ -339,7 +364,10 @@ def default_spindle() -> SpindleShaft:
     )
 
 
-def holder_tool_segments(clamping_length: float) -> tuple[list[tuple[float, RefSection]], list[tuple[float, RefSection]]]:
+SegmentList = list[tuple[float, RefSection]]
+
+
+def holder_tool_segments(clamping_length: float) -> tuple[SegmentList, SegmentList]:
     """Holder segments (clamped shank merged) flange -> holder tip, and tool
     overhang segments holder tip -> tool tip, for the example geometry.
 
@@ -371,3 +399,9 @@ def full_assembly_tool_point(spindle: SpindleShaft, clamping_length: float, cont
     tool_links, _ = mesh(overhang, h_max)
     links = [*spindle_links, *holder_links, contact, *tool_links]
     return end_point_receptance(links, omega, ground)
+
+
+def richardson(coarse, fine, order: int = 2):
+    """Richardson extrapolation of results on meshes h and h/2 converging as h^order."""
+    factor = 2.0**order
+    return (factor * np.asarray(fine) - np.asarray(coarse)) / (factor - 1.0)

@@ -21,6 +21,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from ..errors import SetupError
 from .materials import Material
 
@@ -53,6 +55,16 @@ class SectionProperties:
     kGA: complex
     rhoA: float
     rhoI: float
+
+    def __post_init__(self) -> None:
+        for key in ("EI", "kGA"):
+            v = complex(getattr(self, key))
+            if not (np.isfinite(v) and v.real > 0):
+                raise SetupError(f"section {key} = {v!r}: expected finite with a positive real part")
+        if not (np.isfinite(self.rhoA) and self.rhoA > 0):
+            raise SetupError(f"section rhoA = {self.rhoA!r}: expected a finite value > 0")
+        if not (np.isfinite(self.rhoI) and self.rhoI >= 0):
+            raise SetupError(f"section rhoI = {self.rhoI!r}: expected a finite value >= 0")
 
     def __add__(self, other: "SectionProperties") -> "SectionProperties":
         return SectionProperties(
