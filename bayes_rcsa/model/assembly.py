@@ -113,13 +113,7 @@ class CachedConfiguration:
 def _fast_h(omega, t22, e00, e11, g, p, q, r, kx, kt, cx, ct):
     a = e00 + 1.0 / (kx + 1j * (omega * cx))
     b = e11 + 1.0 / (kt + 1j * (omega * ct))
-    num = p * b
-    num += q * a
-    num -= r
-    den = a * b
-    den -= g
-    num /= den
-    return t22 - num
+    return t22 - (p * b + q * a - r) / (a * b - g)
 
 
 class ToolPointModel:

@@ -1,0 +1,120 @@
+"""Everything that touches ArviZ: R-hat/ESS and the InferenceData file.
+
+This is the only module of the package that imports :mod:`arviz` (its
+import is slow and its API moves between versions; keeping it here keeps
+both problems in one place).
+
+Walkers of the ensemble are treated as ArviZ *chains*.  They are not
+independent chains, but after the burn-in they are exchangeable draws of
+the posterior, and the rank-normalised split R-hat across walkers detects
+walkers that have not mixed (e.g. stuck in a second mode).
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ..io.atomic import atomic_path
+
+__all__ = ["chain_diagnostics", "build_inference_data", "write_netcdf", "read_netcdf"]
+
+
+def _az():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)  # arviz announces its 1.0 refactor on import
+        import arviz
+
+    return arviz
+
+
+def chain_diagnostics(chain: np.ndarray) -> dict[str, np.ndarray]:
+    """Rank-normalised split R-hat, bulk and tail ESS of each coordinate.
+
+    Parameters
+    ----------
+    chain : (n_steps, n_walkers, ndim)
+
+    Returns
+    -------
+    dict with ``"rhat"``, ``"ess_bulk"``, ``"ess_tail"``, each (ndim,)
+    """
+    az = _az()
+    chain = np.asarray(chain, dtype=float)
+    nd = chain.shape[2]
+    if chain.shape[0] < 4:
+        nan = np.full(nd, np.nan)
+        return {"rhat": nan, "ess_bulk": nan, "ess_tail": nan}
+    data = {f"p{j}": np.ascontiguousarray(chain[:, :, j].T) for j in range(nd)}
+    ds = az.convert_to_dataset(data)
+    with warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
+        warnings.simplefilter("ignore", RuntimeWarning)
+        rhat = az.rhat(ds)
+        bulk = az.ess(ds, method="bulk")
+        tail = az.ess(ds, method="tail")
+    get = lambda d: np.array([float(d[f"p{j}"].values) for j in range(nd)])  # noqa: E731
+    return {"rhat": get(rhat), "ess_bulk": get(bulk), "ess_tail": get(tail)}
+
+
+def build_inference_data(
+    posterior: Mapping[str, np.ndarray],
+    log_prob: np.ndarray,
+    log_likelihood: np.ndarray,
+    observed: np.ndarray,
+    constant: Mapping[str, np.ndarray],
+    dims: Mapping[str, Sequence[str]],
+    coords: Mapping[str, np.ndarray],
+    attrs: Mapping[str, object],
+):
+    """Assemble an :class:`arviz.InferenceData`.
+
+    Parameters
+    ----------
+    posterior : {name: (n_walkers, n_draws, ...)}
+        Physical parameter values and derived quantities.
+    log_prob : (n_walkers, n_draws) log posterior (as sampled)
+    log_likelihood : (n_walkers, n_draws, n_lines) pointwise log-likelihood
+    observed : (n_lines,) complex measured FRF on the band lines
+    constant : {name: array} e.g. frequencies, clamping lengths
+    dims, coords : ArviZ dims and coords of the named variables
+    attrs : attributes stored on every group (method, seed, ...)
+    """
+    az = _az()
+    observed = np.asarray(observed)
+    return az.from_dict(
+        posterior=dict(posterior),
+        sample_stats={"lp": np.asarray(log_prob)},
+        log_likelihood={"frf": np.asarray(log_likelihood)},
+        observed_data={"frf_real": observed.real, "frf_imag": observed.imag},
+        constant_data=dict(constant),
+        dims={**dict(dims), "frf": ["line"], "frf_real": ["line"], "frf_imag": ["line"]},
+        coords=dict(coords),
+        attrs={k: _attr(v) for k, v in attrs.items()},
+    )
+
+
+def _attr(v):
+    # netCDF attributes must be strings, numbers or 1-D arrays of them
+    if isinstance(v, bool):
+        return int(v)
+    if isinstance(v, (int, float, str)):
+        return v
+    if v is None:
+        return ""
+    return str(v)
+
+
+def write_netcdf(idata, path) -> Path:
+    """Write ``idata`` to ``path`` atomically (no partial file on failure)."""
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        idata.to_netcdf(str(tmp))
+    return path
+
+
+def read_netcdf(path):
+    """Read an InferenceData file written by :func:`write_netcdf`."""
+    return _az().from_netcdf(str(path))

@@ -1,0 +1,552 @@
+"""The identification workflow: optimum -> tempering -> emcee -> summaries and files.
+
+:func:`identify` runs one method on a :class:`~.problem.Problem` and returns
+an :class:`IdentificationResult` (nothing is written except the optional
+checkpoint); :func:`write_outputs` writes posterior.nc, summary.json and the
+plots.  :func:`posterior_stiffness` and :func:`predict_frf` transfer the
+result to other clamping lengths.
+
+Random numbers: one :class:`numpy.random.Generator` is made from ``seed``
+and split with ``Generator.spawn`` into independent streams for the
+optimiser, the walker start and emcee's proposals, so changing one stage
+(e.g. a user start) does not change the random numbers of the others.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from ..errors import SetupError
+from ..model.assembly import Configuration, ConfigurationStack
+from ..posterior.natural_frequencies import NATURAL_FREQUENCY_RULE, natural_frequency
+from . import results as R
+from .band import band_mask
+from .checkpoint import Checkpoint
+from .deterministic import DeterministicFit, fit_deterministic
+from .likelihood import residual_correlation_length
+from .parameters import PARAMETER_UNITS
+from .posterior import LogPosterior
+from .problem import Problem
+from .sampler import ChainResult, Optimum, SamplerSettings, find_optimum, initial_ensemble, run_ensemble
+
+__all__ = [
+    "IdentificationResult",
+    "identify",
+    "write_outputs",
+    "posterior_stiffness",
+    "predict_frf",
+    "sampling_labels",
+    "MAX_DRAWS",
+]
+
+MAX_DRAWS = 4000  # kept posterior draws (after burn-in and tau-based thinning) stored and summarised
+
+
+@dataclass(frozen=True)
+class IdentificationResult:
+    """Everything :func:`identify` found.
+
+    Attributes
+    ----------
+    problem : Problem
+    summary : dict
+        The content of summary.json.
+    theta : (n_chains, n_draws, ndim)
+        Kept draws in sampling coordinates (walkers as chains); a
+        deterministic fit has one chain with one draw.
+    log_prob : (n_chains, n_draws) or None
+    natural_frequency : (n_chains, n_draws, n_all_measurements)
+        Predicted dominant natural frequency (Hz) of every setup measurement.
+    chain : ChainResult or None
+    deterministic : DeterministicFit or None
+    optimum : Optimum or None
+    tempering : float
+    residual_correlation : float
+    seed : int
+    evaluations : int
+        Log-posterior evaluations (walker-parameter sets) in this process.
+    wall_time : float
+        Seconds of this process's work.
+    """
+
+    problem: Problem
+    summary: dict
+    theta: np.ndarray
+    log_prob: np.ndarray | None
+    natural_frequency: np.ndarray
+    chain: ChainResult | None = None
+    deterministic: DeterministicFit | None = None
+    optimum: Optimum | None = None
+    tempering: float = 1.0
+    residual_correlation: float = 1.0
+    seed: int = 0
+    evaluations: int = 0
+    wall_time: float = 0.0
+    warnings: tuple = field(default_factory=tuple)
+
+    @property
+    def flat_theta(self) -> np.ndarray:
+        """(n_chains * n_draws, ndim)"""
+        return self.theta.reshape(-1, self.theta.shape[-1])
+
+    def values(self) -> dict[str, np.ndarray]:
+        """Physical values of all parameters per kept draw, ``{name: (n,)}``."""
+        return self.problem.layout.values(self.flat_theta)
+
+
+def sampling_labels(names: Sequence[str]) -> list[str]:
+    """Axis labels of the sampling coordinates (log10 for log-scale priors)."""
+    out = []
+    for n in names:
+        unit = PARAMETER_UNITS.get(n, "")
+        if n.startswith("g_"):
+            out.append(n)
+        else:
+            out.append(f"log10 {n}" + (f" [{unit}]" if unit and unit != "1" else ""))
+    return out
+
+
+# -- posterior transfer ----------------------------------------------------
+
+
+def posterior_stiffness(result: IdentificationResult, lengths) -> tuple[np.ndarray, np.ndarray]:
+    """Contact stiffness draws at clamping lengths.
+
+    Returns
+    -------
+    k_xf, k_thetaM : each (n_draws, n_lengths), N/m and N m/rad
+    """
+    lengths = np.atleast_1d(np.asarray(lengths, dtype=float))
+    layout = result.problem.layout
+    if layout.growth.has_growth:
+        layout.growth.check_lengths(lengths, "prediction clamping length")
+    kx, kt, _, _ = layout.contact(result.flat_theta, lengths)
+    return kx, kt
+
+
+def predict_frf(result: IdentificationResult, configuration: Configuration, frequency_hz, max_draws: int | None = None,
+                rng: np.random.Generator | None = None) -> np.ndarray:
+    """Tool-point FRF draws for a (possibly unmeasured) configuration.
+
+    Parameters
+    ----------
+    configuration : Configuration
+    frequency_hz : (n_freq,) Hz
+    max_draws : int, optional
+        Use a random subset of this many draws (needs ``rng``).
+
+    Returns
+    -------
+    (n_draws, n_freq) complex, m/N
+    """
+    theta = result.flat_theta
+    if max_draws is not None and theta.shape[0] > max_draws:
+        if rng is None:
+            raise SetupError("predict_frf: a subset of draws needs an explicit rng")
+        theta = theta[rng.choice(theta.shape[0], max_draws, replace=False)]
+    layout = result.problem.layout
+    if layout.growth.has_growth:
+        layout.growth.check_lengths([configuration.clamping_length], "prediction clamping length")
+    cache = result.problem.model.precompute(configuration, frequency_hz)
+    kx, kt, cx, ct = layout.contact(theta, [configuration.clamping_length])
+    return cache.frf(kx[:, 0], kt[:, 0], cx[:, 0], ct[:, 0])
+
+
+# -- the workflow ------------------------------------------------------------
+
+
+def _fingerprint(problem: Problem, seed: int, settings: SamplerSettings, n_walkers: int) -> dict:
+    h = hashlib.sha256()
+    for o in problem.observations:
+        h.update(np.ascontiguousarray(o.frequency_hz).tobytes())
+        h.update(np.ascontiguousarray(o.values).tobytes())
+    return {
+        "method": problem.method,
+        "names": list(problem.layout.names),
+        "seed": int(seed),
+        "n_walkers": int(n_walkers),
+        "check_every": int(settings.check_every),
+        "data_sha256": h.hexdigest(),
+        "lengths": [o.configuration.clamping_length for o in problem.observations],
+        "priors": problem.priors.describe(),
+        "fixed": dict(problem.layout.fixed),
+    }
+
+
+def _evaluation_stack(problem: Problem):
+    """Band lines of every setup measurement, and the measured natural frequencies."""
+    caches, measured, bands = [], [], []
+    for cfg, frf in problem.all_measurements:
+        band = problem.band_of(frf)
+        mask = band_mask(frf, band)
+        f = frf.frequency_hz[mask]
+        caches.append(problem.model.precompute(cfg, f))
+        measured.append(float(natural_frequency(f, frf.values[mask])))
+        bands.append(band)
+    return ConfigurationStack(caches), np.array(measured), bands
+
+
+def _predicted_natural_frequencies(problem: Problem, stack: ConfigurationStack, theta: np.ndarray, batch: int = 256) -> np.ndarray:
+    """(n, n_all) predicted natural frequencies for flat draws theta (n, ndim)."""
+    lengths = np.array([c.clamping_length for c, _ in problem.all_measurements])
+    out = np.empty((theta.shape[0], len(problem.all_measurements)))
+    for a in range(0, theta.shape[0], batch):
+        kx, kt, cx, ct = problem.layout.contact(theta[a : a + batch], lengths)
+        h = stack.frf(kx, kt, cx, ct)
+        for j, (part, cache) in enumerate(zip(stack.split(h), stack.caches)):
+            out[a : a + batch, j] = natural_frequency(cache.frequency_hz, part)
+    return out
+
+
+def _common_summary(problem: Problem, seed: int) -> dict:
+    g = problem.growth
+    return {
+        "method": problem.method,
+        "seed": int(seed),
+        "parameter_names": list(problem.layout.names),
+        "fixed_parameters": dict(problem.layout.fixed),
+        "priors": problem.priors.describe(),
+        "reference_clamping_length": g.l_a,
+        "feasible_range": [g.l_a, g.l_b] if g.has_growth else None,
+        "growth_bound": g.growth_bound,
+        "growth_law": "k(l) = k(l_ref) * (1 + g * (l - l_a) / (l_b - l_a)), 0 <= g <= Q" if g.has_growth
+        else "k constant (single clamping length)",
+        "measurements_used": [
+            {"clamping_length": o.configuration.clamping_length, "direction": o.configuration.direction,
+             "tool": o.configuration.tool, "source": o.source, "band": o.band.as_dict(), "n_lines": o.n_lines,
+             "n_low_coherence_lines": o.n_low_coherence, "noise_parameter": problem.layout.noise_name(j)}
+            for j, o in enumerate(problem.observations)
+        ],
+        "natural_frequency_rule": NATURAL_FREQUENCY_RULE,
+    }
+
+
+def _stiffness_and_frequencies(problem: Problem, theta_flat: np.ndarray, nat: np.ndarray, measured_nat: np.ndarray):
+    used_lengths = {round(o.configuration.clamping_length, 12) for o in problem.observations}
+    lengths = sorted({round(c.clamping_length, 12) for c, _ in problem.all_measurements})
+    kx, kt, _, _ = problem.layout.contact(theta_flat, lengths)
+    stiffness = [R.stiffness_entry(l, kx[:, i], kt[:, i], l in used_lengths) for i, l in enumerate(lengths)]
+    used_cfg = {(o.configuration, o.source) for o in problem.observations}
+    freqs = [
+        R.natural_frequency_entry(cfg, measured_nat[j], nat[:, j], (cfg, frf.source) in used_cfg)
+        for j, (cfg, frf) in enumerate(problem.all_measurements)
+    ]
+    return stiffness, freqs
+
+
+def _check_start(problem: Problem) -> dict[int, float]:
+    """Sampling coordinates of the user's ``[sampler] start`` values, checked against the prior."""
+    start = problem.options.start or {}
+    names = problem.layout.names
+    unknown = set(start) - set(names)
+    if unknown:
+        raise SetupError(f"sampler.start: unknown parameter(s) {sorted(unknown)}; sampled parameters: {list(names)}")
+    out = {}
+    for name, value in start.items():
+        prior = problem.priors[name]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = float(prior.to_sampling(value))
+        if not prior.in_support(u):
+            raise SetupError(
+                f"walker start (sampler.start): parameter {name} = {value:.6g} lies outside its prior support "
+                f"{prior.describe()}"
+            )
+        out[names.index(name)] = u
+    return out
+
+
+def identify(
+    problem: Problem,
+    seed: int = 0,
+    settings: SamplerSettings = SamplerSettings(),
+    checkpoint_path=None,
+    resume: bool = False,
+    max_draws: int = MAX_DRAWS,
+) -> IdentificationResult:
+    """Run the identification.
+
+    Parameters
+    ----------
+    problem : Problem
+    seed : int
+        Seed of the run's random generator (same seed, same result).
+    settings : SamplerSettings
+    checkpoint_path : path, optional
+        HDF5 checkpoint (Bayesian methods).
+    resume : bool
+        Continue the run in ``checkpoint_path``.
+    max_draws : int
+        Kept draws are thinned further (evenly) to at most this many.
+
+    Raises
+    ------
+    SetupError
+        Resuming without a checkpoint or with one from a different run; a
+        walker start outside the prior.
+    """
+    t_start = time.perf_counter()
+    rng_opt, rng_init, rng_mcmc = np.random.default_rng(seed).spawn(3)
+    if problem.method == "deterministic":
+        return _identify_deterministic(problem, seed, rng_opt, t_start)
+
+    lp_full = LogPosterior(problem.priors, problem.likelihood)
+    n_walkers = settings.walkers(problem.layout.ndim)
+    fingerprint = _fingerprint(problem, seed, settings, n_walkers)
+    ckpt = Checkpoint(checkpoint_path) if checkpoint_path is not None else None
+    warnings: list[str] = []
+    optimum = None
+    resume_state = None
+    initial = None
+    if resume:
+        if ckpt is None or not ckpt.exists():
+            raise SetupError(f"--resume: no checkpoint found at {checkpoint_path}")
+        resume_state = ckpt.open()
+        meta = resume_state.meta
+        if meta.get("fingerprint") != fingerprint:
+            diff = sorted(k for k in fingerprint if meta.get("fingerprint", {}).get(k) != fingerprint[k])
+            raise SetupError(f"--resume: the checkpoint {checkpoint_path} belongs to a different run (differs in {diff})")
+        beta, tau_r = float(meta["tempering"]), float(meta["residual_correlation"])
+        optimum = Optimum(np.array(meta["optimum"]), float(meta["optimum_log_posterior"]), 0, True, "from checkpoint")
+    else:
+        start = _check_start(problem)
+        optimum = find_optimum(lp_full)
+        x0 = optimum.x.copy()
+        for j, value in start.items():
+            x0[j] = value
+        z = problem.likelihood.normalised_residuals(optimum.x)
+        tau_r = residual_correlation_length(z, problem.likelihood.stack.slices)
+        t = problem.options.tempering
+        beta = 1.0 / tau_r if t == "auto" else float(t)
+    lp = lp_full.with_likelihood(problem.likelihood.with_tempering(beta))
+    if not resume:
+        initial = initial_ensemble(lp, x0, rng_init, n_walkers)
+        if ckpt is not None:
+            ckpt.create(n_walkers, problem.layout.ndim, {
+                "fingerprint": fingerprint, "tempering": beta, "residual_correlation": tau_r,
+                "optimum": optimum.x.tolist(), "optimum_log_posterior": optimum.log_posterior,
+            })
+    from .diagnostics import chain_diagnostics
+
+    chain = run_ensemble(lp, settings, initial=initial, rng=rng_mcmc, checkpoint=ckpt, resume_state=resume_state,
+                         diagnose=chain_diagnostics)
+    if ckpt is not None:
+        ckpt.finish()
+
+    kept = chain.chain[chain.burn :: chain.thin]  # (n_keep, n_walkers, ndim)
+    kept_lp = chain.log_prob[chain.burn :: chain.thin]
+    extra = max(1, math.ceil(kept.shape[0] * kept.shape[1] / max_draws))
+    theta = np.ascontiguousarray(kept[::extra].transpose(1, 0, 2))
+    log_prob = np.ascontiguousarray(kept_lp[::extra].T)
+    flat = theta.reshape(-1, theta.shape[-1])
+
+    stack, measured_nat, _ = _evaluation_stack(problem)
+    nat = _predicted_natural_frequencies(problem, stack, flat)
+    values = problem.layout.values(flat)
+    names = problem.layout.names
+    diag = chain.diagnostics or {}
+    params = {}
+    for j, n in enumerate(names):
+        get = lambda key: float(diag[key][j]) if key in diag else None  # noqa: E731
+        params[n] = R.parameter_summary(values[n], get("rhat"), get("ess_bulk"), get("ess_tail"),
+                                        PARAMETER_UNITS.get(n, "1"))
+    stiffness, freqs = _stiffness_and_frequencies(problem, flat, nat, measured_nat)
+
+    if not chain.converged:
+        warnings.append(f"not converged: {chain.reason}")
+    if diag:
+        for j, n in enumerate(names):
+            if not diag["rhat"][j] < settings.rhat_max:
+                warnings.append(f"{n}: R-hat = {diag['rhat'][j]:.4f} >= {settings.rhat_max}")
+            if not diag["ess_bulk"][j] >= settings.ess_min:
+                warnings.append(f"{n}: bulk ESS = {diag['ess_bulk'][j]:.0f} < {settings.ess_min:g}")
+    warnings += R.growth_bound_warnings(values, problem.growth.growth_bound)
+    warnings += R.noise_scale_warnings(values, problem.observations)
+    for e in freqs:
+        if e["nan_fraction"] > 0:
+            warnings.append(
+                f"natural frequency at {e['clamping_length'] * 1e3:g} mm ({e['direction']}): "
+                f"{100 * e['nan_fraction']:.1f} % of the draws peak on a band edge (left out of the quantiles)"
+            )
+    if tau_r > 3:
+        # informative, not an error: large correlation lengths signal model discrepancy
+        warnings.append(
+            f"residuals are correlated over {tau_r:.1f} lines at the optimum: the likelihood is tempered by "
+            f"beta = {beta:.3g} (model discrepancy or smooth measurement errors)"
+        )
+
+    wall = time.perf_counter() - t_start
+    evals = lp_full.n_evaluations + lp.n_evaluations
+    summary = _common_summary(problem, seed)
+    summary.update({
+        "converged": bool(chain.converged),
+        "stop_reason": chain.reason,
+        "parameters": params,
+        "stiffness": stiffness,
+        "natural_frequencies": freqs,
+        "tau": R.tau_dict(names, chain.tau),
+        "n_steps": chain.n_steps,
+        "burn_in": chain.burn,
+        "thin": chain.thin * extra,
+        "acceptance_fraction": float(np.mean(chain.acceptance_fraction)),
+        "n_walkers": n_walkers,
+        "n_draws": int(flat.shape[0]),
+        "likelihood": {
+            "tempering": beta,
+            "residual_correlation_lines": tau_r,
+            "effective_lines": problem.likelihood.n_lines * beta,
+            "n_lines": problem.likelihood.n_lines,
+            "noise_floor": problem.likelihood.noise.floor,
+            "min_coherence": problem.likelihood.noise.min_coherence,
+        },
+        "optimum": {n: float(v[0]) for n, v in problem.layout.values(optimum.x[None, :]).items() if n in names},
+        "timing": {
+            "wall_time_s": wall,
+            "sampling_time_s": chain.wall_time,
+            "new_steps": chain.n_new_steps,
+            "log_posterior_evaluations": evals,
+            "evaluations_per_second": evals / wall if wall > 0 else None,
+            "min_ess_bulk_per_second": (float(np.min(diag["ess_bulk"])) / wall) if diag and wall > 0 else None,
+        },
+        "warnings": [w for w in warnings if w],
+    })
+    return IdentificationResult(
+        problem=problem, summary=summary, theta=theta, log_prob=log_prob, natural_frequency=nat.reshape(theta.shape[0], theta.shape[1], -1),
+        chain=chain, deterministic=None, optimum=optimum, tempering=beta, residual_correlation=tau_r, seed=int(seed),
+        evaluations=evals, wall_time=wall, warnings=tuple(w for w in warnings if w),
+    )
+
+
+def _identify_deterministic(problem: Problem, seed: int, rng: np.random.Generator, t_start: float) -> IdentificationResult:
+    from .search import grid_candidates
+
+    start = grid_candidates(problem.likelihood, problem.priors, n_best=1)[0]
+    fit = fit_deterministic(problem.likelihood, rng, x0=start)
+    theta = fit.theta[None, None, :]
+    stack, measured_nat, _ = _evaluation_stack(problem)
+    nat = _predicted_natural_frequencies(problem, stack, fit.theta[None, :])
+    params = {n: R.parameter_summary(np.array([v]), unit=PARAMETER_UNITS.get(n, "1")) for n, v in fit.values.items()}
+    stiffness, freqs = _stiffness_and_frequencies(problem, fit.theta[None, :], nat, measured_nat)
+    warnings = []
+    if not fit.success:
+        warnings.append(f"optimiser: {fit.message}")
+    q = problem.growth.growth_bound
+    for n in ("g_xf", "g_thetaM"):
+        if n in fit.values and q > 0 and fit.values[n] > 0.99 * q:
+            warnings.append(f"{n} = {fit.values[n]:.4g} sits on the growth bound Q = {q:g}: the fit wants more growth "
+                            f"than Q allows (prior-data conflict) or {n} is poorly determined by the data")
+    wall = time.perf_counter() - t_start
+    summary = _common_summary(problem, seed)
+    summary.update({
+        "converged": bool(fit.success),
+        "stop_reason": fit.message,
+        "objective_percent": fit.objective,
+        "parameters": params,
+        "stiffness": stiffness,
+        "natural_frequencies": freqs,
+        "timing": {"wall_time_s": wall, "objective_evaluations": fit.n_evaluations},
+        "warnings": warnings,
+    })
+    return IdentificationResult(
+        problem=problem, summary=summary, theta=theta, log_prob=None, natural_frequency=nat[None],
+        deterministic=fit, seed=int(seed), evaluations=fit.n_evaluations, wall_time=wall, warnings=tuple(warnings),
+    )
+
+
+# -- files -----------------------------------------------------------------
+
+
+def _frf_panels(result: IdentificationResult, rng: np.random.Generator, n_draws: int = 300) -> list[dict]:
+    problem = result.problem
+    panels = []
+    for cfg, frf in problem.all_measurements:
+        band = problem.band_of(frf)
+        mask = band_mask(frf, band)
+        f = frf.frequency_hz[mask]
+        h = np.abs(predict_frf(result, cfg, f, max_draws=n_draws, rng=rng))
+        q05, q50, q95 = np.quantile(h, [0.05, 0.5, 0.95], axis=0)
+        used = any(o.configuration == cfg and o.source == frf.source for o in problem.observations)
+        panels.append({"title": f"{cfg.label()}{'' if used else ' (not fitted)'}", "frequency_hz": f,
+                       "measured": frf.values[mask], "q05": q05, "q50": q50, "q95": q95})
+    return panels
+
+
+def write_outputs(result: IdentificationResult, out_dir, plots: bool = True) -> list[Path]:
+    """Write summary.json, posterior.nc (Bayesian methods) and PNG plots to ``out_dir``.
+
+    Returns
+    -------
+    list of Path written
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    problem = result.problem
+    names = problem.layout.names
+    if result.chain is not None:
+        written.append(_write_posterior(result, out / "posterior.nc"))
+    if plots:
+        from . import plots as P
+
+        labels = sampling_labels(names)
+        if result.chain is not None:
+            written.append(P.trace_plot(result.chain.chain, labels, result.chain.burn, out / "trace.png"))
+            written.append(P.corner_plot(result.flat_theta, labels, out / "corner.png"))
+        written.append(P.frf_plot(_frf_panels(result, np.random.default_rng(result.seed)), out / "frf.png"))
+    R.write_summary(out / "summary.json", result.summary)
+    written.append(out / "summary.json")
+    return written
+
+
+def _write_posterior(result: IdentificationResult, path: Path) -> Path:
+    from .diagnostics import build_inference_data, write_netcdf
+
+    problem = result.problem
+    nc, nd, _ = result.theta.shape
+    flat = result.flat_theta
+    values = problem.layout.values(flat)
+    post = {n: values[n].reshape(nc, nd) for n in problem.layout.names}
+    lengths = np.array(sorted({round(c.clamping_length, 12) for c, _ in problem.all_measurements}))
+    kx, kt, _, _ = problem.layout.contact(flat, lengths)
+    post["k_xf_at_length"] = kx.reshape(nc, nd, -1)
+    post["k_thetaM_at_length"] = kt.reshape(nc, nd, -1)
+    post["natural_frequency"] = result.natural_frequency
+    lik = problem.likelihood.with_tempering(result.tempering)
+    ll = np.concatenate([lik.pointwise(flat[a : a + 256]) for a in range(0, flat.shape[0], 256)])
+    obs = problem.observations
+    constant = {
+        "frequency_hz": problem.likelihood.stack.frequency_hz,
+        "line_measurement": problem.likelihood.stack.index,
+        "fit_clamping_length": np.array([o.configuration.clamping_length for o in obs]),
+        "band_lo_hz": np.array([o.band.lo_hz for o in obs]),
+        "band_hi_hz": np.array([o.band.hi_hz for o in obs]),
+        "measured_natural_frequency": np.array([e["measured_hz"] if e["measured_hz"] is not None else np.nan
+                                                for e in result.summary["natural_frequencies"]]),
+        "measurement_clamping_length": np.array([c.clamping_length for c, _ in problem.all_measurements]),
+    }
+    labels = [f"{c.label()} [{f.source}]" for c, f in problem.all_measurements]
+    idata = build_inference_data(
+        posterior=post,
+        log_prob=result.log_prob,
+        log_likelihood=ll.reshape(nc, nd, -1),
+        observed=problem.likelihood.data,
+        constant=constant,
+        dims={
+            "k_xf_at_length": ["clamping_length"], "k_thetaM_at_length": ["clamping_length"],
+            "natural_frequency": ["measurement"], "frequency_hz": ["line"], "line_measurement": ["line"],
+            "fit_clamping_length": ["fit_measurement"], "band_lo_hz": ["fit_measurement"], "band_hi_hz": ["fit_measurement"],
+            "measured_natural_frequency": ["measurement"], "measurement_clamping_length": ["measurement"],
+        },
+        coords={"clamping_length": lengths, "measurement": labels, "line": np.arange(problem.likelihood.n_lines),
+                "fit_measurement": [o.source for o in obs]},
+        attrs={"method": problem.method, "seed": result.seed, "converged": result.summary["converged"],
+               "tempering": result.tempering, "growth_bound": problem.growth.growth_bound,
+               "l_a": problem.growth.l_a, "l_b": problem.growth.l_b, "created_by": "bayes_rcsa identify"},
+    )
+    return write_netcdf(idata, path)

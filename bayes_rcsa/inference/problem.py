@@ -1,0 +1,305 @@
+"""Assemble an identification problem: which measurements, bands, priors, likelihood.
+
+Methods
+-------
+``multi`` (default)
+    All selected measurements at once.  With two or more distinct clamping
+    lengths this is the paper's Method II: ``k(l)`` follows the bounded
+    linear growth law over the feasible range ``[l_a, l_b]`` and the
+    sampled stiffness is ``k(l_a)``.  With a single clamping length (several
+    tools, or one tool) it is Method I: one contact stiffness shared by all
+    measurements, no growth parameters.
+``single``
+    The literature method: exactly one clamping length, one constant
+    contact stiffness, which predictions then transfer unchanged to other
+    lengths.
+``deterministic``
+    The paper's deterministic baseline (:mod:`.deterministic`) with the
+    same parameterisation as ``multi`` (so one length gives the classical
+    single-length fit).
+
+Setup tables read here (all optional)
+-------------------------------------
+``[likelihood]``: ``band = [lo, hi]`` (Hz, replaces the default rule),
+``band_ratio`` (1.25), ``band_rel_height`` (0.5), ``noise_floor`` (0.01),
+``min_coherence`` (0.05), ``tempering`` (``"auto"`` or a number in (0, 1]),
+``noise_scale = [lo, hi]`` (log-uniform bounds of the relative noise
+scales, default ``[1e-4, 10]``).
+
+``[priors]``: replaces the prior of ``k_xf``, ``k_thetaM``, ``g_xf``,
+``g_thetaM``, ``c_xf`` or ``c_thetaM`` by a table, e.g.
+``k_xf = {distribution = "log-normal", median = 2e6, sigma = 0.5}``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from ..errors import SetupError
+from ..io.setup import ContactSpec, Setup
+from ..model.assembly import Configuration, ToolPointModel
+from ..model.receptance import FRF
+from .band import Band, resolve_band
+from .likelihood import FRFLikelihood, NoiseModel, Observation, make_observation
+from .parameters import GrowthLaw, ParameterLayout
+from .priors import LogUniform, Prior, PriorSet, Uniform, prior_from_spec
+
+__all__ = ["METHODS", "IdentificationOptions", "Problem", "build_problem", "build_problem_from_setup", "select_measurements"]
+
+METHODS = ("multi", "single", "deterministic")
+
+_LENGTH_MATCH = 1e-7  # m; lengths given in mm on the command line match file values to 0.1 um
+
+
+@dataclass(frozen=True)
+class IdentificationOptions:
+    """Choices that are not part of the physical model.
+
+    Attributes
+    ----------
+    method : {"multi", "single", "deterministic"}
+    lengths : tuple of float or None
+        m; use only measurements at these clamping lengths.
+    band : (lo, hi) Hz or None
+        Overrides the default band rule.
+    band_ratio, band_rel_height : float
+        Parameters of the default band rule (:mod:`.band`).
+    noise_floor, min_coherence : float
+        Noise model (:mod:`.likelihood`).
+    tempering : "auto" or float
+        ``"auto"``: ``1 / residual correlation length`` at the optimum.
+    noise_scale : (lo, hi)
+        Log-uniform prior bounds of the relative noise scales.
+    priors : mapping
+        User prior tables (``[priors]``).
+    start : mapping or None
+        Physical parameter values to start the walkers around (``[sampler]
+        start``) instead of the global optimum.
+    """
+
+    method: str = "multi"
+    lengths: tuple[float, ...] | None = None
+    band: tuple[float, float] | None = None
+    band_ratio: float = 1.25
+    band_rel_height: float = 0.5
+    noise_floor: float = 0.01
+    min_coherence: float = 0.05
+    tempering: Any = "auto"
+    noise_scale: tuple[float, float] = (1e-4, 10.0)
+    priors: Mapping[str, Any] = field(default_factory=dict)
+    start: Mapping[str, float] | None = None
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise SetupError(f"method = {self.method!r}: expected one of {METHODS}")
+        t = self.tempering
+        if not (t == "auto" or (isinstance(t, (int, float)) and not isinstance(t, bool) and 0 < t <= 1)):
+            raise SetupError(f"likelihood tempering = {t!r}: expected \"auto\" or a number in (0, 1]")
+
+    @classmethod
+    def from_setup(cls, extra: Mapping[str, Any], **overrides) -> "IdentificationOptions":
+        """Options from the setup's ``[likelihood]``, ``[priors]`` and ``[sampler]`` tables.
+
+        Keyword ``overrides`` (command-line values) win when not ``None``.
+        """
+        lik = dict(extra.get("likelihood", {}) or {})
+        known = {"band", "band_ratio", "band_rel_height", "noise_floor", "min_coherence", "tempering", "noise_scale"}
+        unknown = set(lik) - known
+        if unknown:
+            raise SetupError(f"[likelihood]: unknown key(s) {sorted(unknown)}; expected some of {sorted(known)}")
+        kw: dict[str, Any] = {}
+        for key in known:
+            if key in lik:
+                kw[key] = _tuple(lik[key], f"likelihood.{key}") if key in ("band", "noise_scale") else lik[key]
+        for key in ("band_ratio", "band_rel_height", "noise_floor", "min_coherence"):
+            if key in kw:
+                kw[key] = _number(kw[key], f"likelihood.{key}")
+        priors = dict(extra.get("priors", {}) or {})
+        sampler = dict(extra.get("sampler", {}) or {})
+        start = sampler.get("start")
+        if start is not None and not isinstance(start, Mapping):
+            raise SetupError(f"sampler.start = {start!r}: expected a table of parameter = value")
+        kw["priors"] = priors
+        kw["start"] = None if start is None else {k: _number(v, f"sampler.start.{k}") for k, v in start.items()}
+        kw.update({k: v for k, v in overrides.items() if v is not None})
+        return cls(**kw)
+
+
+def _number(v, what: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise SetupError(f"{what} = {v!r}: expected a finite number")
+    return float(v)
+
+
+def _tuple(v, what: str) -> tuple[float, float]:
+    if not isinstance(v, (list, tuple)) or len(v) != 2:
+        raise SetupError(f"{what} = {v!r}: expected a [lo, hi] pair")
+    return (_number(v[0], what), _number(v[1], what))
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A fully specified identification problem.
+
+    Attributes
+    ----------
+    model : ToolPointModel
+    method : str
+    measurements : tuple of (Configuration, FRF)
+        The measurements used in the fit.
+    observations : tuple of Observation
+        Their band lines.
+    layout : ParameterLayout
+    likelihood : FRFLikelihood
+        Untempered (beta = 1).
+    growth : GrowthLaw
+    options : IdentificationOptions
+    all_measurements : tuple of (Configuration, FRF)
+        Every measurement of the setup (for transfer checks).
+    """
+
+    model: ToolPointModel
+    method: str
+    measurements: tuple
+    observations: tuple
+    layout: ParameterLayout
+    likelihood: FRFLikelihood
+    growth: GrowthLaw
+    options: IdentificationOptions
+    all_measurements: tuple
+
+    @property
+    def priors(self) -> PriorSet:
+        return self.layout.priors
+
+    def band_of(self, frf: FRF) -> Band:
+        o = self.options
+        return resolve_band(frf, o.band, ratio=o.band_ratio, rel_height=o.band_rel_height)
+
+
+def select_measurements(measurements: Sequence[tuple[Configuration, FRF]], lengths) -> tuple:
+    """Measurements whose clamping length is one of ``lengths`` (all if ``None``).
+
+    Raises
+    ------
+    SetupError
+        If a requested length matches no measurement.
+    """
+    if lengths is None:
+        return tuple(measurements)
+    out = []
+    for length in lengths:
+        hits = [m for m in measurements if abs(m[0].clamping_length - length) < _LENGTH_MATCH]
+        if not hits:
+            have = sorted({round(m[0].clamping_length * 1e3, 6) for m in measurements})
+            raise SetupError(f"--lengths: no measurement at clamping length {length * 1e3:g} mm; measured: {have} mm")
+        out.extend(h for h in hits if h not in out)
+    return tuple(sorted(out, key=lambda m: (m[0].clamping_length, m[0].tool, m[0].direction)))
+
+
+def _damping(spec, name: str, user: Mapping[str, Any]) -> tuple[Prior | None, float | None]:
+    if name in user:
+        return prior_from_spec(user[name], f"priors.{name}"), None
+    if isinstance(spec, (list, tuple)):
+        return prior_from_spec(spec, f"contact.{name}"), None
+    value = float(spec)
+    if not (math.isfinite(value) and value >= 0):
+        raise SetupError(f"contact damping {name} = {spec!r}: expected a number >= 0 or a [lo, hi] pair")
+    return None, value
+
+
+def build_problem(
+    model: ToolPointModel,
+    measurements: Sequence[tuple[Configuration, FRF]],
+    contact: ContactSpec,
+    options: IdentificationOptions = IdentificationOptions(),
+) -> Problem:
+    """Build the problem from a model, measurements and the contact priors.
+
+    Parameters
+    ----------
+    model : ToolPointModel
+    measurements : sequence of (Configuration, FRF)
+        All measurements of the campaign; ``options.lengths`` selects.
+    contact : ContactSpec
+    options : IdentificationOptions
+
+    Raises
+    ------
+    SetupError
+        Lengths outside the feasible range, ``single`` with several lengths,
+        a prior or option that makes no sense.
+    DataError
+        An empty band.
+    """
+    if len(measurements) == 0:
+        raise SetupError("no measurements to identify from")
+    all_meas = tuple(measurements)
+    if contact.clamping_range is not None:
+        l_a, l_b = (float(v) for v in contact.clamping_range)
+    else:
+        l_a, l_b = min(c.clamping_length for c, _ in all_meas), max(c.clamping_length for c, _ in all_meas)
+    feasible = GrowthLaw(l_a, l_b, float(contact.growth_bound))
+    feasible.check_lengths([c.clamping_length for c, _ in all_meas], "measured clamping length")
+    if options.lengths is not None:
+        feasible.check_lengths(options.lengths, "--lengths value")
+    used = select_measurements(all_meas, options.lengths)
+    lengths = sorted({round(c.clamping_length, 12) for c, _ in used})
+    if options.method == "single" and len(lengths) != 1:
+        raise SetupError(
+            f"method 'single' fits one clamping length, but the selected measurements have {len(lengths)} "
+            f"({[round(v * 1e3, 4) for v in lengths]} mm); choose one with --lengths"
+        )
+    growth = feasible if len(lengths) > 1 else GrowthLaw(lengths[0], lengths[0], float(contact.growth_bound))
+
+    user = dict(options.priors)
+    allowed = {"k_xf", "k_thetaM", "g_xf", "g_thetaM", "c_xf", "c_thetaM"}
+    if set(user) - allowed:
+        raise SetupError(f"[priors]: unknown parameter(s) {sorted(set(user) - allowed)}; expected some of {sorted(allowed)}")
+    priors: dict[str, Prior] = {}
+    fixed: dict[str, float] = {}
+    priors["k_xf"] = prior_from_spec(user.get("k_xf", list(contact.translational_stiffness)), "contact.translational_stiffness")
+    priors["k_thetaM"] = prior_from_spec(user.get("k_thetaM", list(contact.rotational_stiffness)), "contact.rotational_stiffness")
+    if growth.has_growth:
+        q = growth.growth_bound
+        if q <= 0:
+            fixed["g_xf"] = fixed["g_thetaM"] = 0.0
+        else:
+            priors["g_xf"] = prior_from_spec(user["g_xf"], "priors.g_xf", "uniform") if "g_xf" in user else Uniform(0.0, q)
+            priors["g_thetaM"] = prior_from_spec(user["g_thetaM"], "priors.g_thetaM", "uniform") if "g_thetaM" in user else Uniform(0.0, q)
+            for name in ("g_xf", "g_thetaM"):
+                lo, hi = priors[name].bounds
+                if lo < 0 or hi > q:
+                    raise SetupError(f"priors.{name}: support [{lo:g}, {hi:g}] must lie within [0, Q = {q:g}] (growth law)")
+    else:
+        fixed["g_xf"] = fixed["g_thetaM"] = 0.0
+    for name, spec in (("c_xf", contact.translational_damping), ("c_thetaM", contact.rotational_damping)):
+        p, v = _damping(spec, name, user)
+        if p is not None:
+            priors[name] = p
+        else:
+            fixed[name] = v
+    noise_prior = LogUniform(*options.noise_scale)
+    observations = []
+    for j, (cfg, frf) in enumerate(used):
+        band = resolve_band(frf, options.band, ratio=options.band_ratio, rel_height=options.band_rel_height)
+        observations.append(make_observation(frf, cfg, band, options.min_coherence))
+        priors[ParameterLayout.noise_name(j)] = noise_prior
+    layout = ParameterLayout(PriorSet(priors), fixed, growth, len(used))
+    noise = NoiseModel(options.noise_floor, options.min_coherence)
+    likelihood = FRFLikelihood(model, observations, layout, noise)
+    return Problem(model, options.method, used, tuple(observations), layout, likelihood, growth, options, all_meas)
+
+
+def build_problem_from_setup(setup: Setup, options: IdentificationOptions) -> Problem:
+    """:func:`build_problem` for a loaded setup file."""
+    meas = []
+    for m in setup.measurements:
+        if m.frf is None:
+            raise SetupError(f"{setup.path}: measurement {m.file} was not loaded (load_setup(..., load_data=True))")
+        meas.append((m.configuration, m.frf))
+    return build_problem(setup.model(), meas, setup.contact, options)

@@ -1,0 +1,488 @@
+"""Global optimum, walker initialisation and the emcee run loop.
+
+Determinism without global seeding
+----------------------------------
+Everything random takes an explicit :class:`numpy.random.Generator`.
+emcee 3 draws its proposals from a private ``numpy.random.RandomState``;
+:func:`run_ensemble` seeds it with an integer drawn from the caller's
+Generator and hands it to emcee as the ``random_state`` of the initial
+:class:`emcee.State` (emcee then calls ``set_state`` on its own generator,
+never touching numpy's global one).  The same seed therefore gives the same
+chain bit for bit, and the generator state saved with every checkpoint
+batch makes a resumed run continue exactly as the uninterrupted one would.
+
+Convergence
+-----------
+Every ``check_every`` steps (at absolute step numbers, so that a resumed run
+checks at the same places) the integrated autocorrelation time ``tau`` of
+each parameter is estimated from the whole chain (emcee's estimator).  The
+run stops when
+
+* the chain is longer than ``tau_factor`` (50) times the largest ``tau``,
+* every ``tau`` changed by less than ``tau_rtol`` since the previous check,
+* after discarding ``burn = ceil(3 max tau)`` steps and thinning by
+  ``thin``, the rank-normalised split R-hat (walkers as chains) is below
+  ``rhat_max`` and the bulk ESS at least ``ess_min`` for every parameter
+  (computed by :mod:`.diagnostics`; thinning by half the smallest tau
+  leaves the ESS essentially unchanged and makes the check cheap),
+
+or when ``max_steps`` is reached, in which case the run is reported as not
+converged.  The samples kept are thinned by ``thin = max(1, floor(min tau / 2))``.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ..errors import ConvergenceError, SetupError
+from .checkpoint import Checkpoint, CheckpointState
+from .posterior import LogPosterior
+from .search import derivatives
+
+__all__ = [
+    "SamplerSettings",
+    "ChainResult",
+    "Optimum",
+    "find_optimum",
+    "initial_ensemble",
+    "run_ensemble",
+    "burn_and_thin",
+]
+
+
+@dataclass(frozen=True)
+class SamplerSettings:
+    """Options of the ensemble run (defaults suit up to about 8 parameters).
+
+    Attributes
+    ----------
+    n_walkers : int
+        Even, at least ``2 * ndim + 2``; ``None`` picks ``max(32, 4 ndim)``.
+    max_steps : int
+        Cap on the number of steps (not converged if reached).
+    check_every : int
+        Steps between convergence checks.
+    tau_factor : float
+        Required chain length in units of the largest autocorrelation time.
+    tau_rtol : float
+        Required relative stability of tau between two checks.
+    rhat_max, ess_min : float
+        Required R-hat and bulk ESS of every parameter.
+    checkpoint_interval : float
+        Seconds between checkpoint writes.
+    progress : bool
+        Progress line on stderr.
+    snooker_fraction : float
+        Probability of a DESnookerMove (the rest are DEMoves).
+    """
+
+    n_walkers: int | None = None
+    max_steps: int = 20000
+    check_every: int = 250
+    tau_factor: float = 50.0
+    tau_rtol: float = 0.05
+    rhat_max: float = 1.01
+    ess_min: float = 400.0
+    checkpoint_interval: float = 2.0
+    progress: bool = True
+    snooker_fraction: float = 0.2
+
+    def walkers(self, ndim: int) -> int:
+        n = self.n_walkers if self.n_walkers is not None else max(32, 4 * ndim)
+        if n < 2 * ndim + 2 or n % 2:
+            raise SetupError(f"n_walkers = {n}: expected an even number >= {2 * ndim + 2} for {ndim} parameters")
+        return n
+
+    def __post_init__(self) -> None:
+        if self.max_steps < 1 or self.check_every < 1:
+            raise SetupError(f"max_steps = {self.max_steps}, check_every = {self.check_every}: expected positive integers")
+
+
+@dataclass(frozen=True)
+class Optimum:
+    """Result of the global optimisation of the log posterior.
+
+    Attributes
+    ----------
+    x : (ndim,) sampling coordinates of the optimum
+    log_posterior : float
+    n_evaluations : int
+    success : bool
+    message : str
+    """
+
+    x: np.ndarray
+    log_posterior: float
+    n_evaluations: int
+    success: bool
+    message: str
+
+
+@dataclass(frozen=True)
+class ChainResult:
+    """Output of :func:`run_ensemble`.
+
+    Attributes
+    ----------
+    chain : (n_steps, n_walkers, ndim) all stored steps (sampling coordinates)
+    log_prob : (n_steps, n_walkers)
+    accepted : (n_walkers,) accepted proposals
+    tau : (ndim,) integrated autocorrelation times at the end (steps)
+    converged : bool
+    reason : str
+        Why the run stopped.
+    burn, thin : int
+    diagnostics : dict
+        ``{"rhat": (ndim,), "ess_bulk": (ndim,), "ess_tail": (ndim,)}`` of
+        the kept part (may be empty if too short to compute).
+    tau_history : list of (step, max tau)
+    wall_time : float
+        Seconds spent sampling in this process.
+    n_new_steps : int
+        Steps computed in this process (the rest came from the checkpoint).
+    """
+
+    chain: np.ndarray
+    log_prob: np.ndarray
+    accepted: np.ndarray
+    tau: np.ndarray
+    converged: bool
+    reason: str
+    burn: int
+    thin: int
+    diagnostics: dict
+    tau_history: list = field(default_factory=list)
+    wall_time: float = 0.0
+    n_new_steps: int = 0
+
+    @property
+    def n_steps(self) -> int:
+        return int(self.chain.shape[0])
+
+    @property
+    def acceptance_fraction(self) -> np.ndarray:
+        return self.accepted / max(self.n_steps, 1)
+
+
+# -- optimisation and start ------------------------------------------------
+
+
+def find_optimum(log_post: LogPosterior, n_candidates: int = 3, max_lines: int = 64) -> Optimum:
+    """Global maximum of the log posterior: likelihood grid, then L-BFGS-B polish.
+
+    See :mod:`.search` for why a grid over the stiffness (and growth) is used
+    instead of a population optimiser.  The best ``n_candidates``
+    well-separated grid points are polished; the best result wins.
+
+    Parameters
+    ----------
+    log_post : LogPosterior
+        Untempered.
+    n_candidates : int
+    max_lines : int
+        Lines per measurement in the grid stage.
+    """
+    from .search import grid_candidates, polish
+
+    n0 = log_post.n_evaluations
+    bounds = log_post.priors.optimisation_bounds()
+    best_x, best_v = None, -np.inf
+    for x0 in grid_candidates(log_post.likelihood, log_post.priors, max_lines, n_candidates):
+        x, v = polish(log_post, x0, bounds)
+        if v > best_v:
+            best_x, best_v = x, v
+    if best_x is None or not np.isfinite(best_v):
+        raise ConvergenceError("the optimiser found no point with a finite posterior density")
+    return Optimum(best_x, float(best_v), log_post.n_evaluations - n0, True,
+                   f"grid search + L-BFGS-B polish of {n_candidates} candidates")
+
+
+def initial_ensemble(log_post: LogPosterior, x0: np.ndarray, rng: np.random.Generator, n_walkers: int) -> np.ndarray:
+    """Walkers spread around ``x0`` by the local (Laplace) covariance of the posterior.
+
+    The covariance is the inverse finite-difference Hessian of ``-log_post``
+    at ``x0``.  Where the Hessian is not positive definite (the optimum on
+    a prior bound, a flat direction), the spread in each coordinate falls
+    back to ``1/sqrt(H_ii)``, and each standard deviation is kept within
+    ``[1e-4, 0.1]`` times the prior width so that the ball neither collapses
+    nor spills over the whole prior.  Draws outside the support (or with a
+    non-finite posterior) are redrawn.
+
+    Returns
+    -------
+    (n_walkers, ndim)
+    """
+    nd = x0.size
+    lo, hi = np.array(log_post.priors.optimisation_bounds()).T
+    width = hi - lo
+    step = 1e-4 * width
+    # stay inside the support for the finite differences
+    x_fd = np.clip(x0, lo + 2 * step, hi - 2 * step)
+    _, _, h = derivatives(log_post, x_fd, step)
+    cov = None
+    if np.all(np.isfinite(h)):
+        try:
+            np.linalg.cholesky(h)
+            cov = np.linalg.inv(h)
+        except np.linalg.LinAlgError:
+            cov = None
+    sd_lo, sd_hi = 1e-4 * width, 0.1 * width
+    if cov is None:
+        diag = np.diag(h) if np.all(np.isfinite(h)) else np.full(nd, np.nan)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sd = np.where(diag > 0, 1.0 / np.sqrt(diag), sd_hi)
+        sd = np.clip(sd, sd_lo, sd_hi)
+        cov = np.diag(sd**2)
+    else:
+        sd = np.sqrt(np.diag(cov))
+        scale = np.clip(sd, sd_lo, sd_hi) / sd
+        cov = cov * np.outer(scale, scale)
+    chol = np.linalg.cholesky(cov + np.diag((1e-12 * width) ** 2))
+    out = np.empty((0, nd))
+    for _ in range(100):
+        z = x0 + rng.standard_normal((2 * n_walkers, nd)) @ chol.T
+        ok = np.isfinite(log_post(z))
+        out = np.vstack([out, z[ok]])
+        if out.shape[0] >= n_walkers:
+            return out[:n_walkers]
+    raise ConvergenceError(
+        f"could not place {n_walkers} walkers with finite posterior around the optimum {x0.tolist()}"
+    )
+
+
+# -- running ---------------------------------------------------------------
+
+
+def burn_and_thin(tau: np.ndarray, n_steps: int) -> tuple[int, int]:
+    """Burn-in ``ceil(3 max tau)`` and thinning ``max(1, floor(min tau / 2))`` (bounded by the chain)."""
+    tau = np.asarray(tau, dtype=float)
+    if not np.all(np.isfinite(tau)):
+        return n_steps // 2, 1
+    burn = min(int(math.ceil(3 * tau.max())), n_steps // 2)
+    thin = max(1, int(tau.min() // 2))
+    return burn, thin
+
+
+def _tau(chain: np.ndarray) -> np.ndarray:
+    from emcee.autocorr import integrated_time
+
+    return np.asarray(integrated_time(chain, tol=0, quiet=True), dtype=float)
+
+
+class _Progress:
+    """A minimal progress line on stderr (no dependency on tqdm)."""
+
+    def __init__(self, enabled: bool, total: int):
+        self.enabled = enabled
+        self.total = total
+        self.tty = enabled and sys.stderr.isatty()
+        self.last = 0.0
+
+    def update(self, step: int, extra: str = "", force: bool = False) -> None:
+        if not self.enabled:
+            return
+        now = time.monotonic()
+        if not force and (not self.tty or now - self.last < 0.25):
+            return
+        self.last = now
+        frac = step / self.total
+        bar = "#" * int(30 * frac) + "-" * (30 - int(30 * frac))
+        line = f"sampling [{bar}] {step}/{self.total} {extra}"
+        if self.tty:
+            sys.stderr.write("\r" + line[:120].ljust(120))
+        else:
+            sys.stderr.write(line + "\n")
+        sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.tty:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
+
+
+def run_ensemble(
+    log_post: LogPosterior,
+    settings: SamplerSettings,
+    *,
+    initial: np.ndarray | None = None,
+    rng: np.random.Generator | None = None,
+    checkpoint: Checkpoint | None = None,
+    resume_state: CheckpointState | None = None,
+    diagnose: Callable[[np.ndarray], dict] | None = None,
+) -> ChainResult:
+    """Run emcee's EnsembleSampler until converged or ``settings.max_steps``.
+
+    Parameters
+    ----------
+    log_post : LogPosterior
+        Called with whole walker batches (``vectorize=True``).
+    settings : SamplerSettings
+    initial : (n_walkers, ndim), optional
+        Start of a new run; every walker must lie inside the prior.
+    rng : numpy.random.Generator
+        Seeds emcee's proposal generator for a new run.
+    checkpoint : Checkpoint, optional
+        Where steps are appended (created beforehand by the caller).
+    resume_state : CheckpointState, optional
+        Continue this run instead of starting from ``initial``.
+    diagnose : callable, optional
+        ``diagnose(chain (n, n_walkers, ndim)) -> {"rhat", "ess_bulk", "ess_tail"}``;
+        without it only the tau criteria decide convergence.
+
+    Raises
+    ------
+    SetupError
+        A walker start outside the prior, or walkers that are not linearly
+        independent.
+    """
+    import emcee
+
+    nd = log_post.ndim
+    if resume_state is not None:
+        coords0 = resume_state.chain[-1]
+        lp0 = resume_state.log_prob[-1]
+        rstate = resume_state.random_state
+        done = resume_state.iteration
+        chain_parts = [resume_state.chain]
+        lp_parts = [resume_state.log_prob]
+        accepted = resume_state.accepted.astype(float).copy()
+    else:
+        if initial is None or rng is None:
+            raise SetupError("a new run needs initial walker positions and a random generator")
+        coords0 = np.asarray(initial, dtype=float)
+        log_post.priors.check_inside(coords0, "walker start")
+        lp0 = log_post(coords0)
+        if not np.all(np.isfinite(lp0)):
+            i = int(np.argmax(~np.isfinite(lp0)))
+            raise SetupError(f"walker start {i} has a non-finite log posterior ({lp0[i]!r})")
+        rstate = np.random.RandomState(int(rng.integers(0, 2**32 - 1))).get_state()
+        done = 0
+        chain_parts, lp_parts = [], []
+        accepted = np.zeros(coords0.shape[0])
+    n_walkers = coords0.shape[0]
+    if coords0.shape != (n_walkers, nd):
+        raise SetupError(f"walker positions have shape {coords0.shape}, expected (n_walkers, {nd})")
+    if resume_state is None:
+        from emcee.ensemble import walkers_independent
+
+        if not walkers_independent(coords0):
+            raise SetupError("the walker starts are not linearly independent (a degenerate initial ensemble)")
+
+    moves = [(emcee.moves.DEMove(), 1.0 - settings.snooker_fraction), (emcee.moves.DESnookerMove(), settings.snooker_fraction)]
+    sampler = emcee.EnsembleSampler(n_walkers, nd, log_post, moves=moves, vectorize=True)
+
+    chain = np.concatenate(chain_parts) if chain_parts else np.empty((0, n_walkers, nd))
+    log_prob = np.concatenate(lp_parts) if lp_parts else np.empty((0, n_walkers))
+
+    last_diag = [0]
+
+    def decide(chain_now: np.ndarray, prev_tau):
+        n = chain_now.shape[0]
+        tau = _tau(chain_now)
+        ok_len = np.all(np.isfinite(tau)) and n > settings.tau_factor * tau.max()
+        ok_stable = prev_tau is not None and np.all(np.abs(tau - prev_tau) < settings.tau_rtol * tau)
+        diag = {}
+        ok_diag = False
+        # R-hat/ESS cost grows with the chain: evaluate them on the tau-thinned chain, and again
+        # only once the chain has grown by 10 % (they cannot change much in between).
+        if ok_len and ok_stable and n >= 1.1 * last_diag[0]:
+            last_diag[0] = n
+            burn, thin = burn_and_thin(tau, n)
+            if diagnose is None:
+                ok_diag = True
+            else:
+                diag = diagnose(chain_now[burn::thin])
+                ok_diag = bool(np.all(diag["rhat"] < settings.rhat_max) and np.all(diag["ess_bulk"] >= settings.ess_min))
+        return tau, bool(ok_len and ok_stable and ok_diag), diag
+
+    # Replay the checks a resumed run has already passed, for the tau history.
+    tau_history: list = []
+    prev_tau = None
+    for step in range(settings.check_every, done + 1, settings.check_every):
+        prev_tau = _tau(chain[:step])
+        tau_history.append((step, float(prev_tau.max())))
+
+    converged, reason, diag = False, "", {}
+    if done >= settings.max_steps:
+        reason = f"max_steps = {settings.max_steps} reached (checkpoint has {done} steps)"
+    elif tau_history:
+        # a previous process may have stopped at a converged check
+        _, converged, diag = decide(chain[: tau_history[-1][0]], _tau(chain[: tau_history[-2][0]]) if len(tau_history) > 1 else None)
+        if converged and tau_history[-1][0] == done:
+            reason = "converged (found in checkpoint)"
+        else:
+            converged = False
+
+    progress = _Progress(settings.progress, settings.max_steps)
+    t0 = time.perf_counter()
+    n_new = 0
+    if not reason:
+        remaining = settings.max_steps - done
+        state = emcee.State(coords0, log_prob=lp0, random_state=rstate)
+        buf_c, buf_l = [], []
+        acc_batch = np.zeros(n_walkers)
+        prev_coords = coords0.copy()
+        last_flush = time.monotonic()
+        new_c, new_l = [], []
+
+        def flush(rs) -> None:
+            nonlocal buf_c, buf_l, acc_batch, last_flush
+            if checkpoint is not None and buf_c:
+                checkpoint.append(np.array(buf_c), np.array(buf_l), acc_batch, rs)
+            buf_c, buf_l = [], []
+            acc_batch = np.zeros(n_walkers)
+            last_flush = time.monotonic()
+
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            for state in sampler.sample(state, iterations=remaining, store=False, progress=False,
+                                        skip_initial_state_check=True):
+                step = done + n_new + 1
+                n_new += 1
+                # DE proposals move an accepted walker with probability one
+                acc = np.any(state.coords != prev_coords, axis=1)
+                prev_coords = state.coords.copy()
+                accepted += acc
+                acc_batch += acc
+                buf_c.append(prev_coords)
+                buf_l.append(state.log_prob.copy())
+                new_c.append(buf_c[-1])
+                new_l.append(buf_l[-1])
+                if time.monotonic() - last_flush > settings.checkpoint_interval:
+                    flush(state.random_state)
+                if step % settings.check_every == 0:
+                    flush(state.random_state)
+                    chain = np.concatenate([chain, np.array(new_c)])
+                    log_prob = np.concatenate([log_prob, np.array(new_l)])
+                    new_c, new_l = [], []
+                    tau, converged, diag = decide(chain, prev_tau)
+                    prev_tau = tau
+                    tau_history.append((step, float(tau.max())))
+                    progress.update(step, f"tau_max={tau.max():.1f} acc={accepted.mean() / step:.2f}", force=True)
+                    if converged:
+                        reason = f"converged after {step} steps"
+                        break
+                else:
+                    progress.update(step)
+            flush(state.random_state)
+        if new_c:
+            chain = np.concatenate([chain, np.array(new_c)])
+            log_prob = np.concatenate([log_prob, np.array(new_l)])
+        if not reason:
+            reason = f"max_steps = {settings.max_steps} reached before convergence"
+    progress.close()
+    wall = time.perf_counter() - t0
+
+    tau = _tau(chain) if chain.shape[0] > 1 else np.full(nd, np.nan)
+    burn, thin = burn_and_thin(tau, chain.shape[0])
+    if not converged and diagnose is not None and (chain.shape[0] - burn) // thin >= 4:
+        diag = diagnose(chain[burn::thin])
+    return ChainResult(
+        chain=chain, log_prob=log_prob, accepted=accepted, tau=tau, converged=converged, reason=reason,
+        burn=burn, thin=thin, diagnostics=diag, tau_history=tau_history, wall_time=wall, n_new_steps=n_new,
+    )

@@ -1,0 +1,40 @@
+"""Posterior predictions: quantities derived from identified contact parameters."""
+
+from .natural_frequencies import NATURAL_FREQUENCY_RULE, natural_frequency
+
+__all__ = ["natural_frequency", "NATURAL_FREQUENCY_RULE"]
+
+# Posterior predictions, credible intervals and identifiability diagnostics.
+from .draws import CONTACT_NAMES, PosteriorDraws, draws_from_result, load_posterior  # noqa: E402
+from .identifiability import (  # noqa: E402
+    VERDICT_RULE,
+    contraction,
+    fisher_information,
+    parameter_identifiability,
+    ridge_analysis,
+    transfer_errors,
+    verdict,
+)
+from .predict import (  # noqa: E402
+    FRFBands,
+    ModePrediction,
+    Prediction,
+    PredictionTarget,
+    find_modes,
+    mode_statistics,
+    parameter_influence,
+    predict,
+    prediction_targets,
+    predictive_frf,
+)
+from .prediction_outputs import run_prediction, write_prediction_outputs  # noqa: E402
+from .study import plan_fits, run_study, write_study  # noqa: E402
+
+__all__ += [
+    "CONTACT_NAMES", "PosteriorDraws", "draws_from_result", "load_posterior",
+    "VERDICT_RULE", "contraction", "verdict", "parameter_identifiability", "ridge_analysis", "fisher_information",
+    "transfer_errors",
+    "PredictionTarget", "FRFBands", "ModePrediction", "Prediction", "prediction_targets", "predictive_frf",
+    "find_modes", "mode_statistics", "predict", "parameter_influence",
+    "run_prediction", "write_prediction_outputs", "plan_fits", "run_study", "write_study",
+]

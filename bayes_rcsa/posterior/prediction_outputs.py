@@ -1,0 +1,373 @@
+"""The ``predict`` workflow: posterior file -> predictions -> frequencies.json, CSV, plots, report.
+
+:func:`run_prediction` loads the draws and computes the predictions (nothing
+is written); :func:`write_prediction_outputs` writes
+
+* ``frequencies.json``: one entry per configuration and mode (natural
+  frequency quantiles, measured value where a measurement exists, peak
+  magnitude and dynamic stiffness intervals) plus the parameter influence;
+* ``frf_bands.csv``: the |H| quantile bands and the median real and
+  imaginary parts of every configuration;
+* ``frf_bands.png`` and ``natural_frequencies.png`` (numbers embedded, see
+  :mod:`.plots`);
+* ``report.md`` / ``report.html``: a table in the style of the reference
+  paper's Table 4 (measured vs predicted dominant natural frequency with
+  90 % intervals and errors), the per-mode table, and what the data leave
+  undetermined.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from ..errors import BayesRCSAError, SetupError
+from ..inference.parameters import GrowthLaw, PARAMETER_UNITS
+from ..io.atomic import atomic_path, atomic_write_text
+from .draws import CONTACT_NAMES, PosteriorDraws, load_posterior
+from .identifiability import VERDICT_RULE, parameter_identifiability
+from .natural_frequencies import NATURAL_FREQUENCY_RULE
+from .predict import (
+    MODE_REL_HEIGHT,
+    MODE_REL_PROMINENCE,
+    QUANTILE_KEYS,
+    Prediction,
+    predict,
+    prediction_targets,
+    quantile_dict,
+)
+from .report import fmt, fmt_interval, write_report
+
+__all__ = [
+    "PredictionRun",
+    "check_prediction_lengths",
+    "contact_identifiability",
+    "run_prediction",
+    "frequencies_document",
+    "influence_summary",
+    "write_prediction_outputs",
+    "undetermined_statement",
+    "DEFAULT_MAX_DRAWS",
+    "INSENSITIVE_PCT",
+]
+
+DEFAULT_MAX_DRAWS = 1000
+# Predictions that move by less than this (% of the natural frequency) are called insensitive to a parameter:
+# well below the 1-4 % transfer errors of the reference paper's Tables 4-7 and below typical modal-test scatter.
+INSENSITIVE_PCT = 0.5
+MODE_RULE = (
+    f"local maxima of the posterior-median |H| reaching {MODE_REL_HEIGHT:g} of its largest value with prominence "
+    f">= {MODE_REL_PROMINENCE:g} of it; each mode's band runs between the minima of the median |H| on either side; "
+    "peak magnitude = max |H| on the band's lines, dynamic stiffness = 1 / peak magnitude"
+)
+
+
+@dataclass(frozen=True)
+class PredictionRun:
+    """A prediction and what it was made from.
+
+    Attributes
+    ----------
+    prediction : Prediction
+    draws : PosteriorDraws
+        The (possibly subsampled) draws used.
+    identifiability : dict or None
+        Contraction and verdict of the sampled contact parameters (priors
+        rebuilt from the setup), ``None`` if they could not be rebuilt.
+    meta : dict
+        Setup, posterior file, seed, requested lengths, notes.
+    """
+
+    prediction: Prediction
+    draws: PosteriorDraws
+    identifiability: dict | None
+    meta: dict
+
+
+def check_prediction_lengths(draws: PosteriorDraws, setup, lengths: Sequence[float]) -> None:
+    """Raise :class:`SetupError` for lengths outside the feasible clamping range.
+
+    With a growth law the range is the law's ``[l_a, l_b]``; a constant
+    (single-length) posterior may be transferred over the setup's feasible
+    range, as the literature method does.
+    """
+    if len(lengths) == 0:
+        raise SetupError("--lengths: expected at least one clamping length")
+    if draws.growth.has_growth:
+        draws.growth.check_lengths(lengths, "prediction clamping length")
+    else:
+        l_a, l_b = setup.feasible_range
+        GrowthLaw(l_a, l_b).check_lengths(lengths, "prediction clamping length")
+
+
+def contact_identifiability(setup, draws: PosteriorDraws) -> dict | None:
+    """Contraction and verdicts of the sampled contact parameters of ``draws``.
+
+    The priors are rebuilt from the setup exactly as the identification
+    built them (same method and fitted lengths).  Returns ``None`` when that
+    is impossible (e.g. the setup changed since the fit).
+    """
+    from ..inference.priors import PriorSet
+    from ..inference.problem import IdentificationOptions, build_problem_from_setup
+
+    names = [n for n in CONTACT_NAMES if n in draws.sampled]
+    if not names or not draws.fit_lengths:
+        return None
+    method = draws.method if draws.method in ("multi", "single") else "multi"
+    try:
+        options = IdentificationOptions.from_setup(setup.extra, method=method, lengths=tuple(draws.fit_lengths))
+        priors = build_problem_from_setup(setup, options).priors
+    except BayesRCSAError:
+        return None
+    if any(n not in priors.names for n in names):
+        return None
+    sub = PriorSet({n: priors[n] for n in names})
+    with np.errstate(divide="ignore", invalid="ignore"):
+        theta = np.column_stack([np.asarray(sub[n].to_sampling(draws.values[n]), dtype=float) for n in names])
+    return parameter_identifiability(theta, sub)
+
+
+def run_prediction(setup, posterior_path, lengths: Sequence[float], directions: Sequence[str] | None = None,
+                   tool: str | None = None, frequency_hz=None, max_draws: int | None = DEFAULT_MAX_DRAWS,
+                   seed: int = 0) -> PredictionRun:
+    """Load ``posterior_path`` and predict at ``lengths``.
+
+    Parameters
+    ----------
+    setup : Setup (loaded with its measurements)
+    posterior_path : path of posterior.nc
+    lengths : clamping lengths, m
+    directions, tool, frequency_hz : see :func:`prediction_targets`
+    max_draws : int or None
+        Random subset of at most this many draws (``None``: all).
+    seed : int
+        Seed of the generator that picks the subset.
+    """
+    draws_all = load_posterior(posterior_path, setup)
+    lengths = [float(v) for v in lengths]
+    check_prediction_lengths(draws_all, setup, lengths)
+    draws = draws_all.subset(max_draws, np.random.default_rng(seed))
+    targets = prediction_targets(setup, lengths, directions, tool, frequency_hz, draws.fit_lengths)
+    prediction = predict(draws, setup.model(), targets)
+    ident = contact_identifiability(setup, draws)  # the same draws as the influence, so the report's ranges agree
+    meta = {
+        "setup": str(setup.path),
+        "posterior": str(posterior_path),
+        "method": draws.method,
+        "fit_lengths": list(draws.fit_lengths),
+        "growth_law": {"l_a": draws.growth.l_a, "l_b": draws.growth.l_b, "growth_bound": draws.growth.growth_bound,
+                       "has_growth": draws.growth.has_growth},
+        "n_draws_available": draws_all.n_draws,
+        "n_draws": draws.n_draws,
+        "subset_seed": seed,
+        "lengths": lengths,
+    }
+    return PredictionRun(prediction, draws, ident, meta)
+
+
+def influence_summary(influence: Sequence[dict]) -> dict:
+    """Per parameter, the largest effect on any dominant-mode natural frequency.
+
+    Returns
+    -------
+    dict name -> ``{"posterior_q05", "posterior_q95", "max_delta_hz",
+    "max_delta_pct", "max_fraction_of_interval"}``
+    """
+    out: dict = {}
+    for row in influence:
+        if not row["dominant"]:
+            continue
+        s = out.setdefault(row["parameter"], {"posterior_q05": row["posterior_q05"], "posterior_q95": row["posterior_q95"],
+                                              "max_delta_hz": None, "max_delta_pct": None,
+                                              "max_fraction_of_interval": None})
+        for key, src in (("max_delta_hz", "delta_hz"), ("max_delta_pct", "delta_pct"),
+                         ("max_fraction_of_interval", "fraction_of_interval")):
+            v = row[src]
+            if v is not None and (s[key] is None or v > s[key]):
+                s[key] = v
+    return out
+
+
+def frequencies_document(run: PredictionRun) -> dict:
+    """Content of ``frequencies.json``."""
+    p = run.prediction
+    params = {n: {**quantile_dict(run.draws.values[n]), "unit": PARAMETER_UNITS[n], "sampled": n in run.draws.sampled}
+              for n in CONTACT_NAMES}
+    return {
+        **run.meta,
+        "natural_frequency_rule": NATURAL_FREQUENCY_RULE,
+        "mode_rule": MODE_RULE,
+        "quantile_levels": dict(zip(QUANTILE_KEYS, (0.05, 0.25, 0.5, 0.75, 0.95))),
+        "predictions": [m.as_dict() for m in p.modes],
+        "contact_parameters": params,
+        "identifiability": run.identifiability,
+        "verdict_rule": VERDICT_RULE if run.identifiability is not None else None,
+        "parameter_influence": list(p.influence),
+        "parameter_influence_summary": influence_summary(p.influence),
+    }
+
+
+def _write_bands_csv(path: Path, prediction: Prediction) -> Path:
+    header = ("clamping_length_m,direction,tool,frequency_hz,abs_q05,abs_q25,abs_q50,abs_q75,abs_q95,"
+              "real_q50,imag_q50")
+    lines = ["# bayes-rcsa predict: posterior predictive tool-point receptance h = u/F (m/N) quantiles", header]
+    for b in prediction.bands:
+        c = b.configuration
+        cols = np.column_stack([b.frequency_hz, b.magnitude.T, b.real[2], b.imag[2]])
+        prefix = f"{c.clamping_length!r},{c.direction},{c.tool},"
+        lines += [prefix + ",".join(repr(float(v)) for v in row) for row in cols]
+    atomic_write_text(path, "\n".join(lines) + "\n")
+    return path
+
+
+def _unit(name: str) -> str:
+    u = PARAMETER_UNITS.get(name, "")
+    return "" if u == "1" else u
+
+
+def undetermined_statement(name: str, ident: dict, infl: dict | None) -> str | None:
+    """Plain-language sentence for a parameter the data do not pin down (``None`` if identified).
+
+    Parameters
+    ----------
+    name : str
+    ident : dict
+        Its entry of :func:`.identifiability.parameter_identifiability`.
+    infl : dict or None
+        Its entry of :func:`influence_summary`.
+    """
+    if ident["verdict"] == "identified":
+        return None
+    unit = _unit(name)
+    if ident["verdict"] == "not identified":
+        why = "its posterior is close to its prior"
+    else:
+        why = {"upper": "the data bound it only from below; the prior's upper bound ends the posterior",
+               "lower": "the data bound it only from above; the prior's lower bound ends the posterior",
+               }.get(ident.get("bound"), "its posterior is wide compared with its prior")
+    text = (f"{name} is {ident['verdict']} (contraction {ident['contraction']:.3f}; {why}); no value is quoted for it, "
+            f"its 90 % posterior range is [{fmt(ident['q05'])}, {fmt(ident['q95'])}]{' ' + unit if unit else ''}.")
+    if infl and infl.get("max_delta_hz") is not None:
+        frac = infl.get("max_fraction_of_interval")
+        text += (f" Wherever it lies in that range, the median predicted dominant natural frequencies change by at most "
+                 f"{infl['max_delta_hz']:.3g} Hz ({infl['max_delta_pct']:.3g} %")
+        if frac is not None:
+            text += f", {frac:.2g} of the width of their 90 % intervals"
+        text += ")"
+        text += (": the predictions are insensitive to it." if infl["max_delta_pct"] < INSENSITIVE_PCT else
+                 ": the predictions depend on it, and their intervals carry this uncertainty.")
+    return text
+
+
+def _table4(prediction: Prediction) -> tuple[list[str], list[list[str]]]:
+    dominant = [m for m in prediction.modes if m.dominant]
+    dirs = sorted({m.configuration.direction for m in dominant})
+    lengths = sorted({m.configuration.clamping_length for m in dominant})
+    head = ["clamping length (mm)"]
+    for d in dirs:
+        head += [f"ω_n,{d} measured (Hz)", f"ω_n,{d} predicted median [90 %] (Hz)", f"error {d} (%)"]
+    rows = []
+    for length in lengths:
+        row = [f"{length * 1e3:g}" + (" (fitted)" if any(m.fitted for m in dominant
+                                                          if m.configuration.clamping_length == length) else "")]
+        for d in dirs:
+            ms = [m for m in dominant if m.configuration.clamping_length == length and m.configuration.direction == d]
+            if not ms:
+                row += ["—", "—", "—"]
+                continue
+            m = ms[0]
+            q = m.natural_frequency_hz
+            err = None
+            if m.measured_hz is not None and q["q50"] is not None:
+                err = 100.0 * (q["q50"] - m.measured_hz) / m.measured_hz
+            row += [fmt(m.measured_hz, 6) if m.has_measurement else "not measured", fmt_interval(q, digits=6),
+                    fmt(err, 3)]
+        rows.append(row)
+    return head, rows
+
+
+def _blocks(run: PredictionRun, images: Sequence[str]) -> list[tuple]:
+    p = run.prediction
+    meta = run.meta
+    blocks: list[tuple] = [
+        ("h", 1, "Posterior predictions of the tool-point FRF"),
+        ("p", f"Setup {meta['setup']}; posterior {meta['posterior']} (method {meta['method']}, fitted at "
+              f"{', '.join(f'{l * 1e3:g}' for l in meta['fit_lengths']) or '?'} mm); {meta['n_draws']} of "
+              f"{meta['n_draws_available']} draws (subset seed {meta['subset_seed']})."),
+        ("h", 2, "Dominant natural frequency: measured vs predicted (cf. the reference paper's Table 4)"),
+        ("table", *_table4(p)),
+        ("p", "Intervals are central posterior credible intervals. Natural-frequency rule: " + NATURAL_FREQUENCY_RULE + "."),
+        ("h", 2, "All modes"),
+    ]
+    head = ["length (mm)", "dir", "mode", "band (Hz)", "natural frequency median [90 %] (Hz)", "measured (Hz)",
+            "peak |H| median [90 %] (m/N)", "dynamic stiffness median [90 %] (N/m)", "draws without peak"]
+    rows = []
+    for m in p.modes:
+        c = m.configuration
+        rows.append([f"{c.clamping_length * 1e3:g}", c.direction, f"{m.mode}{' (dominant)' if m.dominant else ''}",
+                     f"{m.band_hz[0]:.0f}–{m.band_hz[1]:.0f}", fmt_interval(m.natural_frequency_hz, digits=6),
+                     fmt(m.measured_hz, 6) if m.has_measurement else "—", fmt_interval(m.peak_magnitude, digits=3),
+                     fmt_interval(m.dynamic_stiffness, digits=3), f"{100 * m.nan_fraction:.1f} %"])
+    blocks.append(("table", head, rows))
+    blocks.append(("p", "Modes: " + MODE_RULE + "."))
+    summary = influence_summary(p.influence)
+    if summary:
+        blocks.append(("h", 2, "What the predictions depend on"))
+        head = ["parameter", "posterior 90 % range", "verdict", "max change of dominant ω_n (Hz)",
+                "max change (%)", "share of 90 % interval width"]
+        rows = []
+        for name, s in summary.items():
+            ident = (run.identifiability or {}).get(name)
+            rows.append([name, f"[{fmt(s['posterior_q05'])}, {fmt(s['posterior_q95'])}] {_unit(name)}".rstrip(),
+                         ident["verdict"] if ident else "—", fmt(s["max_delta_hz"], 3), fmt(s["max_delta_pct"], 3),
+                         fmt(s["max_fraction_of_interval"], 3)])
+        blocks.append(("table", head, rows))
+        blocks.append(("p", "Influence of a parameter: the draws are split into equally populated bins of its value "
+                            "(the other parameters following their posterior given that value) and the spread of the "
+                            "bin medians of the predicted dominant natural frequency is reported (largest over the "
+                            f"predicted configurations); below about 0.1 of the interval width it is Monte Carlo noise. "
+                            f"A change below {INSENSITIVE_PCT:g} % counts as insensitive."))
+        statements = []
+        for name in summary:
+            ident = (run.identifiability or {}).get(name)
+            if ident:
+                s = undetermined_statement(name, ident, summary.get(name))
+                if s:
+                    statements.append(s)
+        if statements:
+            blocks.append(("h", 2, "Not determined by the data"))
+            blocks.append(("ul", statements))
+        if run.identifiability is not None:
+            blocks.append(("p", "Verdict rule: " + VERDICT_RULE + "."))
+    for img in images:
+        blocks.append(("img", img, img))
+    return blocks
+
+
+def write_prediction_outputs(run: PredictionRun, out_dir, plots: bool = True) -> list[Path]:
+    """Write frequencies.json, frf_bands.csv, plots and report.md/.html to ``out_dir``."""
+    from ..inference.results import to_jsonable
+    from . import plots as P
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    images = []
+    if plots:
+        P.frf_band_plot(run.prediction.bands, run.prediction.modes, out / "frf_bands.png",
+                        title=f"Posterior predictive |H| ({run.meta['n_draws']} draws)")
+        P.frf_zoom_plot(run.prediction.bands, run.prediction.modes, out / "frf_zoom.png")
+        P.natural_frequency_plot(run.prediction.modes, out / "natural_frequencies.png")
+        images = ["natural_frequencies.png", "frf_zoom.png", "frf_bands.png"]
+        written += [out / i for i in images]
+    written.append(_write_bands_csv(out / "frf_bands.csv", run.prediction))
+    text = json.dumps(to_jsonable(frequencies_document(run)), indent=2, allow_nan=False)
+    with atomic_path(out / "frequencies.json") as tmp:
+        tmp.write_text(text + "\n", encoding="utf-8")
+    written.append(out / "frequencies.json")
+    written += write_report(out, "report", _blocks(run, images), "bayes-rcsa predictions")
+    return written

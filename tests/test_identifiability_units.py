@@ -1,0 +1,151 @@
+"""Unit tests of the identifiability diagnostics: prior moments, contraction, verdicts, ridges, Fisher.
+
+References are independent of the library: Monte Carlo moments, known Gaussian covariances, and a
+second-difference Hessian of the weighted FRF misfit for the Fisher information.  Budget: ~10 s.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bayes_rcsa.inference.priors import LogNormal, LogUniform, Normal, PriorSet, Uniform
+from bayes_rcsa.posterior.identifiability import (
+    combination_name,
+    contraction,
+    fisher_information,
+    log_space,
+    parameter_identifiability,
+    prior_moments,
+    ridge_analysis,
+    transfer_errors,
+    verdict,
+)
+
+
+@pytest.mark.parametrize("prior", [
+    Uniform(0.0, 0.5), LogUniform(1e3, 1e8), Normal(1.0, 2.0, lo=0.0), LogNormal(2e6, 0.5, lo=1e6, hi=1e7),
+])
+def test_prior_moments_match_monte_carlo(prior):
+    u = prior.sample(np.random.default_rng(0), 400_000)
+    mean, var = prior_moments(prior)
+    # 4e5 draws: relative standard error of the variance sqrt(2/n) ~ 0.2 %, of the mean far smaller
+    assert var == pytest.approx(np.var(u), rel=0.01)
+    assert mean == pytest.approx(np.mean(u), abs=0.01 * math.sqrt(var))
+
+
+def test_contraction_of_prior_draws_is_zero_and_of_a_narrow_posterior_is_known():
+    p = LogUniform(1e3, 1e8)
+    rng = np.random.default_rng(1)
+    assert abs(contraction(p.sample(rng, 100_000), p)) < 0.02
+    sd = 0.1
+    c = contraction(rng.normal(5.5, sd, 100_000), p)
+    assert c == pytest.approx(1 - sd**2 / (25 / 12), abs=1e-4)
+
+
+def test_verdict_thresholds():
+    assert verdict(0.2, None) == "not identified"
+    assert verdict(0.7, None) == "weakly identified"
+    assert verdict(0.995, None) == "identified"
+    assert verdict(0.995, "upper") == "weakly identified"
+    assert verdict(float("nan"), None) == "not identified"
+
+
+def test_one_sided_posterior_is_weakly_identified_despite_high_contraction():
+    # A stiffness bounded only from below: uniform over the top 25 % of a 5-decade log-uniform prior.
+    # Its variance is 1/16 of the prior's (contraction ~0.94), but the prior bound ends it.
+    priors = PriorSet({"k_thetaM": LogUniform(1e3, 1e8), "k_xf": LogUniform(1e5, 1e9)})
+    rng = np.random.default_rng(2)
+    theta = np.column_stack([rng.uniform(6.75, 8.0, 20_000), rng.normal(6.25, 0.001, 20_000)])
+    out = parameter_identifiability(theta, priors)
+    assert out["k_thetaM"]["contraction"] == pytest.approx(1 - 1 / 16, abs=0.01)
+    assert out["k_thetaM"]["bound"] == "upper" and out["k_thetaM"]["verdict"] == "weakly identified"
+    assert out["k_xf"]["bound"] is None and out["k_xf"]["verdict"] == "identified"
+    assert out["k_xf"]["q50"] == pytest.approx(10**6.25, rel=1e-3)
+    # posterior = prior: not identified
+    theta = np.column_stack([rng.uniform(3, 8, 20_000), rng.uniform(5, 9, 20_000)])
+    out = parameter_identifiability(theta, priors)
+    assert out["k_thetaM"]["verdict"] == "not identified" and out["k_thetaM"]["bound"] == "both"
+
+
+def test_ridge_analysis_recovers_a_known_covariance():
+    cov = np.array([[1e-6, -0.98 * 1e-3 * 0.05], [-0.98 * 1e-3 * 0.05, 0.05**2]])
+    z = np.random.default_rng(3).multivariate_normal([6.25, 5.65], cov, 200_000)
+    r = ridge_analysis(z, ["k_xf", "k_thetaM"])
+    assert r["correlation"][0][1] == pytest.approx(-0.98, abs=0.002)
+    lam = np.linalg.eigvalsh(cov)
+    # sample eigenvalues of 2e5 Gaussian draws: relative error ~ sqrt(2/n) ~ 0.3 %
+    np.testing.assert_allclose(r["eigenvalues"], lam, rtol=0.02)
+    assert r["sloppy"]["combination"].startswith("k_thetaM^1")
+    assert "k_xf^-0.019" in r["sloppy"]["combination"] or "k_xf^-0.02" in r["sloppy"]["combination"]
+
+
+def test_combination_names_and_log_space():
+    assert combination_name(np.array([0.5, -1.0]), ["k_xf", "g_xf"]) == "(1+g_xf)^1 * k_xf^-0.5"
+    z, labels = log_space({"k_xf": np.array([1e6]), "g_xf": np.array([0.25])}, ["k_xf", "g_xf"])
+    np.testing.assert_allclose(z, [[6.0, math.log10(1.25)]])
+    assert labels == ["log10 k_xf", "log10(1+g_xf)"]
+
+
+def test_fisher_information_equals_the_hessian_of_the_misfit(tmp_path):
+    from bayes_rcsa.inference.problem import IdentificationOptions, build_problem_from_setup
+    from bayes_rcsa.io import load_setup
+    from bayes_rcsa.synthetic import default_bench_config, generate_campaign, write_campaign
+
+    config = default_bench_config(directions=("x",), clamping_lengths=(0.025, 0.040))
+    setup = load_setup(write_campaign(generate_campaign(config, np.random.default_rng(0)), tmp_path / "c"))
+    problem = build_problem_from_setup(setup, IdentificationOptions.from_setup(setup.extra, method="multi"))
+    lik = problem.likelihood
+    names = ["k_xf", "k_thetaM", "g_xf", "g_thetaM"]
+    truth = {"k_xf": 1.8e6, "k_thetaM": 4.5e5, "g_xf": 0.45, "g_thetaM": 0.45, "sigma_0": 0.02, "sigma_1": 0.03}
+    theta0 = problem.priors.to_sampling(truth)
+    beta = 0.7
+    fim = fisher_information(lik, theta0, names, tempering=beta)
+    f = np.array(fim["matrix"])
+
+    # Independent reference: Hessian of phi(z) = beta sum_n w_n |H(z) - H(z0)|^2 / sigma_n^2 by second
+    # differences of the scalar misfit (for zero residual it equals 2 beta Re(J^H W J) exactly).
+    z0 = np.array([math.log10(1.8e6), math.log10(4.5e5), math.log10(1.45), math.log10(1.45)])
+    h0 = lik.model_frf(theta0[None, :])[0]
+    s2 = np.array([0.02, 0.03])[lik.stack.index] ** 2
+
+    def theta(z):
+        t = theta0.copy()
+        t[0], t[1] = z[0], z[1]  # log-uniform priors: the sampling coordinate is log10 k
+        t[2], t[3] = 10 ** z[2] - 1, 10 ** z[3] - 1
+        return t
+
+    def phi(z):
+        r = lik.model_frf(theta(z)[None, :])[0] - h0
+        return beta * float(np.sum(lik.weight * (r.real**2 + r.imag**2) / s2))
+
+    e = 2e-4  # decades: phi is smooth; truncation ~e^2 relative, round-off ~1e-16 / e^2 * phi_max
+    hess = np.zeros((4, 4))
+    for i in range(4):
+        for j in range(4):
+            di, dj = np.eye(4)[i] * e, np.eye(4)[j] * e
+            hess[i, j] = (phi(z0 + di + dj) - phi(z0 + di - dj) - phi(z0 - di + dj) + phi(z0 - di - dj)) / (4 * e * e)
+    assert np.linalg.norm(f - hess) / np.linalg.norm(hess) < 1e-3
+    # the smallest eigenvalue is ~1e-6 of the largest: compare it on its own
+    assert fim["eigenvalues"][0] == pytest.approx(np.linalg.eigvalsh(hess)[0], rel=0.02)
+    assert fim["condition_number"] == pytest.approx(fim["eigenvalues"][-1] / fim["eigenvalues"][0])
+
+
+def test_transfer_errors_split_fitted_and_transferred_lengths():
+    entries = [
+        {"clamping_length": 0.025, "direction": "x", "measured_hz": 1000.0, "q05_hz": 999.0, "q50_hz": 1000.5,
+         "q95_hz": 1001.0, "used_in_fit": True},
+        {"clamping_length": 0.040, "direction": "x", "measured_hz": 1200.0, "q05_hz": 1100.0, "q50_hz": 1104.0,
+         "q95_hz": 1108.0, "used_in_fit": False},
+        {"clamping_length": 0.040, "direction": "y", "measured_hz": 1250.0, "q05_hz": 1300.0, "q50_hz": 1312.5,
+         "q95_hz": 1320.0, "used_in_fit": False},
+        {"clamping_length": 0.030, "direction": "x", "measured_hz": None, "q05_hz": 1.0, "q50_hz": 1.0,
+         "q95_hz": 1.0, "used_in_fit": False},
+    ]
+    t = transfer_errors(entries)
+    assert t["fit_error_pct"] == {"0.025": pytest.approx(0.05)}
+    assert t["transfer_error_pct"] == {"0.04": pytest.approx(0.5 * (8.0 + 5.0))}
+    assert t["rows"][1]["error_q05_pct"] == pytest.approx(-100 / 12) and t["rows"][1]["measured_in_90"] is False
+    assert t["rows"][3]["error_q50_pct"] is None

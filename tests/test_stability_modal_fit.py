@@ -1,0 +1,67 @@
+"""Modal models and their fit to FRFs (bayes_rcsa.stability.modal_fit)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bayes_rcsa.errors import DataError, ModelError
+from bayes_rcsa.stability import ModalModel, fit_modal_model
+
+
+def physical_frf(f, m, c, k):
+    """Receptance of m x'' + c x' + k x = F with x = Re{X e^{iωt}}."""
+    w = 2 * np.pi * np.asarray(f)[:, None]
+    return np.sum(1.0 / (k - m * w**2 + 1j * w * c), axis=1)
+
+
+def test_modal_model_is_a_passive_oscillator_sum():
+    mm = ModalModel([1287.0, 2600.0], [0.02, 0.035], [1.0e6, 6.0e6])
+    f = np.linspace(10, 5000, 3000)
+    np.testing.assert_allclose(mm.frf(f), physical_frf(f, mm.mass, mm.damping, mm.stiffness), rtol=1e-12)
+    assert np.all(mm.frf(f).imag <= 0)  # passive in the e^{+iωt} convention
+    np.testing.assert_allclose(mm.mass, mm.stiffness / mm.omega**2)
+
+
+@pytest.mark.parametrize("bad", [dict(damping_ratio=[0.0]), dict(stiffness=[-1.0]), dict(natural_frequency_hz=[np.nan])])
+def test_modal_model_rejects_non_passive_modes(bad):
+    kw = dict(natural_frequency_hz=[1000.0], damping_ratio=[0.02], stiffness=[1e6]) | bad
+    with pytest.raises(ModelError):
+        ModalModel(**kw)
+
+
+def test_fit_recovers_noise_free_modes_exactly():
+    true = ModalModel([1287.0, 2480.0], [0.021, 0.033], [1.1e6, 7.5e6])
+    f = np.arange(400.0, 4000.0, 2.5)
+    fit = fit_modal_model(f, true.frf(f))
+    assert fit.model.n_modes == 2  # BIC picks the true count
+    np.testing.assert_allclose(fit.model.natural_frequency_hz, true.natural_frequency_hz, rtol=1e-8)
+    np.testing.assert_allclose(fit.model.damping_ratio, true.damping_ratio, rtol=1e-6)
+    np.testing.assert_allclose(fit.model.stiffness, true.stiffness, rtol=1e-6)
+    assert fit.rms_relative < 1e-8
+    assert np.argmin(fit.bic) == 1
+
+
+def test_fit_with_noise_and_out_of_band_mode():
+    rng = np.random.default_rng(11)
+    true = ModalModel([1290.0, 1900.0, 9000.0], [0.02, 0.03, 0.02], [1.0e6, 4.0e6, 2.0e7])
+    f = np.arange(400.0, 3500.0, 2.5)
+    g = true.frf(f)
+    noise = 0.01 * np.abs(g).max() * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size)) / np.sqrt(2)
+    fit = fit_modal_model(f, g + noise)
+    # the 9 kHz mode lies outside the band: it is absorbed by the residual compliance
+    assert fit.model.n_modes == 2
+    np.testing.assert_allclose(fit.model.natural_frequency_hz, [1290.0, 1900.0], rtol=2e-3)
+    np.testing.assert_allclose(fit.model.damping_ratio, [0.02, 0.03], rtol=0.1)
+    np.testing.assert_allclose(fit.model.stiffness, [1.0e6, 4.0e6], rtol=0.05)
+    assert fit.residual_compliance == pytest.approx(1 / 2.0e7, rel=0.3)
+    # the misfit is the noise: 12 fitted parameters against 2480 real observations
+    noise_rel = np.sqrt(np.mean(np.abs(noise) ** 2) / np.mean(np.abs(g + noise) ** 2))
+    assert fit.rms_relative == pytest.approx(noise_rel, rel=0.05)
+
+
+def test_fit_input_errors():
+    with pytest.raises(DataError):
+        fit_modal_model(np.arange(5.0), np.ones(5))
+    with pytest.raises(DataError):
+        fit_modal_model(np.arange(1.0, 21.0), np.zeros(20))

@@ -1,0 +1,136 @@
+"""Probabilistic lobes from FRF draws and the paper's comparison metrics."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bayes_rcsa.errors import DataError, SetupError
+from bayes_rcsa.stability import (
+    CuttingConditions,
+    ModalModel,
+    depth_quantiles,
+    disagreement,
+    limits_disagreement,
+    lobes_from_frf_draws,
+    probability_map,
+    recommend_operating_point,
+    sdm_stability_map,
+    stable_at,
+    test_error,
+    zoa_lobes,
+)
+
+F = np.arange(600.0, 3000.0, 2.0)
+CUT = CuttingConditions(kt=790e6, kr=230e6, flutes=4, radial_immersion=0.7, milling="down", feed="y")
+SPEEDS = np.linspace(5000, 30000, 400)
+
+
+def draws(n, seed=0):
+    """FRF draws of a tool whose stiffness and damping scatter like a posterior would (seeded)."""
+    rng = np.random.default_rng(seed)
+    s = rng.normal(1.0, 0.03, n)
+    z = rng.normal(1.0, 0.1, n)
+    gx = np.array([ModalModel([1287 * a], [0.02 * b], [1.0e6 * a**2]).frf(F) for a, b in zip(s, z)])
+    gy = np.array([ModalModel([1340 * a], [0.03 * b], [1.3e6 * a**2]).frf(F) for a, b in zip(s, z)])
+    return gx, gy
+
+
+def test_probability_map_is_monotone_and_matches_counting():
+    gx, gy = draws(60)
+    res = lobes_from_frf_draws(gx, gy, F, CUT, SPEEDS)
+    assert res.p_stable.shape == (SPEEDS.size, res.depth_m.size)
+    assert np.all(np.diff(res.p_stable, axis=1) <= 0)  # non-increasing in depth at every speed
+    assert np.all((res.p_stable >= 0) & (res.p_stable <= 1))
+    assert res.p_stable.min() == 0.0 and res.p_stable.max() == 1.0
+    # brute-force count at a few cells
+    for i, j in [(10, 5), (200, 100), (399, 199), (123, 57)]:
+        count = np.mean([res.depth_m[j] < lim for lim in res.depth_limit_m[:, i]])
+        assert res.p_stable[i, j] == count
+
+
+def test_identical_draws_equal_the_deterministic_result():
+    gx, gy = draws(1, seed=3)
+    det = zoa_lobes(gx[0], gy[0], F, CUT, SPEEDS).depth_limit_m
+    res = lobes_from_frf_draws(np.repeat(gx, 7, axis=0), np.repeat(gy, 7, axis=0), F, CUT, SPEEDS)
+    for q in (0.05, 0.5, 0.95):
+        np.testing.assert_array_equal(res.quantiles[q], det)
+    np.testing.assert_array_equal(res.p_stable, (res.depth_m[None, :] < det[:, None]).astype(float))
+
+
+def test_sdm_draws_identical_equal_the_deterministic_map():
+    gx, gy = draws(1, seed=5)
+    speeds = np.linspace(9000, 14000, 12)
+    depths = np.linspace(5e-6, 2.5e-4, 30)
+    res = lobes_from_frf_draws(np.repeat(gx, 2, axis=0), np.repeat(gy, 2, axis=0), F, CUT, speeds, depths, method="sdm")
+    fx, fy = res.modal_fits[0]
+    assert fx.model.n_modes == 1 and fy.model.n_modes == 1  # noise-free single modes recovered
+    det = sdm_stability_map(fx.model, fy.model, CUT, speeds, depths)
+    np.testing.assert_array_equal(res.depth_limit_m[0], det.depth_limit_m)
+    np.testing.assert_array_equal(res.quantiles[0.5], det.depth_limit_m)
+    assert np.all(np.diff(res.p_stable, axis=1) <= 0)
+    # SDM and ZOA probabilistic maps agree on most cells at 70 % immersion (one mode per direction)
+    zoa = lobes_from_frf_draws(gx, gy, F, CUT, speeds, depths)
+    assert disagreement(res.p_stable >= 0.5, zoa.p_stable >= 0.5) < 0.03
+
+
+def test_quantiles_and_contours_are_consistent():
+    lim = np.array([[1.0, 5.0], [2.0, np.inf], [3.0, np.inf], [4.0, np.inf], [5.0, np.inf]])
+    q = depth_quantiles(lim, (0.0, 0.25, 0.5, 1.0))
+    np.testing.assert_allclose(q[0.0], [1.0, 5.0])
+    np.testing.assert_allclose(q[0.25], [2.0, np.inf])
+    np.testing.assert_allclose(q[0.5], [3.0, np.inf])
+    np.testing.assert_allclose(q[1.0], [5.0, np.inf])
+    p = probability_map(lim, np.array([0.5, 1.5, 2.5, 4.5, 6.0]))
+    np.testing.assert_allclose(p[0], [1.0, 0.8, 0.6, 0.2, 0.0])
+    np.testing.assert_allclose(p[1], [1.0, 1.0, 1.0, 1.0, 0.8])
+    with pytest.raises(SetupError):
+        probability_map(np.array([[np.nan]]), np.array([1.0]))
+
+
+def test_recommendation_maximises_removal_rate_under_the_level():
+    gx, gy = draws(100, seed=9)
+    res = lobes_from_frf_draws(gx, gy, F, CUT, SPEEDS, level=0.9, max_depth=2e-4)
+    rec = res.recommended
+    assert rec is not None and rec.p_stable >= 0.9 and rec.depth_m <= 2e-4
+    ok = res.p_stable >= 0.9
+    best = np.max(np.where(ok, SPEEDS[:, None] * res.depth_m[None, :], -np.inf))
+    assert rec.mrr_index == pytest.approx(best)
+    assert rec.mrr_index == pytest.approx(rec.spindle_speed_rpm * rec.depth_m)
+    # user limits restrict the choice
+    low = recommend_operating_point(SPEEDS, res.depth_m, res.p_stable, 0.9, speed_limits=(5000, 8000), max_depth=1e-4)
+    assert 5000 <= low.spindle_speed_rpm <= 8000 and low.depth_m <= 1e-4 and low.p_stable >= 0.9
+    assert recommend_operating_point(SPEEDS, res.depth_m, np.zeros_like(res.p_stable), 0.95) is None
+    with pytest.raises(SetupError):
+        recommend_operating_point(SPEEDS, res.depth_m, res.p_stable, 1.5)
+
+
+def test_performance_500_draws_400_speeds():
+    # acceptance budget is 10 s (benchmarks/lobes.py); 60 s here leaves room for a loaded test machine
+    import time
+
+    gx, gy = draws(500, seed=1)
+    t0 = time.perf_counter()
+    res = lobes_from_frf_draws(gx, gy, F, CUT, SPEEDS)
+    assert time.perf_counter() - t0 < 60
+    assert res.depth_limit_m.shape == (500, 400) and np.all(np.isfinite(res.depth_limit_m))
+
+
+def test_comparison_metrics():
+    a = np.array([[True, True, False], [True, False, False]])
+    b = np.array([[True, False, False], [False, False, False]])
+    assert disagreement(a, b) == pytest.approx(2 / 6)
+    assert test_error(a.ravel(), a.ravel()) == 0.0
+    n = np.array([1000.0, 2000.0, 3000.0])
+    lim = np.array([1e-3, 2e-3, np.inf])
+    np.testing.assert_array_equal(
+        stable_at(n, lim, np.array([1500.0, 1500.0, 2500.0, 3000.0]), np.array([1.4e-3, 1.6e-3, 5.0, 1.0])),
+        [True, False, False, True],
+    )
+    # Table 9 style: two lobes on a grid
+    depths = np.array([0.5e-3, 1.5e-3, 2.5e-3])
+    assert limits_disagreement(lim, np.array([2e-3, 2e-3, 2e-3]), depths) == pytest.approx(2 / 9)
+    with pytest.raises(DataError):
+        stable_at(n, lim, np.array([500.0]), np.array([1e-3]))
+    with pytest.raises(DataError):
+        disagreement(a, b.ravel())
