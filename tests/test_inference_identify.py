@@ -126,3 +126,20 @@ def test_growth_beyond_bound_is_flagged():
     assert any(w.startswith("g_xf:") and "growth bound" in w for w in warnings), warnings
     assert np.mean(res.values()["g_xf"] > 0.475) > 0.5
     # and the healthy campaign of the other tests raises no such warning (test_two_lengths_...: warnings == [])
+
+
+@pytest.mark.parametrize("effect, lo, hi", [(None, 0.0, 1.5), ("fluted_section", 5.0, np.inf)])
+def test_tempering_engages_only_with_model_discrepancy(effect, lo, hi):
+    # Without a hidden effect the residuals at the optimum are white (beta = 1: no widening);
+    # a tool whose fluted section is thinner than the setup says leaves a smooth, correlated
+    # discrepancy spanning many lines, and the likelihood must be tempered accordingly.
+    from bayes_rcsa.inference.likelihood import residual_correlation_length
+    from bayes_rcsa.inference.posterior import LogPosterior
+    from bayes_rcsa.inference.sampler import find_optimum
+
+    kw = {} if effect is None else {"hidden_effects": {effect: True}}
+    cfg, camp = bench(seed=3, clamping_lengths=(0.025, 0.040), frequency_step=4.0, **kw)
+    prob = build_problem(bench_model(cfg, camp), camp.measurements, contact_spec(camp), IdentificationOptions())
+    opt = find_optimum(LogPosterior(prob.priors, prob.likelihood))
+    tau = residual_correlation_length(prob.likelihood.normalised_residuals(opt.x), prob.likelihood.stack.slices)
+    assert lo <= tau <= hi, tau

@@ -15,7 +15,7 @@ from bayes_rcsa.inference.likelihood import residual_correlation_length
 from bayes_rcsa.inference.parameters import GrowthLaw
 from bayes_rcsa.inference.priors import LogNormal, LogUniform, Normal, PriorSet, Uniform, prior_from_spec
 from bayes_rcsa.inference.problem import IdentificationOptions, build_problem
-from bayes_rcsa.model import FRF, Configuration
+from bayes_rcsa.model import FRF
 from bayes_rcsa.posterior import natural_frequency
 
 from test_inference_support import bench, bench_model, contact_spec

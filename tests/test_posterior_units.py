@@ -7,7 +7,6 @@ receptances, numpy quantiles, brute-force searches).  Budget: a few seconds.
 from __future__ import annotations
 
 import json
-import time
 from types import SimpleNamespace
 
 import numpy as np
@@ -17,7 +16,7 @@ from bayes_rcsa.errors import DataError, SetupError
 from bayes_rcsa.inference.parameters import GrowthLaw
 from bayes_rcsa.model import Configuration, Holder, HolderSegment, Material, PointReceptance, Tool, ToolPointModel, ToolSegment
 from bayes_rcsa.posterior import PosteriorDraws, PredictionTarget, find_modes, load_posterior, mode_statistics, predict
-from bayes_rcsa.posterior.predict import QUANTILE_LEVELS, ModePrediction, column_quantiles, parameter_influence
+from bayes_rcsa.posterior.predict import predictive_frf, QUANTILE_LEVELS, ModePrediction, column_quantiles, parameter_influence
 from bayes_rcsa.posterior.report import render_html, render_markdown, write_report
 
 NAMES = ("k_xf", "k_thetaM", "g_xf", "g_thetaM", "c_xf", "c_thetaM")
@@ -169,20 +168,20 @@ def test_predict_bands_and_modes_against_direct_evaluation():
     assert entry["dynamic_stiffness"]["q50"] == pytest.approx(1 / entry["peak_magnitude"]["q50"], rel=1e-6)
 
 
-def test_prediction_meets_the_time_budget():
-    # Issue target: 1000 draws x 4 lengths x 800 lines in <= 2 s (typically ~0.4 s here; median of 3
-    # runs so that a transient load spike on the shared machine does not decide).
+def test_batched_prediction_of_1000_draws_equals_per_draw_evaluation():
+    # The speed target (1000 draws x 4 lengths x 800 lines <= 2 s) is measured in
+    # benchmarks/predict.py, not here: wall-clock asserts are flaky on a shared machine.
+    # This checks that the batched path used there computes the right thing.
     model = _model()
     d = _draws(1000)
     f = np.linspace(300.0, 4000.0, 800)
-    targets = [PredictionTarget(Configuration(l), f) for l in (0.025, 0.030, 0.035, 0.040)]
-    predict(d, model, targets)
-    times = []
-    for _ in range(3):
-        t0 = time.perf_counter()
-        predict(d, model, targets)
-        times.append(time.perf_counter() - t0)
-    assert sorted(times)[1] <= 2.0
+    cfg = Configuration(0.030)
+    h = predictive_frf(d, model, cfg, f)
+    assert h.shape == (1000, 800)
+    cache = model.precompute(cfg, f)
+    kx, kt, cx, ct = d.contact([0.030])
+    for i in (0, 417, 999):
+        np.testing.assert_allclose(h[i], cache.frf(kx[i, 0], kt[i, 0], cx[i, 0], ct[i, 0]), rtol=1e-10)
 
 
 def test_influence_sees_the_driving_parameter_only():

@@ -105,14 +105,10 @@ def test_recommendation_maximises_removal_rate_under_the_level():
         recommend_operating_point(SPEEDS, res.depth_m, res.p_stable, 1.5)
 
 
-def test_performance_500_draws_400_speeds():
-    # acceptance budget is 10 s (benchmarks/lobes.py); 60 s here leaves room for a loaded test machine
-    import time
-
+def test_500_draws_400_speeds_give_finite_limits_for_every_draw():
+    # the speed target of this case is measured by benchmarks/lobes.py (no wall-clock assert here)
     gx, gy = draws(500, seed=1)
-    t0 = time.perf_counter()
     res = lobes_from_frf_draws(gx, gy, F, CUT, SPEEDS)
-    assert time.perf_counter() - t0 < 60
     assert res.depth_limit_m.shape == (500, 400) and np.all(np.isfinite(res.depth_limit_m))
 
 

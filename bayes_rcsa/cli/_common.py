@@ -40,3 +40,26 @@ def parse_frequency_grid(text: str, option: str = "--freq"):
         raise SetupError(f"{option} {text!r}: expected STOP > START")
     n = int(math.floor((stop - start) / step + 1e-9)) + 1
     return start + step * np.arange(n)
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    import argparse
+
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a positive integer") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a positive integer")
+    return v
+
+
+def sampler_int(table: dict, key: str, default, path):
+    """A positive integer from the setup's ``[sampler]`` table, or ``default``."""
+    if key not in table:
+        return default
+    v = table[key]
+    if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+        raise SetupError(f"{path}: [sampler] {key} = {v!r}: expected a positive integer")
+    return v

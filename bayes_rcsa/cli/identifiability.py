@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from ..errors import SetupError
-from ._common import parse_float_list
+from ._common import parse_float_list, positive_int, sampler_int
 
 __all__ = ["register", "run"]
 
@@ -33,23 +33,6 @@ quick look (reported as not converged).
 """
 
 
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a positive integer") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a positive integer")
-    return v
-
-
-def _sampler_int(table: dict, key: str, default, path):
-    if key not in table:
-        return default
-    v = table[key]
-    if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-        raise SetupError(f"{path}: [sampler] {key} = {v!r}: expected a positive integer")
-    return v
 
 
 def register(subparsers) -> None:
@@ -64,11 +47,11 @@ def register(subparsers) -> None:
     p.add_argument("--lengths", default=None, metavar="L1,L2,...",
                    help="measured clamping lengths to use in m, e.g. 0.025,0.040 (default: all measured)")
     p.add_argument("--seed", type=int, default=0, help="random seed of every fit (default 0)")
-    p.add_argument("--max-steps", type=_positive_int, default=None, metavar="N",
+    p.add_argument("--max-steps", type=positive_int, default=None, metavar="N",
                    help="cap on sampler steps per fit (default: [sampler] max_steps or 20000)")
-    p.add_argument("--walkers", type=_positive_int, default=None, metavar="N",
+    p.add_argument("--walkers", type=positive_int, default=None, metavar="N",
                    help="walkers per fit (even; default max(32, 4 x parameters))")
-    p.add_argument("--check-every", type=_positive_int, default=None, metavar="N",
+    p.add_argument("--check-every", type=positive_int, default=None, metavar="N",
                    help="steps between convergence checks (default: [sampler] check_every or 250)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--no-posteriors", action="store_true", help="do not write each fit's posterior.nc and summary.json")
@@ -84,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
     setup = load_setup(args.setup)
     lengths = parse_float_list(args.lengths, "--lengths", positive=True) if args.lengths is not None else None
     table = dict(setup.extra.get("sampler", {}) or {})
-    pick = lambda cli, key, default: cli if cli is not None else _sampler_int(table, key, default, setup.path)  # noqa: E731
+    pick = lambda cli, key, default: cli if cli is not None else sampler_int(table, key, default, setup.path)  # noqa: E731
     settings = SamplerSettings(
         n_walkers=pick(args.walkers, "walkers", None),
         max_steps=pick(args.max_steps, "max_steps", 20000),

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from ..errors import SetupError
+from ._common import positive_int, sampler_int
 
 __all__ = ["register", "run"]
 
@@ -47,23 +48,6 @@ def _band(text: str) -> tuple[float, float]:
     return lo, hi
 
 
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a positive integer")
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a positive integer")
-    return v
-
-
-def _setup_int(table: dict, key: str, default, path) -> int | None:
-    if key not in table:
-        return default
-    v = table[key]
-    if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-        raise SetupError(f"{path}: [sampler] {key} = {v!r}: expected a positive integer")
-    return v
 
 
 def register(subparsers) -> None:
@@ -80,15 +64,15 @@ def register(subparsers) -> None:
     p.add_argument("--method", choices=("multi", "single", "deterministic"), default="multi",
                    help="identification method (default: multi)")
     p.add_argument("--seed", type=int, default=0, help="random seed; same seed, same posterior (default 0)")
-    p.add_argument("--max-steps", type=_positive_int, default=None, metavar="N",
+    p.add_argument("--max-steps", type=positive_int, default=None, metavar="N",
                    help="cap on sampler steps; reaching it is reported as not converged "
                         "(default: [sampler] max_steps or 20000)")
     p.add_argument("--resume", action="store_true", help="continue the run checkpointed in DIR/chain.h5")
-    p.add_argument("--walkers", type=_positive_int, default=None, metavar="N",
+    p.add_argument("--walkers", type=positive_int, default=None, metavar="N",
                    help="number of walkers (even; default max(32, 4 x parameters))")
     p.add_argument("--band", type=_band, default=None, metavar="LO,HI",
                    help="likelihood band in Hz for every measurement (default: rule around the dominant modes)")
-    p.add_argument("--check-every", type=_positive_int, default=None, metavar="N",
+    p.add_argument("--check-every", type=positive_int, default=None, metavar="N",
                    help="steps between convergence checks (default: [sampler] check_every or 250)")
     p.add_argument("--ess-min", type=float, default=400.0, metavar="ESS",
                    help="bulk ESS required for convergence (default 400)")
@@ -114,7 +98,7 @@ def run(args) -> int:
     known = {"start", "walkers", "max_steps", "check_every"}
     if set(sampler_extra) - known:
         raise SetupError(f"{setup.path}: [sampler] unknown key(s) {sorted(set(sampler_extra) - known)}; expected some of {sorted(known)}")
-    pick = lambda cli, key, default: cli if cli is not None else _setup_int(sampler_extra, key, default, setup.path)  # noqa: E731
+    pick = lambda cli, key, default: cli if cli is not None else sampler_int(sampler_extra, key, default, setup.path)  # noqa: E731
     settings = SamplerSettings(
         n_walkers=pick(args.walkers, "walkers", None),
         max_steps=pick(args.max_steps, "max_steps", 20000),

@@ -366,7 +366,8 @@ def identify(
                 warnings.append(f"{n}: R-hat = {diag['rhat'][j]:.4f} >= {settings.rhat_max}")
             if not diag["ess_bulk"][j] >= settings.ess_min:
                 warnings.append(f"{n}: bulk ESS = {diag['ess_bulk'][j]:.0f} < {settings.ess_min:g}")
-    warnings += R.growth_bound_warnings(values, problem.growth.growth_bound)
+    # only sampled growth factors can pile up; a fixed g = 0 (one clamping length) is not a conflict
+    warnings += R.growth_bound_warnings({n: values[n] for n in names}, problem.growth.growth_bound)
     warnings += R.noise_scale_warnings(values, problem.observations)
     for e in freqs:
         if e["nan_fraction"] > 0:
@@ -547,6 +548,8 @@ def _write_posterior(result: IdentificationResult, path: Path) -> Path:
                 "fit_measurement": [o.source for o in obs]},
         attrs={"method": problem.method, "seed": result.seed, "converged": result.summary["converged"],
                "tempering": result.tempering, "growth_bound": problem.growth.growth_bound,
-               "l_a": problem.growth.l_a, "l_b": problem.growth.l_b, "created_by": "bayes_rcsa identify"},
+               "l_a": problem.growth.l_a, "l_b": problem.growth.l_b, "created_by": "bayes_rcsa identify",
+               # fixed parameters (e.g. damping) so that predictions need not re-read the setup
+               **{f"fixed_{k}": float(v) for k, v in problem.layout.fixed.items()}},
     )
     return write_netcdf(idata, path)

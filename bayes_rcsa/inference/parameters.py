@@ -33,14 +33,14 @@ Parameter names (physical units)
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
+from typing import Mapping, Sequence  # noqa: F401
 
 import numpy as np
 
 from ..errors import SetupError
 from .priors import PriorSet
 
-__all__ = ["GrowthLaw", "ParameterLayout", "PARAMETER_UNITS", "PARAMETER_LABELS"]
+__all__ = ["GrowthLaw", "ParameterLayout", "PARAMETER_UNITS"]
 
 PARAMETER_UNITS = {
     "k_xf": "N/m",
@@ -50,16 +50,6 @@ PARAMETER_UNITS = {
     "c_xf": "N s/m",
     "c_thetaM": "N m s/rad",
 }
-
-PARAMETER_LABELS = {
-    "k_xf": r"$\log_{10} k_{xf}$",
-    "k_thetaM": r"$\log_{10} k_{\theta M}$",
-    "g_xf": r"$g_{xf}$",
-    "g_thetaM": r"$g_{\theta M}$",
-    "c_xf": r"$\log_{10} c_{xf}$",
-    "c_thetaM": r"$\log_{10} c_{\theta M}$",
-}
-
 
 @dataclass(frozen=True)
 class GrowthLaw:

@@ -37,14 +37,12 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
-import numpy as np
-
 from ..errors import SetupError
 from ..io.setup import ContactSpec, Setup
 from ..model.assembly import Configuration, ToolPointModel
 from ..model.receptance import FRF
 from .band import Band, resolve_band
-from .likelihood import FRFLikelihood, NoiseModel, Observation, make_observation
+from .likelihood import FRFLikelihood, NoiseModel, make_observation
 from .parameters import GrowthLaw, ParameterLayout
 from .priors import LogUniform, Prior, PriorSet, Uniform, prior_from_spec
 

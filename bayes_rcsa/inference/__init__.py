@@ -1,0 +1,35 @@
+"""Bayesian identification of the tool-holder contact (Methods I and II) with emcee.
+
+Separate, small objects in the spirit of bilby:
+
+* :mod:`.priors` -- one prior per parameter (``ln_prob``, ``sample``, bounds), :class:`PriorSet`;
+* :mod:`.parameters` -- parameter vector layout and the bounded linear growth law k(l);
+* :mod:`.band` -- the likelihood band (default rule, overrides);
+* :mod:`.likelihood` -- the vectorised complex-FRF likelihood and its tempering;
+* :mod:`.posterior` -- log prior + log likelihood;
+* :mod:`.search` -- global optimum (likelihood grid + polish);
+* :mod:`.sampler` -- walker start, emcee run loop, convergence, checkpoint/resume;
+* :mod:`.deterministic` -- the reference paper's deterministic fit;
+* :mod:`.diagnostics` -- the only module that imports ArviZ (R-hat, ESS, InferenceData);
+* :mod:`.results`, :mod:`.plots` -- summary.json and figures;
+* :mod:`.problem`, :mod:`.identify` -- assembling a problem and running it.
+
+See docs/identification.md.  Importing this package does not import ArviZ or
+matplotlib; they are loaded when diagnostics or plots are made.
+"""
+
+from .band import Band, default_band
+from .identify import IdentificationResult, identify, posterior_stiffness, predict_frf, write_outputs
+from .parameters import GrowthLaw, ParameterLayout
+from .priors import LogNormal, LogUniform, Normal, PriorSet, Uniform
+from .problem import IdentificationOptions, Problem, build_problem, build_problem_from_setup
+from .sampler import SamplerSettings
+
+__all__ = [
+    "Band", "default_band",
+    "IdentificationResult", "identify", "posterior_stiffness", "predict_frf", "write_outputs",
+    "GrowthLaw", "ParameterLayout",
+    "LogNormal", "LogUniform", "Normal", "PriorSet", "Uniform",
+    "IdentificationOptions", "Problem", "build_problem", "build_problem_from_setup",
+    "SamplerSettings",
+]
