@@ -78,6 +78,9 @@ def register(subparsers) -> None:
                    help="bulk ESS required for convergence (default 400)")
     p.add_argument("--checkpoint-interval", type=float, default=2.0, metavar="SECONDS",
                    help="seconds between checkpoint writes (default 2)")
+    p.add_argument("--spindle-uncertainty", type=Path, default=None, metavar="FILE",
+                   help="spindle samples (spindle_samples.npz from `bayes-rcsa spindle`): the predicted "
+                        "natural-frequency intervals mix posterior draws with spindle samples (Bayesian methods)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress output on stderr")
     p.set_defaults(func=run)
@@ -111,8 +114,20 @@ def run(args) -> int:
     ckpt = args.out / "chain.h5"
     if args.resume and args.method == "deterministic":
         raise SetupError("--resume applies to the Bayesian methods only")
+    spindle_samples = None
+    if args.spindle_uncertainty is not None:
+        if args.method == "deterministic":
+            raise SetupError("--spindle-uncertainty applies to the Bayesian methods only")
+        from ..spindle.uncertainty import load_spindle_samples
+
+        spindle_samples = load_spindle_samples(args.spindle_uncertainty)
+        missing = sorted({m.direction for m in setup.measurements} - set(spindle_samples.directions))
+        if missing:
+            raise SetupError(f"--spindle-uncertainty {args.spindle_uncertainty}: no samples for direction(s) "
+                             f"{missing}; the file has {spindle_samples.directions}")
     result = identify(problem, seed=args.seed, settings=settings,
-                      checkpoint_path=None if args.method == "deterministic" else ckpt, resume=args.resume)
+                      checkpoint_path=None if args.method == "deterministic" else ckpt, resume=args.resume,
+                      spindle_samples=spindle_samples)
     write_outputs(result, args.out, plots=not args.no_plots)
     s = result.summary
     if not args.quiet:

@@ -23,6 +23,10 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=int, default=None, metavar="N",
                    help="seed of the measurement noise (default: [noise] seed of CONFIG, else 0)")
     p.add_argument("--force", action="store_true", help="replace an existing non-empty DIR (after success only)")
+    p.add_argument("--artifact", action="store_true",
+                   help="instead of the tool-point campaign, write standard-artifact hammer tests of the bench's "
+                        "spindle (artifact.toml, h11/h12/h21/h22 per direction, the true flange receptance) for "
+                        "`bayes-rcsa spindle` (docs/spindle.md)")
     p.set_defaults(func=run)
 
 
@@ -41,6 +45,14 @@ def run(args: argparse.Namespace) -> int:
     seed = config.seed if args.seed is None else args.seed
     if seed < 0:
         raise SetupError(f"--seed {seed}: expected an integer >= 0")
+    if args.artifact:
+        from ..synthetic.artifact import default_bench_artifact, generate_artifact_tests, write_artifact_tests
+
+        tests = generate_artifact_tests(config, default_bench_artifact(), np.random.default_rng(seed))
+        path = write_artifact_tests(tests, args.out, overwrite=args.force, seed=seed)
+        print(f"wrote {len(tests.frfs)} artifact FRFs, the true flange receptances and {path.name} to "
+              f"{path.parent} (seed {seed})")
+        return 0
     campaign = generate_campaign(config, np.random.default_rng(seed))
     campaign = dataclasses.replace(campaign, truth={**campaign.truth, "seed": seed})
     setup_path = write_campaign(campaign, args.out, overwrite=args.force)

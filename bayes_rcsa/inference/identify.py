@@ -193,13 +193,31 @@ def _evaluation_stack(problem: Problem):
     return ConfigurationStack(caches), np.array(measured), bands
 
 
-def _predicted_natural_frequencies(problem: Problem, stack: ConfigurationStack, theta: np.ndarray, batch: int = 256) -> np.ndarray:
-    """(n, n_all) predicted natural frequencies for flat draws theta (n, ndim)."""
+def _predicted_natural_frequencies(problem: Problem, stack: ConfigurationStack, theta: np.ndarray, batch: int = 256,
+                                   spindle_samples=None, rng: np.random.Generator | None = None) -> np.ndarray:
+    """(n, n_all) predicted natural frequencies for flat draws theta (n, ndim).
+
+    With ``spindle_samples`` (:class:`bayes_rcsa.spindle.SpindleSamples`) every
+    draw is evaluated with its own spindle sample (balanced random
+    assignment from ``rng``), so the intervals include the spindle uncertainty.
+    """
     lengths = np.array([c.clamping_length for c, _ in problem.all_measurements])
     out = np.empty((theta.shape[0], len(problem.all_measurements)))
+    stacks = assignment = None
+    if spindle_samples is not None:
+        from ..spindle.uncertainty import assign_samples, variant_stacks
+
+        stacks = variant_stacks(problem.model, spindle_samples, [c.configuration for c in stack.caches],
+                                [c.frequency_hz for c in stack.caches])
+        assignment = assign_samples(theta.shape[0], spindle_samples.n_samples, rng)
     for a in range(0, theta.shape[0], batch):
         kx, kt, cx, ct = problem.layout.contact(theta[a : a + batch], lengths)
-        h = stack.frf(kx, kt, cx, ct)
+        if stacks is None:
+            h = stack.frf(kx, kt, cx, ct)
+        else:
+            from ..spindle.uncertainty import mixed_stack_frf
+
+            h = mixed_stack_frf(stacks, assignment[a : a + batch], kx, kt, cx, ct)
         for j, (part, cache) in enumerate(zip(stack.split(h), stack.caches)):
             out[a : a + batch, j] = natural_frequency(cache.frequency_hz, part)
     return out
@@ -269,6 +287,7 @@ def identify(
     checkpoint_path=None,
     resume: bool = False,
     max_draws: int = MAX_DRAWS,
+    spindle_samples=None,
 ) -> IdentificationResult:
     """Run the identification.
 
@@ -284,6 +303,9 @@ def identify(
         Continue the run in ``checkpoint_path``.
     max_draws : int
         Kept draws are thinned further (evenly) to at most this many.
+    spindle_samples : SpindleSamples, optional
+        Flange-receptance samples (``bayes-rcsa spindle``); the predicted
+        natural-frequency intervals then mix the posterior draws with them.
 
     Raises
     ------
@@ -292,7 +314,8 @@ def identify(
         walker start outside the prior.
     """
     t_start = time.perf_counter()
-    rng_opt, rng_init, rng_mcmc = np.random.default_rng(seed).spawn(3)
+    # a fourth child leaves the first three streams (and so earlier results) unchanged
+    rng_opt, rng_init, rng_mcmc, rng_spindle = np.random.default_rng(seed).spawn(4)
     if problem.method == "deterministic":
         return _identify_deterministic(problem, seed, rng_opt, t_start)
 
@@ -347,7 +370,7 @@ def identify(
     flat = theta.reshape(-1, theta.shape[-1])
 
     stack, measured_nat, _ = _evaluation_stack(problem)
-    nat = _predicted_natural_frequencies(problem, stack, flat)
+    nat = _predicted_natural_frequencies(problem, stack, flat, spindle_samples=spindle_samples, rng=rng_spindle)
     values = problem.layout.values(flat)
     names = problem.layout.names
     diag = chain.diagnostics or {}
@@ -385,6 +408,9 @@ def identify(
     wall = time.perf_counter() - t_start
     evals = lp_full.n_evaluations + lp.n_evaluations
     summary = _common_summary(problem, seed)
+    if spindle_samples is not None:
+        summary["spindle_uncertainty"] = {"file": spindle_samples.source, "n_samples": spindle_samples.n_samples,
+                                          "directions": spindle_samples.directions}
     summary.update({
         "converged": bool(chain.converged),
         "stop_reason": chain.reason,

@@ -23,27 +23,34 @@ residual matrices of the modes above and below the band.
 
 Fit
 ---
-The model is fitted to the line-by-line identified block with the inverse
-of its noise covariance as weight: the residual of line f is
-``W_f (S_model - S_raw)`` with ``W = diag(1/sigma) K`` (``K``: forward
-Jacobian of the coupling, :func:`.inverse.forward_jacobian`; ``sigma``: noise
-of the hammer tests).  Up to first order this equals the misfit of the
-hammer tests predicted by coupling ``S_model`` to the artifact, so lines
-where the inversion amplifies noise (near spindle resonances and artifact
-antiresonances) get little weight, and no line is discarded or clipped.
-Parameters are in scaled units (w / w0, S = Lam S~ Lam) and refined by
-Levenberg-Marquardt with an analytic Jacobian.
+The model is first fitted to the line-by-line identified block with the
+inverse of its noise covariance as weight: the residual of line f is
+``W_f (S_model - S_raw)`` with ``W = sqrt(2) diag(1/sigma) K`` (``K``:
+forward Jacobian of the coupling, :func:`.inverse.forward_jacobian`;
+``sigma``: noise of the hammer tests).  Up to first order this equals the
+misfit of the hammer tests predicted by coupling ``S_model`` to the
+artifact, so lines where the inversion amplifies noise (near spindle
+resonances and artifact antiresonances) get little weight, and no line is
+discarded or clipped.  This space is nearly linear and the mode-count
+search runs in it.  :func:`refine` with :class:`MeasurementData` then fits
+the hammer tests themselves (``sqrt(2) (H_k(S_model) - H_k) / sigma_k``),
+which is free of the second-order bias of inverting noisy data; it starts
+from the first fit, so the strong nonlinearity of that space near sharp
+artifact resonances does no harm.  Parameters are in scaled units
+(w / w0, S = Lam S~ Lam) and refined by Levenberg-Marquardt with an
+analytic Jacobian.
 
 Mode count
 ----------
 Modes are added greedily.  A new pole is the best point of a logarithmic
 frequency grid (two start damping ratios) for a linear fit of real-mode
-residues with the other poles held.  Two starts are refined for each mode
-count and the better kept: the refined model of one mode fewer plus the
-new pole, and the poles picked one by one by the linear scan alone (which
-cannot be led astray by an earlier refinement).  The refinement keeps the
-poles within a factor 3 of the band and damping ratios below 2.  The
-mode count minimises the Bayesian information criterion for Gaussian
+residues (a diagonal damping matrix) with the other poles held; then every
+pole is polished by a small coordinate search, still with linear fits
+only, so no pole can run away.  Two starts are refined for each mode count
+(the polished poles, and the refined model of one mode fewer plus the new
+pole) and the better is kept.  Natural frequencies stay within a factor 3
+of the band and modal damping ratios in [1e-5, 2] through a smooth change
+of variables.  The mode count minimises the Bayesian information criterion for Gaussian
 residuals with unknown common scale::
 
     BIC(n) = N ln(chi2_n / N) + k_n ln N,     k_n = 3 n + n (n + 1) / 2 + 6
@@ -52,7 +59,7 @@ residuals with unknown common scale::
 damping matrix, and six residual coefficients).  The unknown scale keeps
 the criterion from adding modes to absorb a misfit that the noise model
 does not explain.  The search runs on every ``decimate``-th line (the
-default keeps at most about 1000), stops after two consecutive BIC
+default keeps at most about 600), stops after two consecutive BIC
 increases or at ``max_modes``, and the chosen model is finally refined on
 all lines.
 """
@@ -63,22 +70,32 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from ..errors import ConvergenceError, ModelError
-from .inverse import forward_jacobian
+from .inverse import forward_artifact, forward_jacobian
 from .substructure import ArtifactReceptances
 
 __all__ = [
-    "ModalModel", "FitData", "whitened_data", "block_entries", "ModalFit", "fit_modal_model", "refine", "n_parameters",
-    "passivity_margin", "is_passive", "is_reciprocal",
+    "ModalModel", "FitData", "MeasurementData", "whitened_data", "block_entries", "ModalFit", "fit_modal_model",
+    "fit_mode_count", "refine", "n_parameters", "passivity_margin", "is_passive", "is_reciprocal",
 ]
 
 _PAIRS = ((0, 0), (0, 1), (1, 1))
 # Relative tolerance of the refinement: with thousands of residuals a relative
 # change of chi2 of 1e-6 is far below one unit of chi2 (statistically nil).
 _TOL = 1e-6
-_DEBUG = False
+# Absolute chi2 tolerance: one unit of chi2 is one standard deviation of a
+# parameter, so 0.01 leaves every parameter within 0.1 sigma of the optimum.
+_CHI2_TOL = 0.01
+# Stop crawling along a flat, curved valley (near-degenerate mode pairs):
+# three accepted steps gaining less than this chi2 each on average.
+_CHI2_STALL = 0.1
+# Evaluations allowed per refinement while searching the mode count (an
+# approximate chi2 suffices to rank mode counts; the chosen model is then
+# refined to convergence).
+_SEARCH_NFEV = 100
+# Lines used while searching the mode count (every k-th line).
+_SEARCH_LINES = 600
 
 
 def n_parameters(n_modes: int) -> int:
@@ -126,7 +143,10 @@ class ModalModel:
         wr2 = (2 * np.pi * self.natural_frequency_hz) ** 2
         z = np.diag(wr2)[None] - (w**2)[:, None, None] * np.eye(n) + 1j * w[:, None, None] * self.damping
         g = np.linalg.solve(z, np.broadcast_to(self.shapes.T, (w.size, n, 2)))
-        return self.shapes @ g + out
+        s = self.shapes @ g
+        # Phi Z^-1 Phi^T is symmetric; averaging with its transpose removes the
+        # round-off of the solve so that l = n holds to the last bit
+        return 0.5 * (s + np.swapaxes(s, -1, -2)) + out
 
     def as_dict(self) -> dict:
         return {
@@ -222,7 +242,14 @@ def whitened_data(artifact: ArtifactReceptances, raw_block: np.ndarray, sigma: n
 
 
 class _Scaling:
-    """Scaled units: w~ = w / w0, S = Lam S~ Lam with Lam = diag(lam_h, lam_p)."""
+    """Scaled units and parameter boxes.
+
+    w~ = w / w0 and S = Lam S~ Lam with Lam = diag(lam_h, lam_p).  The
+    natural frequencies stay within a factor 3 of the band and the modal
+    damping ratios within [1e-5, 2]: both are mapped from unbounded
+    parameters through ``centre + half_width * tanh(y)`` (on the logarithm),
+    so the Levenberg-Marquardt steps can never leave the box.
+    """
 
     def __init__(self, frequency_hz: np.ndarray, reference: np.ndarray):
         self.w0 = 2 * np.pi * float(np.sqrt(frequency_hz[0] * frequency_hz[-1]))
@@ -232,9 +259,14 @@ class _Scaling:
             raise ModelError("modal fit: the identified flange block is zero")
         self.lam = np.array([lam_h, lam_p])
         self.entry = np.array([lam_h**2, lam_h * lam_p, lam_p**2])  # physical factor of (h, l, p)
+        w_lo = frequency_hz[0] / 3 * 2 * np.pi / self.w0
+        w_hi = frequency_hz[-1] * 3 * 2 * np.pi / self.w0
+        self.log_w = _Box(math.log(w_lo), math.log(w_hi))
+        # diagonal of the Cholesky factor: C_rr = L_rr^2 = 2 zeta w_r
+        self.log_d = _Box(0.5 * math.log(2 * 1e-5 * w_lo), 0.5 * math.log(2 * 2.0 * w_hi))
 
     def model(self, x: np.ndarray, n: int) -> ModalModel:
-        lw, phi, lc, u, low = _unpack(x, n)
+        lw, phi, lc, u, low = _unpack(x, n, self)[:5]
         lam2 = np.outer(self.lam, self.lam)
         return ModalModel(
             natural_frequency_hz=np.exp(lw) * self.w0 / (2 * np.pi),
@@ -245,33 +277,56 @@ class _Scaling:
         )
 
 
+class _Box:
+    """``v = centre + half * tanh(y)``: an unbounded y for a value v in (lo, hi)."""
+
+    def __init__(self, lo: float, hi: float):
+        self.centre, self.half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+
+    def value(self, y):
+        return self.centre + self.half * np.tanh(y)
+
+    def slope(self, y):
+        return self.half * (1.0 - np.tanh(y) ** 2)
+
+    def inverse(self, v):
+        t = (np.asarray(v, dtype=float) - self.centre) / self.half
+        return np.arctanh(np.clip(t, -1 + 1e-12, 1 - 1e-12))  # a start on the edge moves just inside
+
+
 def _sym(v) -> np.ndarray:
     return np.array([[v[0], v[1]], [v[1], v[2]]], dtype=float)
 
 
-def _unpack(x: np.ndarray, n: int):
-    """Scaled parameters: log w_r (n), Phi (2, n), Cholesky factor of C (log diagonal), U (3), L (3)."""
-    lw = x[:n]
+def _unpack(x: np.ndarray, n: int, sc: _Scaling):
+    """Parameters from x: log w_r (n, boxed), Phi (2, n), Cholesky factor of C (boxed log diagonal), U (3), L (3).
+
+    Also returns d(log w)/dy (n,) and d(L_rr)/dy (n,) for the chain rule.
+    """
+    y = x[:n]
+    lw = sc.log_w.value(y)
     phi = x[n : 3 * n].reshape(2, n)
     tri = np.tril_indices(n)
     k = 3 * n + tri[0].size
     lc = np.zeros((n, n))
     lc[tri] = x[3 * n : k]
-    lc[np.diag_indices(n)] = np.exp(np.diag(lc))
-    return lw, phi, lc, x[k : k + 3], x[k + 3 : k + 6]
+    yd = np.diag(lc).copy()
+    diag = np.exp(sc.log_d.value(yd))
+    lc[np.diag_indices(n)] = diag
+    return lw, phi, lc, x[k : k + 3], x[k + 3 : k + 6], sc.log_w.slope(y), diag * sc.log_d.slope(yd)
 
 
-def _pack(lw, phi, lc, u, low) -> np.ndarray:
+def _pack(lw, phi, lc, u, low, sc: _Scaling) -> np.ndarray:
     n = len(lw)
     tri = np.tril_indices(n)
     c = np.array(lc, dtype=float)
-    c[np.diag_indices(n)] = np.log(np.diag(c))
-    return np.concatenate([lw, np.asarray(phi).ravel(), c[tri], u, low])
+    c[np.diag_indices(n)] = sc.log_d.inverse(np.log(np.diag(c)))
+    return np.concatenate([sc.log_w.inverse(lw), np.asarray(phi).ravel(), c[tri], u, low])
 
 
-def _evaluate(x: np.ndarray, n: int, wt: np.ndarray, derivatives: bool = False):
+def _evaluate(x: np.ndarray, n: int, wt: np.ndarray, sc: _Scaling, derivatives: bool = False):
     """Scaled (h, l, p) entries (n_freq, 3) and, optionally, their derivatives (n_freq, 3, n_par)."""
-    lw, phi, lc, u, low = _unpack(x, n)
+    lw, phi, lc, u, low, dlw, ddiag = _unpack(x, n, sc)
     ent = np.broadcast_to(u - low / (wt**2)[:, None], (wt.size, 3)).astype(complex)
     if n:
         wr2 = np.exp(2 * lw)
@@ -285,13 +340,13 @@ def _evaluate(x: np.ndarray, n: int, wt: np.ndarray, derivatives: bool = False):
     if n:
         ga = [g[:, :, a] for a in (0, 1)]  # (nf, n) columns for the two flange DOFs
         for e, (a, b) in enumerate(_PAIRS):
-            d[:, e, :n] = -2 * wr2 * ga[a] * ga[b]  # d / d log w_r
+            d[:, e, :n] = -2 * wr2 * dlw * ga[a] * ga[b]  # dZ = 2 w_r^2 dlog(w_r) e_r e_r^T
             for i in (0, 1):  # d / d Phi[i, r]: delta_ai G_rb + G_ra delta_bi
                 d[:, e, n + i * n : n + (i + 1) * n] = (ga[b] if a == i else 0) + (ga[a] if b == i else 0)
         ltg = np.einsum("kj,fka->fja", lc, g)  # (L_c^T G)[j, a]
         tri = np.tril_indices(n)
         for idx, (j, k) in enumerate(zip(*tri)):
-            fac = lc[j, k] if j == k else 1.0  # chain rule of the log diagonal
+            fac = ddiag[j] if j == k else 1.0  # chain rule of the boxed log diagonal
             # dC = E_jk L^T + L E_kj  ->  G^T dC G [a, b] = G_ja (L^T G)_kb + (L^T G)_ka G_jb
             for e, (a, b) in enumerate(_PAIRS):
                 d[:, e, 3 * n + idx] = -1j * wt * fac * (g[:, j, a] * ltg[:, k, b] + ltg[:, k, a] * g[:, j, b])
@@ -312,12 +367,63 @@ class _Problem:
         self.target = data.target / sc.entry
 
     def residual(self, x) -> np.ndarray:
-        r = np.einsum("fke,fe->fk", self.w, _evaluate(x, self.n, self.wt) - self.target)
+        r = np.einsum("fke,fe->fk", self.w, _evaluate(x, self.n, self.wt, self.sc) - self.target)
         return np.concatenate([r.real.ravel(), r.imag.ravel()])
 
     def jacobian(self, x) -> np.ndarray:
-        _, d = _evaluate(x, self.n, self.wt, derivatives=True)
+        _, d = _evaluate(x, self.n, self.wt, self.sc, derivatives=True)
         jac = np.einsum("fke,fep->fkp", self.w, d).reshape(-1, d.shape[-1])
+        return np.concatenate([jac.real, jac.imag], axis=0)
+
+
+@dataclass(frozen=True)
+class MeasurementData:
+    """The hammer tests themselves, for the final fit in measurement space.
+
+    Attributes
+    ----------
+    artifact : ArtifactReceptances
+    measured : (n_freq, m) complex, the measured FRFs (m/N)
+    component : (m,) int, predicted receptance of each column: 0 = H11, 1 = H12 (= H21), 2 = H22
+    sigma : (n_freq, m) float, their noise standard deviations (m/N, > 0)
+    """
+
+    artifact: ArtifactReceptances
+    measured: np.ndarray
+    component: np.ndarray
+    sigma: np.ndarray
+
+    def __post_init__(self) -> None:
+        if not np.all(self.sigma > 0):
+            raise ModelError("modal fit: every noise standard deviation must be > 0 (give a noise floor or level)")
+
+    def with_measured(self, measured: np.ndarray, artifact: ArtifactReceptances | None = None) -> "MeasurementData":
+        return MeasurementData(self.artifact if artifact is None else artifact, measured, self.component, self.sigma)
+
+
+class _MeasurementProblem:
+    """Residuals ``sqrt(2) (H_k(S_model) - H_k^measured) / sigma_k`` of every measured FRF, and their Jacobian."""
+
+    def __init__(self, data: MeasurementData, sc: _Scaling, n: int):
+        self.n, self.sc, self.data = n, sc, data
+        self.wt = data.artifact.omega / sc.w0
+        self.scale = math.sqrt(2.0) / data.sigma
+
+    def _block(self, ent: np.ndarray) -> np.ndarray:
+        e = ent * self.sc.entry
+        b = np.empty(e.shape[:-1] + (2, 2), dtype=complex)
+        b[..., 0, 0], b[..., 0, 1], b[..., 1, 0], b[..., 1, 1] = e[..., 0], e[..., 1], e[..., 1], e[..., 2]
+        return b
+
+    def residual(self, x) -> np.ndarray:
+        g = forward_artifact(self._block(_evaluate(x, self.n, self.wt, self.sc)), self.data.artifact)
+        r = (g[:, self.data.component] - self.data.measured) * self.scale
+        return np.concatenate([r.real.ravel(), r.imag.ravel()])
+
+    def jacobian(self, x) -> np.ndarray:
+        ent, d = _evaluate(x, self.n, self.wt, self.sc, derivatives=True)
+        k = forward_jacobian(self.data.artifact, self._block(ent))[:, self.data.component, :] * self.sc.entry
+        jac = (np.einsum("fke,fep->fkp", k, d) * self.scale[..., None]).reshape(-1, d.shape[-1])
         return np.concatenate([jac.real, jac.imag], axis=0)
 
 
@@ -338,6 +444,9 @@ class ModalFit:
         Scaled parameters (warm start for :func:`refine`).
     scaling : object
         Internal scaling, needed by :func:`refine`.
+    search_x : dict of int to array
+        Scaled parameters of every mode count tried, as fitted on the search
+        lines (start values for :func:`fit_mode_count`).
     """
 
     model: ModalModel
@@ -346,6 +455,7 @@ class ModalFit:
     bic: dict
     x: np.ndarray = field(repr=False)
     scaling: object = field(repr=False)
+    search_x: dict = field(default_factory=dict, repr=False)
 
     @property
     def reduced_chi2(self) -> float:
@@ -357,30 +467,91 @@ def _bic(chi2: float, n_res: int, n_par: int) -> float:
     return n_res * math.log(chi2 / n_res) + n_par * math.log(n_res)
 
 
-def _bounds(problem: _Problem, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Box for the scaled parameters: poles within a factor 3 of the band, damping ratio <= 2."""
-    k = n_parameters(n)
-    lo, hi = np.full(k, -np.inf), np.full(k, np.inf)
-    w_lo, w_hi = problem.wt[0] / 3, problem.wt[-1] * 3
-    lo[:n], hi[:n] = math.log(w_lo), math.log(w_hi)
-    diag = 3 * n + np.array([j * (j + 1) // 2 + j for j in range(n)], dtype=int)  # row-major tril diagonal
-    hi[diag] = 0.5 * math.log(2 * 2.0 * w_hi)  # C_rr = L_rr^2 <= 2 * zeta_max * w_max
-    return lo, hi
+def _solve(problem: _Problem, x0: np.ndarray, max_nfev: int = 400, lam: float = 1e-3) -> tuple[np.ndarray, float]:
+    """Levenberg-Marquardt on the normal equations (the Jacobians are tall and narrow).
+
+    Marquardt's diagonal scaling; the damping shrinks by 3 after a
+    successful step and grows by 4 after a failed one.  Stops when the
+    Gauss-Newton decrement ``g^T (J^T J)^-1 g`` (the chi2 a full step could
+    still gain) is below ``_CHI2_TOL``, when an accepted step lowers chi2 by
+    less than ``_TOL`` relative, when three accepted steps gained less than
+    ``_CHI2_STALL`` each on average (a flat valley: the block no longer
+    changes where the data constrain it), or after ``max_nfev`` residual
+    evaluations.  ``lam`` is the initial damping (small
+    for a start close to the optimum, e.g. a bootstrap refit).
+
+    Returns
+    -------
+    x : (n_par,) float
+    chi2 : float
+    """
+    x = np.array(x0, dtype=float)
+    r = problem.residual(x)
+    cost = float(r @ r)
+    if not np.isfinite(cost):
+        raise ConvergenceError("modal fit: non-finite residuals at the start values")
+    nfev = 1
+    gains: list[float] = []
+    while nfev < max_nfev:
+        jac = problem.jacobian(x)
+        a = jac.T @ jac
+        g = jac.T @ r
+        d = np.maximum(np.diag(a), 1e-12 * max(float(np.max(np.diag(a))), 1e-300))
+        try:
+            # Gauss-Newton decrement: the chi2 a full step could still gain
+            if float(g @ np.linalg.solve(a + 1e-12 * np.diag(d), g)) < _CHI2_TOL:
+                break
+        except np.linalg.LinAlgError:
+            pass
+        improved = False
+        while nfev < max_nfev:
+            try:
+                step = -np.linalg.solve(a + lam * np.diag(d), g)
+            except np.linalg.LinAlgError:
+                lam *= 4.0
+                if lam > 1e12:
+                    break
+                continue
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                r_new = problem.residual(x + step)
+            nfev += 1
+            c_new = float(r_new @ r_new)
+            if np.isfinite(c_new) and c_new < cost:
+                decrease = cost - c_new
+                x, r, cost = x + step, r_new, c_new
+                lam = max(lam / 3.0, 1e-12)
+                improved = True
+                break
+            lam *= 4.0
+            if lam > 1e12:
+                break
+        if not improved or decrease <= _TOL * cost:
+            break
+        gains.append(decrease)
+        if len(gains) >= 3 and sum(gains[-3:]) < 3 * _CHI2_STALL:
+            break
+    return x, cost
 
 
-def _solve(problem: _Problem, x0: np.ndarray, max_nfev: int = 400) -> tuple[np.ndarray, float]:
-    lo, hi = _bounds(problem, problem.n)
-    fin_lo, fin_hi = np.isfinite(lo), np.isfinite(hi)
-    inner_lo, inner_hi = lo.copy(), hi.copy()
-    inner_lo[fin_lo] += 1e-9 * (1 + np.abs(lo[fin_lo]))
-    inner_hi[fin_hi] -= 1e-9 * (1 + np.abs(hi[fin_hi]))
-    x0 = np.clip(x0, inner_lo, inner_hi)  # trf needs a start strictly inside the box
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        res = least_squares(problem.residual, x0, jac=problem.jacobian, method="trf", bounds=(lo, hi), xtol=_TOL,
-                            ftol=_TOL, gtol=_TOL, max_nfev=max_nfev, x_scale="jac")
-    if not np.all(np.isfinite(res.x)) or not np.isfinite(res.cost):
-        raise ConvergenceError("modal fit: the least-squares refinement diverged (non-finite parameters)")
-    return res.x, 2.0 * float(res.cost)
+def _pole_columns(problem: _Problem, w: float, z: float) -> np.ndarray:
+    """Whitened real design columns (m, 3) of a real-mode residue at scaled pole (w, zeta)."""
+    q = 1.0 / (w**2 - problem.wt**2 + 2j * z * w * problem.wt)
+    a = problem.w * q[:, None, None]  # (nf, k, e): column e is entry e of the residue
+    a = a.reshape(-1, 3)
+    return np.concatenate([a.real, a.imag])
+
+
+def _residual_columns(problem: _Problem) -> np.ndarray:
+    """Whitened real design columns (m, 6) of the residual matrices U and L."""
+    up = problem.w.reshape(-1, 3)
+    low = (-problem.w / (problem.wt**2)[:, None, None]).reshape(-1, 3)
+    a = np.concatenate([up, low], axis=1)
+    return np.concatenate([a.real, a.imag])
+
+
+def _rhs(problem: _Problem) -> np.ndarray:
+    b = np.einsum("fke,fe->fk", problem.w, problem.target).ravel()
+    return np.concatenate([b.real, b.imag])
 
 
 def _linear_start(problem: _Problem, poles: list[tuple[float, float]]) -> tuple[np.ndarray, float]:
@@ -391,21 +562,9 @@ def _linear_start(problem: _Problem, poles: list[tuple[float, float]]) -> tuple[
     Each fitted R_r is projected onto rank one (its leading eigenpair) to
     give the mode shape; the nonlinear refinement takes it from there.
     """
-    wt = problem.wt
     n = len(poles)
-    ncol = 3 * n + 6
-    basis = np.zeros((wt.size, 3, ncol), dtype=complex)
-    for r, (w, z) in enumerate(poles):
-        q = 1.0 / (w**2 - wt**2 + 2j * z * w * wt)
-        for e in range(3):
-            basis[:, e, 3 * r + e] = q
-    for e in range(3):
-        basis[:, e, 3 * n + e] = 1.0
-        basis[:, e, 3 * n + 3 + e] = -1.0 / wt**2
-    a = np.einsum("fke,fec->fkc", problem.w, basis).reshape(-1, ncol)
-    b = np.einsum("fke,fe->fk", problem.w, problem.target).ravel()
-    aa = np.concatenate([a.real, a.imag])
-    bb = np.concatenate([b.real, b.imag])
+    aa = np.concatenate([_pole_columns(problem, w, z) for w, z in poles] + [_residual_columns(problem)], axis=1)
+    bb = _rhs(problem)
     coef, *_ = np.linalg.lstsq(aa, bb, rcond=None)
     chi2 = float(np.sum((aa @ coef - bb) ** 2))
     phi = np.zeros((2, n))
@@ -414,35 +573,94 @@ def _linear_start(problem: _Problem, poles: list[tuple[float, float]]) -> tuple[
         phi[:, r] = vec[:, -1] * math.sqrt(max(ev[-1], 1e-6 * max(abs(ev).max(), 1e-12)))
     lw = np.log([w for w, _ in poles]) if n else np.zeros(0)
     lc = np.diag([math.sqrt(2 * z * w) for w, z in poles]) if n else np.zeros((0, 0))
-    return _pack(lw, phi, lc, coef[3 * n : 3 * n + 3], coef[3 * n + 3 :]), chi2
+    return _pack(lw, phi, lc, coef[3 * n : 3 * n + 3], coef[3 * n + 3 :], problem.sc), chi2
 
 
-def _grow(x: np.ndarray, n: int, w: float, zeta: float, shape: np.ndarray) -> np.ndarray:
+class _Projector:
+    """Least-squares fit with fixed columns, and the chi2 when three columns are added.
+
+    The orthonormal basis comes from the eigen-decomposition of the Gram
+    matrix of the (equilibrated) columns: these design matrices are tall and
+    narrow, where a Householder QR is needlessly slow.  Directions with
+    eigenvalues below 1e-12 of the largest are dropped (linearly dependent
+    columns), which leaves the least-squares residual unchanged.
+    """
+
+    def __init__(self, fixed: np.ndarray, rhs: np.ndarray):
+        self.q = _orthonormal(fixed)
+        self.r = rhs - self.q @ (self.q.T @ rhs)
+
+    def chi2_with(self, cols: np.ndarray) -> float:
+        c = cols - self.q @ (self.q.T @ cols)
+        qc = _orthonormal(c)
+        r = self.r - qc @ (qc.T @ self.r)
+        return float(r @ r)
+
+
+def _orthonormal(a: np.ndarray) -> np.ndarray:
+    """Orthonormal basis (m, k') of the column space of ``a`` (m, k)."""
+    norm = np.linalg.norm(a, axis=0)
+    a = a[:, norm > 0] / norm[norm > 0]
+    ev, vec = np.linalg.eigh(a.T @ a)
+    keep = ev > 1e-12 * ev[-1]
+    q = a @ (vec[:, keep] / np.sqrt(ev[keep]))
+    # one re-orthogonalisation pass restores orthonormality lost to the Gram matrix's rounding
+    ev2, vec2 = np.linalg.eigh(q.T @ q)
+    return q @ (vec2 / np.sqrt(ev2))
+
+
+def _grow(sc: _Scaling, x: np.ndarray, n: int, w: float, zeta: float, shape: np.ndarray) -> np.ndarray:
     """Parameters of ``n`` modes plus a new one (frequency w, diagonal damping, given shape)."""
-    lw, phi, lc, u, low = _unpack(x, n)
+    lw, phi, lc, u, low = _unpack(x, n, sc)[:5]
     lc2 = np.zeros((n + 1, n + 1))
     lc2[:n, :n] = lc
     lc2[n, n] = math.sqrt(2 * zeta * w)
-    return _pack(np.append(lw, math.log(w)), np.column_stack([phi, shape]), lc2, u, low)
+    return _pack(np.append(lw, math.log(w)), np.column_stack([phi, shape]), lc2, u, low, sc)
 
 
-def _scan(problem: _Problem, poles: list[tuple[float, float]], zetas=(0.005, 0.03), n_grid: int = 80):
+def _scan(problem: _Problem, poles: list[tuple[float, float]], zetas=(0.005, 0.03), n_grid: int = 60):
     """Best added pole on a log grid (band widened by 20 % each side) by the linear real-mode fit.
 
-    Returns (w, zeta, shape) of the new mode, or None when every grid point
-    lies next to an existing pole.
+    Returns (chi2, w, zeta), or None when every grid point lies next to an
+    existing pole.
     """
     wt = problem.wt
-    grid = np.geomspace(wt[0] / 1.2, wt[-1] * 1.2, n_grid)
+    fixed = np.concatenate([_pole_columns(problem, w, z) for w, z in poles] + [_residual_columns(problem)], axis=1)
+    proj = _Projector(fixed, _rhs(problem))
     best = None
-    for w in grid:
+    for w in np.geomspace(wt[0] / 1.2, wt[-1] * 1.2, n_grid):
         if any(abs(math.log(w / p[0])) < 0.02 for p in poles):
             continue
         for z in zetas:
-            x, c2 = _linear_start(problem, poles + [(float(w), z)])
+            c2 = proj.chi2_with(_pole_columns(problem, float(w), z))
             if best is None or c2 < best[0]:
-                best = (c2, float(w), z, _unpack(x, len(poles) + 1)[1][:, -1])
-    return None if best is None else best[1:]
+                best = (c2, float(w), z)
+    return best
+
+
+def _polish(problem: _Problem, poles: list[tuple[float, float]], sweeps: int = 2) -> list[tuple[float, float]]:
+    """Coordinate search of each pole (frequency +-8 %, damping x 1/2..2) by linear fits.
+
+    Cheap and robust: only linear least-squares problems are solved, so no
+    pole can run away; the nonlinear refinement starts from the result.
+    """
+    poles = list(poles)
+    rhs = _rhs(problem)
+    res_cols = _residual_columns(problem)
+    for _ in range(sweeps):
+        for r in range(len(poles)):
+            others = [_pole_columns(problem, w, z) for k, (w, z) in enumerate(poles) if k != r]
+            proj = _Projector(np.concatenate(others + [res_cols], axis=1), rhs)
+            w0, z0 = poles[r]
+            best = (proj.chi2_with(_pole_columns(problem, w0, z0)), w0, z0)
+            for w in w0 * np.geomspace(0.92, 1.08, 9):
+                for z in z0 * np.array([0.5, 0.71, 1.0, 1.41, 2.0]):
+                    z = float(min(z, 1.0))
+                    c2 = proj.chi2_with(_pole_columns(problem, float(w), z))
+                    if c2 < best[0]:
+                        best = (c2, float(w), z)
+            poles[r] = best[1:]
+    return poles
 
 
 def fit_modal_model(data: FitData, max_modes: int = 8, decimate: int | None = None) -> ModalFit:
@@ -455,14 +673,14 @@ def fit_modal_model(data: FitData, max_modes: int = 8, decimate: int | None = No
         Largest mode count tried.
     decimate : int, optional
         Use every ``decimate``-th line for the mode-count search (default:
-        keep at most about 1000 lines).  The final refinement uses all lines.
+        keep at most about 600 lines).  The final refinement uses all lines.
 
     Returns
     -------
     ModalFit
     """
     nf = data.frequency_hz.size
-    step = decimate if decimate is not None else max(1, int(math.ceil(nf / 1000)))
+    step = decimate if decimate is not None else max(1, int(math.ceil(nf / _SEARCH_LINES)))
     search = data.subset(slice(None, None, step))
     sc = _Scaling(data.frequency_hz, data.target)
     n_res = 2 * search.target.size
@@ -473,46 +691,58 @@ def fit_modal_model(data: FitData, max_modes: int = 8, decimate: int | None = No
     x, chi2 = _solve(prob, x)
     fits[0], bic[0] = x, _bic(chi2, n_res, n_parameters(0))
     rises = 0
-    fresh: list[tuple[float, float]] = []  # poles chosen by the linear scan alone
+    poles: list[tuple[float, float]] = []  # real-mode poles of the linear search
     for n in range(1, max_modes + 1):
         prob = _Problem(search, sc, n)
-        starts = []
-        # (a) the refined n-1 mode model plus the best new pole
-        prev_x = fits[n - 1]
-        lw, _, lc, _, _ = _unpack(prev_x, n - 1)
-        poles = [(float(np.exp(lw[r])), float(lc[r] @ lc[r]) / (2 * float(np.exp(lw[r])))) for r in range(n - 1)]
         new = _scan(prob, poles)
-        if new is not None:
-            starts.append(_grow(prev_x, n - 1, *new))
-        # (b) poles picked one by one by the linear scan, never moved (robust to
-        # a refinement that parked earlier poles where they no longer help)
-        new = _scan(prob, fresh)
-        if new is not None:
-            fresh.append(new[:2])
-            starts.append(_linear_start(prob, fresh)[0])
-        if not starts:
+        if new is None:
             break
-        x, chi2 = min((_solve(prob, x0) for x0 in starts), key=lambda t: t[1])
+        poles = _polish(prob, poles + [new[1:]])
+        starts = [_linear_start(prob, poles)[0]]
+        # also the refined model of one mode fewer plus the new pole
+        lw = _unpack(fits[n - 1], n - 1, sc)[0]
+        extra = [p for p in poles if all(abs(math.log(p[0]) - v) > 0.02 for v in lw)]
+        if extra:
+            xl = _linear_start(prob, poles)[0]
+            k = poles.index(extra[0])
+            shape = _unpack(xl, n, sc)[1][:, k]
+            starts.append(_grow(sc, fits[n - 1], n - 1, extra[0][0], extra[0][1], shape))
+        x, chi2 = min((_solve(prob, x0, max_nfev=_SEARCH_NFEV) for x0 in starts), key=lambda t: t[1])
         fits[n], bic[n] = x, _bic(chi2, n_res, n_parameters(n))
-        if _DEBUG:
-            m = sc.model(x, n)
-            print(n, chi2 / n_res, np.round(m.natural_frequency_hz, 1), np.round(m.damping_ratio, 4))
         rises = rises + 1 if bic[n] > min(v for m, v in bic.items() if m < n) else 0
         if rises >= 2:
             break
     n_best = min(bic, key=bic.get)
     x, chi2 = _solve(_Problem(data, sc, n_best), fits[n_best])
-    return ModalFit(model=sc.model(x, n_best), chi2=chi2, n_residuals=2 * data.target.size, bic=bic, x=x, scaling=sc)
+    return ModalFit(model=sc.model(x, n_best), chi2=chi2, n_residuals=2 * data.target.size, bic=bic, x=x, scaling=sc,
+                    search_x=fits)
 
 
-def refine(fit: ModalFit, data: FitData, max_nfev: int = 100) -> tuple[ModalModel, float]:
-    """Refit the same mode count to new data (e.g. a bootstrap replicate), starting from ``fit``.
+def fit_mode_count(fit: ModalFit, data: FitData, n_modes: int) -> ModalFit:
+    """The model with ``n_modes`` modes (one of the counts tried by the search), refined on all lines of ``data``."""
+    if n_modes not in fit.search_x:
+        raise ModelError(f"modal fit: mode count {n_modes} was not tried (tried: {sorted(fit.search_x)})")
+    x, chi2 = _solve(_Problem(data, fit.scaling, n_modes), fit.search_x[n_modes])
+    return ModalFit(model=fit.scaling.model(x, n_modes), chi2=chi2, n_residuals=2 * data.target.size, bic=fit.bic,
+                    x=x, scaling=fit.scaling, search_x=fit.search_x)
 
-    Returns
-    -------
-    model : ModalModel
-    chi2 : float
+
+def refine(fit: ModalFit, data: FitData | MeasurementData, max_nfev: int = 100) -> ModalFit:
+    """Refit the same mode count to new data, weights or residual space, starting from ``fit``.
+
+    With :class:`FitData` the residuals are the whitened differences to the
+    line-by-line block; with :class:`MeasurementData` they are the
+    normalised misfits of the hammer tests themselves.  The latter has no
+    bias from inverting noisy data (the line-by-line block is a nonlinear
+    function of the measurements, so noise biases it at second order, most
+    where the inversion amplifies noise) and is used for the final fit and
+    the bootstrap.  The returned fit keeps ``fit.bic``.
     """
     n = fit.model.n_modes
-    x, chi2 = _solve(_Problem(data, fit.scaling, n), fit.x, max_nfev=max_nfev)
-    return fit.scaling.model(x, n), chi2
+    if isinstance(data, MeasurementData):
+        problem, n_res = _MeasurementProblem(data, fit.scaling, n), 2 * data.measured.size
+    else:
+        problem, n_res = _Problem(data, fit.scaling, n), 2 * data.target.size
+    x, chi2 = _solve(problem, fit.x, max_nfev=max_nfev, lam=1e-6)
+    return ModalFit(model=fit.scaling.model(x, n), chi2=chi2, n_residuals=n_res, bic=fit.bic, x=x,
+                    scaling=fit.scaling, search_x=fit.search_x)
