@@ -11,25 +11,9 @@ from typing import Sequence
 
 import numpy as np
 
-from ..io.atomic import atomic_path
+from ..io.figures import new_figure as _figure, save_png as _save
 
 __all__ = ["trace_plot", "corner_plot", "frf_plot"]
-
-
-def _figure(width: float, height: float):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(width, height), dpi=100)
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _save(fig, path) -> Path:
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
-    return path
 
 
 def trace_plot(chain: np.ndarray, labels: Sequence[str], burn: int, path, max_walkers: int = 32) -> Path:

@@ -17,6 +17,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..io.atomic import atomic_path
+from ..io.figures import new_figure as _figure
 
 __all__ = [
     "METADATA_KEY",
@@ -31,15 +32,6 @@ __all__ = [
 METADATA_KEY = "bayes_rcsa.numbers"
 FIT_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown", "tab:pink",
               "tab:olive", "tab:cyan", "tab:gray")
-
-
-def _figure(width: float, height: float):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(width, height), dpi=100)
-    FigureCanvasAgg(fig)
-    return fig
 
 
 def _jsonable(obj):

@@ -6,28 +6,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.atomic import atomic_path
 from .identification import SpindleIdentification
+from ..io.figures import new_figure as _figure, save_png as _save
 
 __all__ = ["receptance_plot", "reproduction_plot"]
 
 _ENTRIES = (("h", 0, 0, "m/N"), ("l = n", 0, 1, "1/N"), ("p", 1, 1, "rad/(N m)"))
-
-
-def _figure(width: float, height: float):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(width, height), dpi=100)
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _save(fig, path) -> Path:
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
-    return path
 
 
 def _phase(values) -> np.ndarray:
