@@ -51,3 +51,36 @@ def atomic_write_bytes(path, data: bytes) -> None:
     """Write ``data`` to ``path`` atomically."""
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
+
+
+def begin_directory(out_dir, overwrite: bool = False) -> tuple[Path, Path]:
+    """Check ``out_dir`` and create an empty sibling temporary directory to fill.
+
+    The caller writes everything into the temporary directory and then moves
+    it onto ``out_dir`` (or removes it on failure), so a failed run leaves no
+    partial output.
+
+    Returns
+    -------
+    out_dir : Path
+        Resolved (``"."`` or ``"dir/"`` need a real name for the sibling).
+    tmp : Path
+        The temporary directory, with the permissions a plain mkdir would give.
+
+    Raises
+    ------
+    SetupError
+        ``out_dir`` is a file, or a non-empty directory without ``overwrite``.
+    """
+    from ..errors import SetupError
+
+    out_dir = Path(out_dir).resolve()
+    if out_dir.exists():
+        if not out_dir.is_dir():
+            raise SetupError(f"{out_dir}: exists and is not a directory")
+        if any(out_dir.iterdir()) and not overwrite:
+            raise SetupError(f"{out_dir}: directory exists and is not empty (choose another or allow overwriting)")
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".tmp", dir=out_dir.parent))
+    os.chmod(tmp, 0o777 & ~_umask())
+    return out_dir, tmp

@@ -31,7 +31,6 @@ import json
 import math
 import os
 import shutil
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,7 +42,7 @@ from ..model.materials import Material
 from ..model.receptance import FRF
 from ..model.sections import circular_section, composite_section
 from .bench import true_spindle_receptance
-from .campaign import _jsonable, _replace_dir, _umask
+from .campaign import _jsonable, _replace_dir
 from .config import BenchConfig
 from .fe import Chain, NodeRef, assemble, mesh, receptance
 from .noise import add_measurement_noise
@@ -381,18 +380,11 @@ def write_artifact_tests(tests: ArtifactTests, out_dir, overwrite: bool = False,
     """
     from ..io.frf_csv import write_frf_csv
     from ..io.receptance_csv import write_spindle_csv
+    from ..io.atomic import begin_directory
     from ..io.toml_writer import dump_toml
 
-    out_dir = Path(out_dir).resolve()
-    if out_dir.exists():
-        if not out_dir.is_dir():
-            raise SetupError(f"{out_dir}: exists and is not a directory")
-        if any(out_dir.iterdir()) and not overwrite:
-            raise SetupError(f"{out_dir}: directory exists and is not empty (choose another or allow overwriting)")
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".tmp", dir=out_dir.parent))
+    out_dir, tmp = begin_directory(out_dir, overwrite)
     try:
-        os.chmod(tmp, 0o777 & ~_umask())
         for (d, name), frf in tests.frfs.items():
             write_frf_csv(tmp / frf.source, frf, comments=[
                 "synthetic artifact hammer test (bayes_rcsa.synthetic.artifact)",

@@ -22,7 +22,6 @@ import json
 import math
 import os
 import shutil
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -279,12 +278,6 @@ def truth_record(config: BenchConfig, peaks: list[dict]) -> dict:
     }
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
 def write_campaign(campaign: Campaign, out_dir, overwrite: bool = False) -> Path:
     """Write a campaign as one directory, atomically.
 
@@ -308,18 +301,11 @@ def write_campaign(campaign: Campaign, out_dir, overwrite: bool = False) -> Path
     """
     from ..io.frf_csv import write_frf_csv
     from ..io.receptance_csv import write_spindle_csv
+    from ..io.atomic import begin_directory
     from ..io.toml_writer import dump_toml
 
-    out_dir = Path(out_dir).resolve()  # "." or "dir/" need a real name for the sibling temp dir
-    if out_dir.exists():
-        if not out_dir.is_dir():
-            raise SetupError(f"{out_dir}: exists and is not a directory")
-        if any(out_dir.iterdir()) and not overwrite:
-            raise SetupError(f"{out_dir}: directory exists and is not empty (choose another or allow overwriting)")
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".tmp", dir=out_dir.parent))
+    out_dir, tmp = begin_directory(out_dir, overwrite)
     try:
-        os.chmod(tmp, 0o777 & ~_umask())
         header = [
             "synthetic impact-hammer campaign (bayes_rcsa.synthetic)",
         ]
