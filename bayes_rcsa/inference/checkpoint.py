@@ -98,7 +98,7 @@ class Checkpoint:
         import h5py
 
         tmp = path.with_name("." + path.name + ".tmp")
-        with h5py.File(tmp, "w") as f:
+        with h5py.File(tmp, "w", locking=False) as f:
             g = f.create_group(_GROUP)
             g.attrs["version"] = emcee.__version__
             g.attrs["nwalkers"] = n_walkers
@@ -134,7 +134,9 @@ class Checkpoint:
     def _append_file(path, coords, log_prob, accepted, random_state) -> None:
         import h5py
 
-        with h5py.File(path, "a") as f:
+        # No HDF5 file lock: a reader (a user, or a monitor) holding the file open must not
+        # crash the run; the two alternating copies protect against reading a torn write.
+        with h5py.File(path, "a", locking=False) as f:
             g = f[_GROUP]
             it = int(g.attrs["iteration"])
             n = coords.shape[0]
@@ -156,7 +158,7 @@ class Checkpoint:
         import h5py
 
         try:
-            with h5py.File(path, "r") as f:
+            with h5py.File(path, "r", locking=False) as f:
                 g = f[_GROUP]
                 it = int(g.attrs["iteration"])
                 chain = np.array(g["chain"][:it])
