@@ -1,0 +1,170 @@
+"""The model-term protocol: physical (or statistical) extensions of the RCSA model.
+
+A model term owns a few parameters (each with a prior and a *baseline* value
+at which the term vanishes) and changes one stage of the batched forward
+evaluation.  Stages, in evaluation order, and the hook a term of that kind
+implements:
+
+=============  ==================  ==========================================================
+kind           hook                acts on
+=============  ==================  ==========================================================
+spindle        :meth:`spindle`     the flange receptance, (B, n_lines, 2, 2)
+substructure   :meth:`substructures`  holder / tool receptances before coupling (:class:`Substructures`)
+joint          :meth:`joint`       contact parameters per configuration (:class:`Contact`)
+frf            :meth:`frf`         the assembled tool-point FRF, (n_sets, n_lines)
+=============  ==================  ==========================================================
+
+Batch axes: ``values`` maps every parameter name to an ``(n_sets,)`` array of
+physical values.  Receptance arrays carry a leading *batch* axis ``B`` that is
+either 1 (shared by all parameter sets) or ``n_sets``; a term that makes a
+substructure depend on its parameters returns ``B = n_sets``.  Hooks must be
+vectorised over that axis and over lines (no Python loop per set or line)
+and must not modify their inputs.
+
+A term with all parameters at their baseline values must reproduce the
+baseline model exactly (tests check this for every registered term).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any, ClassVar, Mapping, NamedTuple, Sequence
+
+import numpy as np
+
+from ...model.timoshenko import TwoPort
+from ..parameter import Parameter
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ...model.assembly import Configuration, ToolPointModel
+
+__all__ = ["KINDS", "Contact", "Substructures", "TermContext", "ModelTerm"]
+
+KINDS = ("spindle", "substructure", "joint", "frf")
+
+
+class Contact(NamedTuple):
+    """Contact parameters per parameter set and configuration, each (n_sets, n_cfg).
+
+    ``k_xf`` N/m, ``k_thetaM`` N m/rad, ``c_xf`` N s/m, ``c_thetaM`` N m s/rad.
+    """
+
+    k_xf: np.ndarray
+    k_thetaM: np.ndarray
+    c_xf: np.ndarray
+    c_thetaM: np.ndarray
+
+
+@dataclass(frozen=True)
+class Substructures:
+    """Receptances of the substructures on the stacked lines, before the joint.
+
+    Attributes
+    ----------
+    spindle : (B, n_lines, 2, 2) complex
+        Flange receptance of the spindle (after spindle terms).
+    holder : TwoPort, blocks (B, n_lines, 2, 2)
+        Free-free holder with the clamped shank; end 1 the flange, end 2 the holder tip.
+    tool : TwoPort, blocks (B, n_lines, 2, 2)
+        Free-free tool overhang; end 1 its base (at the holder tip), end 2 the tool tip.
+    """
+
+    spindle: np.ndarray
+    holder: TwoPort
+    tool: TwoPort
+
+    def replace(self, **changes) -> "Substructures":
+        return replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class TermContext:
+    """Parameter-independent facts a term may read (never modify).
+
+    Attributes
+    ----------
+    model : ToolPointModel
+        Geometry, materials, tools and spindle files.
+    configurations : tuple of Configuration
+        One per stacked measurement / prediction.
+    frequency_hz, omega : (n_lines,) Hz, rad/s
+    line_config : (n_lines,) int
+        Configuration index of every line.
+    lengths : (n_cfg,) m
+        Clamping length of every configuration.
+    l_a, l_b : float
+        m, the growth law's reference range (``l_a == l_b`` without growth).
+    """
+
+    model: "ToolPointModel"
+    configurations: tuple
+    frequency_hz: np.ndarray
+    omega: np.ndarray
+    line_config: np.ndarray
+    lengths: np.ndarray
+    l_a: float
+    l_b: float
+
+
+class ModelTerm:
+    """Base class of model terms; subclasses are registered by name.
+
+    Class attributes
+    ----------------
+    name : str
+        Canonical name used in the setup's ``[model] terms`` list.
+    kind : str
+        One of :data:`KINDS`.
+    description : str
+        One line in a machinist's vocabulary ("a mass such as an
+        accelerometer at the tool tip").
+    role : str
+        ``"term"`` for physical effects, ``"discrepancy"`` for statistical ones.
+    """
+
+    name: ClassVar[str] = ""
+    kind: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    role: ClassVar[str] = "term"
+
+    def parameters(self, model: "ToolPointModel") -> tuple[Parameter, ...]:
+        """The term's parameters with default priors and baselines for this model."""
+        raise NotImplementedError
+
+    # -- hooks: implement the one of the term's kind -------------------------
+
+    def spindle(self, values: Mapping[str, np.ndarray], spindle: np.ndarray, ctx: TermContext) -> np.ndarray:
+        """New flange receptance (B, n_lines, 2, 2)."""
+        raise NotImplementedError
+
+    def substructures(self, values: Mapping[str, np.ndarray], subs: Substructures, ctx: TermContext) -> Substructures:
+        """New holder / tool receptances."""
+        raise NotImplementedError
+
+    def joint(self, values: Mapping[str, np.ndarray], contact: Contact, lengths: np.ndarray,
+              l_a: float, l_b: float) -> Contact:
+        """New contact parameters (n_sets, n_cfg) at ``lengths`` (m).
+
+        Called wherever contact parameters are needed (forward model,
+        stiffness reports), so it gets the lengths and the growth range
+        rather than a line context.
+        """
+        raise NotImplementedError
+
+    def frf(self, values: Mapping[str, np.ndarray], h: np.ndarray, ctx: TermContext) -> np.ndarray:
+        """New tool-point FRF (n_sets, n_lines) complex, m/N."""
+        raise NotImplementedError
+
+    # -- bookkeeping -----------------------------------------------------------
+
+    def describe(self) -> dict[str, Any]:
+        return {"name": self.name, "kind": self.kind, "role": self.role, "description": self.description}
+
+    @staticmethod
+    def batch(values: Mapping[str, np.ndarray], name: str) -> np.ndarray:
+        """``values[name]`` as an (n_sets, 1, 1) array for broadcasting against (B, n_lines, ...) arrays."""
+        return np.asarray(values[name], dtype=float)[:, None, None]
+
+
+def parameter_names(params: Sequence[Parameter]) -> tuple[str, ...]:
+    return tuple(p.name for p in params)
