@@ -13,6 +13,7 @@ __all__ = [
     "SetupError",
     "ModelError",
     "ConvergenceError",
+    "DataWarning",
 ]
 
 
@@ -34,3 +35,7 @@ class ModelError(BayesRCSAError, ValueError):
 
 class ConvergenceError(BayesRCSAError, RuntimeError):
     """A sampler or optimiser did not reach the requested convergence."""
+
+
+class DataWarning(UserWarning):
+    """Input that is plausible enough to use but suspicious (the CLI prints it as one ``warning:`` line)."""

@@ -75,6 +75,7 @@ direction = "x"
 
 def _spindle(rng, f) -> PointReceptance:
     b = (rng.normal(size=(f.size, 2, 2)) - 1j) * np.array([[1e-8, 1e-7], [1e-7, 1e-6]])
+    b[:, 1, 0] = b[:, 0, 1]  # a point block is reciprocal (the reader checks it)
     return PointReceptance(f, b)
 
 
@@ -165,7 +166,8 @@ segments = [{ length = 0.07, diameter = 0.006 }]
 [sampler]""")
     text = text.replace('direction = "x"\n', 'direction = "x"\ntool = "long"\n')
     text += '\n[[measurement]]\nfile = "short.uff"\nclamping_length = 0.030\ndirection = "y"\ntool = "short"\n'
-    write_frf_uff(path.parent / "short.uff", data["tip_25mm.csv"])
+    short = FRF(data["tip_25mm.csv"].frequency_hz, 1.01 * data["tip_25mm.csv"].values)  # not a copy (refused)
+    write_frf_uff(path.parent / "short.uff", short)
     path.write_text(text)
     s = load_setup(path)
     assert s.name == "setup"  # file stem
@@ -173,7 +175,7 @@ segments = [{ length = 0.07, diameter = 0.006 }]
     assert s.contact.translational_damping == (1.0, 100.0)
     assert set(s.tools) == {"long", "short"} and s.tools["short"].segments[0].diameter_ratio == 1.0
     assert [(m.tool, m.direction) for m in s.measurements] == [("long", "x"), ("long", "x"), ("short", "y")]
-    np.testing.assert_array_equal(s.measurements[2].frf.values, data["tip_25mm.csv"].values)
+    np.testing.assert_array_equal(s.measurements[2].frf.values, short.values)
     assert s.feasible_range == (0.025, 0.040)  # no clamping_range: the measured range
 
 
@@ -217,7 +219,7 @@ BAD = [
     ('file = "tip_40mm.csv"', 'file = "missing.csv"', DataError,
      ["setup.toml: [[measurement]] 1 (missing.csv) file = 'missing.csv'", "missing.csv: FRF file not found"]),
     ('x = "spindle_x.csv"', 'x = "nothere.csv"', DataError, ["setup.toml: [spindle] x = 'nothere.csv'", "not found"]),
-    ("[holder]\n", "[holdr]\n", SetupError, ["setup.toml: [holder]: missing required table"]),
+    ("[holder]\n", "[holdr]\n", SetupError, ["setup.toml: (top level): unknown table [holdr]", "did you mean 'holder'"]),
 ]
 
 

@@ -1,135 +1,53 @@
 """Parser of the setup file (TOML) into :class:`bayes_rcsa.io.setup.Setup`.
 
-Strict about the tables it interprets (unknown keys there are typos until
-proven otherwise), lenient about the rest: unknown top-level keys and tables
-are kept in ``Setup.extra`` for later stages.  Every message starts with the
+Strict everywhere: unknown keys and unknown top-level tables are typos until
+proven otherwise (with a "did you mean" suggestion).  The tables later
+stages interpret (``[likelihood]``, ``[priors]``, ``[sampler]``,
+``[model]``) are checked for shape and types here and kept in
+``Setup.extra``; ``[model]`` is also returned as ``Setup.model_table``.  Every message starts with the
 setup file and names the table and key, e.g.
 ``setup.toml: [holder] segments[1].inner_diameter = -0.01: expected ...``.
 """
 
 from __future__ import annotations
 
-import math
-import os
-import tomllib
 from pathlib import Path
-from typing import Any, Callable
+
+import numpy as np
 
 from ..errors import DataError, SetupError
-from ..model.geometry import Holder, HolderSegment, Tool, ToolSegment, check_clamping, holder_segments
+from ..model.geometry import Holder, Tool, check_clamping, holder_segments
 from ..model.materials import Material
+from . import checks
 from .frf import FRF_SUFFIXES, read_frf
 from .receptance_csv import read_spindle_csv
 from .setup import ContactSpec, MeasurementSpec, Setup
+from .tables import REQUIRED as _REQUIRED
+from .tables import TableContext as _Ctx
+from .tables import bounds as _bounds
+from .tables import check_keys as _check_keys
+from .tables import check_prior_spec, check_top_level
+from .tables import is_number as _is_number
+from .tables import load_document
+from .tables import number as _num
+from .tables import parse_holder, parse_materials, parse_tool
+from .tables import string as _str
+from .tables import table as _table
 
 __all__ = ["parse_setup"]
 
-_KNOWN = ("name", "materials", "spindle", "holder", "tool", "tools", "contact", "measurement")
+# Tables the core parser builds the model from ...
+_CORE = ("name", "materials", "spindle", "holder", "tool", "tools", "contact", "measurement")
+# ... and tables later stages interpret (kept in Setup.extra; their shape is checked here).
+_STAGES = ("likelihood", "priors", "sampler", "model")
+_KNOWN = _CORE + _STAGES
 _DIRECTIONS = ("x", "y")
-_REQUIRED = object()
 _POSITIVE_M = "a finite number > 0 (m)"
-
-
-class _Ctx:
-    """The setup file being parsed: its name for messages and its directory."""
-
-    def __init__(self, path: Path):
-        self.file = str(path)
-        self.dir = path.parent
-
-    def error(self, where: str, message: str) -> SetupError:
-        return SetupError(f"{self.file}: {where}: {message}")
-
-    def bad(self, where: str, key: str, value: Any, expected: str) -> SetupError:
-        return SetupError(f"{self.file}: {where} {key} = {value!r}: expected {expected}")
-
-    def missing(self, where: str, key: str, expected: str) -> SetupError:
-        return SetupError(f"{self.file}: {where} missing required key {key!r} ({expected})")
-
-    def resolve(self, name: str) -> Path:
-        # abspath, not resolve(): keep the user's symlinked layout in messages.
-        return Path(os.path.abspath(self.dir / name))
-
-
-def _is_number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-
-def _table(ctx: _Ctx, parent: dict, key: str, where: str, required: bool = True) -> dict | None:
-    v = parent.get(key)
-    if v is None:
-        if required:
-            raise ctx.error(where, "missing required table (see docs/setup.example.toml)")
-        return None
-    if not isinstance(v, dict):
-        raise ctx.error(where, f"expected a table, found {type(v).__name__} {v!r}")
-    return v
-
-
-def _check_keys(ctx: _Ctx, tbl: dict, where: str, allowed: tuple[str, ...]) -> None:
-    unknown = [k for k in tbl if k not in allowed]
-    if unknown:
-        raise ctx.error(where, f"unknown key(s) {', '.join(repr(k) for k in unknown)}; allowed: {', '.join(allowed)}")
-
-
-def _num(
-    ctx: _Ctx, tbl: dict, where: str, key: str, ok: Callable[[float], bool], expected: str,
-    default=_REQUIRED, label: str | None = None,
-) -> float:
-    """A finite number ``tbl[key]`` satisfying ``ok``; ``label`` names it in messages."""
-    label = label or key
-    if key not in tbl:
-        if default is _REQUIRED:
-            raise ctx.missing(where, label, expected)
-        return default
-    v = tbl[key]
-    if not (_is_number(v) and ok(float(v))):
-        raise ctx.bad(where, label, v, expected)
-    return float(v)
-
-
-def _str(ctx: _Ctx, tbl: dict, where: str, key: str, expected: str, default=_REQUIRED) -> str:
-    if key not in tbl:
-        if default is _REQUIRED:
-            raise ctx.missing(where, key, expected)
-        return default
-    v = tbl[key]
-    if not isinstance(v, str) or not v.strip():
-        raise ctx.bad(where, key, v, expected)
-    return v
+_SAMPLER_INTS = ("walkers", "max_steps", "check_every")
 
 
 def _positive(x: float) -> bool:
     return x > 0
-
-
-def _table_list(ctx: _Ctx, tbl: dict, where: str, key: str, expected: str) -> list[dict]:
-    if key not in tbl:
-        raise ctx.missing(where, key, expected)
-    v = tbl[key]
-    if not isinstance(v, list) or not v or not all(isinstance(e, dict) for e in v):
-        raise ctx.bad(where, key, v, expected)
-    return v
-
-
-def _wrap(ctx: _Ctx, where: str, build: Callable[[], Any]):
-    """Run a model constructor, prefixing its SetupError with file and table."""
-    try:
-        return build()
-    except SetupError as exc:
-        raise ctx.error(where, str(exc)) from exc
-
-
-def _bounds(ctx: _Ctx, tbl: dict, where: str, key: str, unit: str, default=_REQUIRED) -> tuple[float, float] | None:
-    expected = f"[lo, hi] with 0 < lo < hi ({unit})"
-    if key not in tbl:
-        if default is _REQUIRED:
-            raise ctx.missing(where, key, expected)
-        return default
-    v = tbl[key]
-    if not (isinstance(v, list) and len(v) == 2 and all(_is_number(e) for e in v) and 0 < v[0] < v[1]):
-        raise ctx.bad(where, key, v, expected)
-    return (float(v[0]), float(v[1]))
 
 
 def _damping(ctx: _Ctx, tbl: dict, where: str, key: str, unit: str) -> float | tuple[float, float]:
@@ -141,70 +59,78 @@ def _damping(ctx: _Ctx, tbl: dict, where: str, key: str, unit: str) -> float | t
     raise ctx.bad(where, key, v, f"a number >= 0 (fixed) or [lo, hi] with 0 < lo < hi (sampled), {unit}")
 
 
-# --------------------------------------------------------------------------- tables
+def _stage_tables(ctx: _Ctx, doc: dict) -> dict:
+    """Shape/type checks of ``[likelihood]``, ``[priors]``, ``[sampler]`` and ``[model]``.
 
-
-def _materials(ctx: _Ctx, doc: dict) -> dict[str, Material]:
-    tbl = _table(ctx, doc, "materials", "[materials]")
-    if not tbl:
-        raise ctx.error("[materials]", "no material defined; expected [materials.NAME] tables")
+    Parameter names, term names and the likelihood's keys are checked by
+    the stages that know them (:mod:`bayes_rcsa.inference`,
+    :mod:`bayes_rcsa.params`); here every entry must at least have the right
+    form, so that no later stage meets e.g. ``likelihood = 5``.
+    """
     out = {}
-    for name, m in tbl.items():
-        where = f"[materials.{name}]"
-        if not isinstance(m, dict):
-            raise ctx.error(where, f"expected a table, found {m!r}")
-        _check_keys(ctx, m, where, ("youngs_modulus", "density", "poisson_ratio", "loss_factor"))
-        e = _num(ctx, m, where, "youngs_modulus", _positive, "a finite number > 0 (Pa)")
-        rho = _num(ctx, m, where, "density", _positive, "a finite number > 0 (kg/m^3)")
-        nu = _num(ctx, m, where, "poisson_ratio", lambda x: -1 < x < 0.5, "a number in (-1, 0.5)")
-        eta = _num(ctx, m, where, "loss_factor", lambda x: x >= 0, "a finite number >= 0", default=0.0)
-        out[name] = _wrap(ctx, where, lambda: Material(e, rho, nu, eta, name=name))
+    for key in _STAGES:
+        tbl = _table(ctx, doc, key, f"[{key}]", required=False)
+        if tbl is not None:
+            out[key] = tbl
+    for name, spec in out.get("priors", {}).items():
+        check_prior_spec(ctx, "[priors]", name, spec)
+    sampler = out.get("sampler", {})
+    _check_keys(ctx, sampler, "[sampler]", ("start",) + _SAMPLER_INTS)
+    for key in _SAMPLER_INTS:
+        v = sampler.get(key)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < 1):
+            raise ctx.bad("[sampler]", key, v, "a positive integer")
+    if "start" in sampler:
+        start = sampler["start"]
+        if not isinstance(start, dict):
+            raise ctx.bad("[sampler]", "start", start, "a table of parameter = value")
+        for k, v in start.items():
+            if not _is_number(v):
+                raise ctx.bad("[sampler]", f"start.{k}", v, "a finite number")
+    model = out.get("model")
+    if model is not None:
+        terms = model.get("terms", [])
+        if not isinstance(terms, list) or not all(isinstance(t, str) and t for t in terms):
+            raise ctx.bad("[model]", "terms", terms, 'a list of term names, e.g. ["tip_mass"]')
+        if len(set(terms)) != len(terms):
+            raise ctx.bad("[model]", "terms", terms, "each term at most once")
+        for name, spec in model.items():
+            if name != "terms":
+                check_prior_spec(ctx, "[model]", name, spec, allow_fixed=True)
     return out
 
 
-def _material_ref(ctx: _Ctx, tbl: dict, where: str, materials: dict[str, Material]) -> Material:
-    name = _str(ctx, tbl, where, "material", "the name of a [materials.NAME] table")
-    if name not in materials:
-        defined = ", ".join(sorted(materials))
-        raise ctx.bad(where, "material", name, f"a defined material (unknown material; defined: {defined})")
-    return materials[name]
+def _check_campaign(setup: Setup) -> None:
+    """Campaign-level plausibility of the loaded measurements (see :mod:`bayes_rcsa.io.checks`).
 
-
-def _holder(ctx: _Ctx, doc: dict, materials: dict[str, Material]) -> Holder:
-    where = "[holder]"
-    tbl = _table(ctx, doc, "holder", where)
-    _check_keys(ctx, tbl, where, ("material", "segments"))
-    material = _material_ref(ctx, tbl, where, materials)
-    segs = []
-    keys = ("length", "outer_diameter", "inner_diameter")
-    listed = _table_list(ctx, tbl, where, "segments", "a non-empty array of {length, outer_diameter, inner_diameter} tables")
-    for i, seg in enumerate(listed):
-        _check_keys(ctx, seg, f"{where} segments[{i}]", keys)
-        label = {k: f"segments[{i}].{k}" for k in keys}
-        length = _num(ctx, seg, where, "length", _positive, _POSITIVE_M, label=label["length"])
-        outer = _num(ctx, seg, where, "outer_diameter", _positive, _POSITIVE_M, label=label["outer_diameter"])
-        inner = _num(ctx, seg, where, "inner_diameter", lambda x: 0 <= x < outer,
-                     f"0 <= inner_diameter < outer_diameter ({outer!r} m)", default=0.0, label=label["inner_diameter"])
-        segs.append(_wrap(ctx, f"{where} segments[{i}]", lambda: HolderSegment(length, outer, inner)))
-    return _wrap(ctx, where, lambda: Holder(material, tuple(segs)))
-
-
-def _tool(ctx: _Ctx, tbl: dict, where: str, name: str, materials: dict[str, Material], allow_name: bool) -> Tool:
-    _check_keys(ctx, tbl, where, ("material", "total_length", "segments") + (("name",) if allow_name else ()))
-    material = _material_ref(ctx, tbl, where, materials)
-    total = _num(ctx, tbl, where, "total_length", _positive, _POSITIVE_M)
-    segs = []
-    keys = ("length", "diameter", "diameter_ratio")
-    listed = _table_list(ctx, tbl, where, "segments", "a non-empty array of {length, diameter, diameter_ratio} tables")
-    for i, seg in enumerate(listed):
-        _check_keys(ctx, seg, f"{where} segments[{i}]", keys)
-        label = {k: f"segments[{i}].{k}" for k in keys}
-        length = _num(ctx, seg, where, "length", _positive, _POSITIVE_M, label=label["length"])
-        diameter = _num(ctx, seg, where, "diameter", _positive, _POSITIVE_M, label=label["diameter"])
-        ratio = _num(ctx, seg, where, "diameter_ratio", lambda x: 0 < x <= 1, "0 < diameter_ratio <= 1", default=1.0,
-                     label=label["diameter_ratio"])
-        segs.append(_wrap(ctx, f"{where} segments[{i}]", lambda: ToolSegment(length, diameter, ratio)))
-    return _wrap(ctx, where, lambda: Tool(material, total, tuple(segs), name=name))
+    Raises on identical data at two clamping lengths or on a gross scale or
+    sign mismatch against the model over the whole contact prior; warns when
+    natural frequencies fall with clamping length.
+    """
+    entries = [(m.file.name, m.clamping_length, m.direction, m.tool, m.frf.frequency_hz, m.frf.values)
+               for m in setup.measurements if m.frf is not None]
+    checks.warn_all(checks.check_campaign(entries))
+    if not setup.spindle:
+        return
+    model = setup.model()
+    c = setup.contact
+    kx = np.array([c.translational_stiffness[i] for i in (0, 0, 1, 1)])
+    kt = np.array([c.rotational_stiffness[i] for i in (0, 1, 0, 1)])
+    damping = [d if isinstance(d, float) else d[0] for d in (c.translational_damping, c.rotational_damping)]
+    for m in setup.measurements:
+        if m.frf is None or m.direction not in setup.spindle:
+            continue
+        sp = setup.spindle[m.direction].frequency_hz
+        f = m.frf.frequency_hz
+        inside = np.flatnonzero((f >= sp[0]) & (f <= sp[-1]))
+        if inside.size < 3:
+            continue  # nothing to compare on; the identification reports the missing overlap
+        # The median scale needs no fine grid: <= 64 evenly spread lines keep load_setup fast.
+        lines = inside[np.unique(np.linspace(0, inside.size - 1, min(64, inside.size)).round().astype(int))]
+        h = model.frf(m.configuration, f[lines], kx, kt, *damping)
+        cause = checks.likely_cause(m.frf.values[lines], h)
+        if cause is not None:
+            raise DataError(f"{setup.path}: [[measurement]] file = {m.file.name!r} ({m.file}): {cause}")
 
 
 def _tools(ctx: _Ctx, doc: dict, materials: dict[str, Material]) -> dict[str, Tool]:
@@ -212,7 +138,7 @@ def _tools(ctx: _Ctx, doc: dict, materials: dict[str, Material]) -> dict[str, To
     single = _table(ctx, doc, "tool", "[tool]", required=False)
     if single is not None:
         name = _str(ctx, single, "[tool]", "name", "a non-empty string", default="tool")
-        tools[name] = _tool(ctx, single, "[tool]", name, materials, allow_name=True)
+        tools[name] = parse_tool(ctx, single, "[tool]", name, materials, allow_name=True)
     several = _table(ctx, doc, "tools", "[tools]", required=False)
     for name, tbl in (several or {}).items():
         where = f"[tools.{name}]"
@@ -220,7 +146,7 @@ def _tools(ctx: _Ctx, doc: dict, materials: dict[str, Material]) -> dict[str, To
             raise ctx.error(where, f"expected a table, found {tbl!r}")
         if name in tools:
             raise ctx.error(where, f"tool name {name!r} is already used by [tool]")
-        tools[name] = _tool(ctx, tbl, where, name, materials, allow_name=False)
+        tools[name] = parse_tool(ctx, tbl, where, name, materials, allow_name=False)
     if not tools:
         raise ctx.error("[tool]", "missing required table (or [tools.NAME] tables for several tools)")
     return tools
@@ -313,22 +239,6 @@ def _measurements(ctx, doc, holder, tools, spindle_dirs, contact, load_data) -> 
     return tuple(out)
 
 
-def _load_document(path: Path) -> dict:
-    if not path.exists():
-        raise SetupError(f"{path}: setup file not found (no such file)")
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise SetupError(f"{path}: setup file is not UTF-8 text ({exc.reason} at byte {exc.start})") from exc
-    except OSError as exc:
-        raise SetupError(f"{path}: cannot read setup file: {exc.strerror or exc}") from exc
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        # tomllib's message ends with "(at line L, column C)".
-        raise SetupError(f"{path}: malformed TOML: {exc}") from exc
-
-
 def parse_setup(path: Path, load_data: bool, load_spindle: bool | None = None) -> Setup:
     """Parse and validate a setup file.
 
@@ -363,10 +273,12 @@ def parse_setup(path: Path, load_data: bool, load_spindle: bool | None = None) -
     """
     path = Path(path)
     ctx = _Ctx(path)
-    doc = _load_document(path)
+    doc = load_document(path)
+    check_top_level(ctx, doc, _KNOWN)
     name = _str(ctx, doc, "(top level)", "name", "a non-empty string", default=path.stem)
-    materials = _materials(ctx, doc)
-    holder = _holder(ctx, doc, materials)
+    stage_tables = _stage_tables(ctx, doc)
+    materials = parse_materials(ctx, doc)
+    holder = parse_holder(ctx, doc, materials)
     tools = _tools(ctx, doc, materials)
     spindle_files = _spindle_files(ctx, doc)
     contact = _contact(ctx, doc, holder, tools)
@@ -378,8 +290,7 @@ def parse_setup(path: Path, load_data: bool, load_spindle: bool | None = None) -
                 spindle[direction] = read_spindle_csv(file)
             except DataError as exc:
                 raise DataError(f"{ctx.file}: [spindle] {direction} = {doc['spindle'][direction]!r}: {exc}") from exc
-    extra = {k: v for k, v in doc.items() if k not in _KNOWN}
-    return Setup(
+    setup = Setup(
         name=name,
         path=path,
         materials=materials,
@@ -388,5 +299,9 @@ def parse_setup(path: Path, load_data: bool, load_spindle: bool | None = None) -
         spindle=spindle,
         contact=contact,
         measurements=measurements,
-        extra=extra,
+        extra=stage_tables,
+        model_table=dict(stage_tables.get("model", {})),
     )
+    if load_data:
+        _check_campaign(setup)
+    return setup

@@ -21,6 +21,7 @@ import numpy as np
 from ..errors import DataError
 from ..model.receptance import FRF
 from .atomic import atomic_path
+from .checks import check_magnitude
 
 __all__ = [
     "read_frf_csv", "write_frf_csv", "read_csv_columns", "format_float", "check_finite_columns",
@@ -174,7 +175,8 @@ def read_frf_csv(path) -> FRF:
     ------
     DataError
         See :func:`read_csv_columns`; also NaN/inf values, frequencies that
-        are not > 0 and strictly increasing, and coherence outside [0, 1].
+        are not > 0 and strictly increasing, coherence outside [0, 1] and
+        absurd magnitudes (:func:`bayes_rcsa.io.checks.check_magnitude`).
     """
     path = Path(path)
     columns, lines = read_csv_columns(path, ("frequency_hz", "real", "imag"), ("coherence",), what="FRF file")
@@ -189,7 +191,9 @@ def read_frf_csv(path) -> FRF:
             raise DataError(
                 f"{path}: line {lines[i]}, column 'coherence': {float(coherence[i])!r}, expected a value in [0, 1]"
             )
-    return FRF(f, columns["real"] + 1j * columns["imag"], coherence, source=str(path))
+    values = columns["real"] + 1j * columns["imag"]
+    check_magnitude(f, values, str(path))
+    return FRF(f, values, coherence, source=str(path))
 
 
 def comment_lines(comments: Iterable[str]) -> list[str]:

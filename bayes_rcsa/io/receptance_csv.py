@@ -18,6 +18,7 @@ import numpy as np
 
 from ..model.receptance import PointReceptance
 from .atomic import atomic_path
+from .checks import check_magnitude, check_passive, check_reciprocal
 from .frf_csv import check_finite_columns, check_frequency_column, comment_lines, format_float, read_csv_columns
 
 __all__ = ["read_spindle_csv", "write_spindle_csv", "SPINDLE_COLUMNS"]
@@ -27,24 +28,39 @@ _ENTRIES = (("h", 0, 0), ("l", 0, 1), ("n", 1, 0), ("p", 1, 1))
 SPINDLE_COLUMNS = ("frequency_hz",) + tuple(f"{e}_{part}" for e, _, _ in _ENTRIES for part in ("real", "imag"))
 
 
-def read_spindle_csv(path) -> PointReceptance:
+def read_spindle_csv(path, check: bool = True) -> PointReceptance:
     """Read a 2x2 flange receptance file.
 
     Parameters
     ----------
     path : path-like
+    check : bool
+        Check the block as a measured point block (default): the direct
+        terms h and p passive and the cross terms reciprocal, see
+        :mod:`bayes_rcsa.io.checks`.  ``False`` only for files that are not
+        point blocks.
 
     Returns
     -------
     PointReceptance
-        ``block`` (n_freq, 2, 2) complex ``[[h, l], [n, p]]``.  Reciprocity
-        (l = n) is not enforced: measured blocks are kept as they are.
+        ``block`` (n_freq, 2, 2) complex ``[[h, l], [n, p]]``.  Measured
+        blocks are kept as they are (reciprocity l = n is checked, not
+        enforced).
 
     Raises
     ------
     DataError
         Missing file or column, malformed numbers, NaN/inf, frequencies not
-        > 0 and strictly increasing (messages name file, line and column).
+        > 0 and strictly increasing (messages name file, line and column);
+        absurd magnitudes; with ``check``, direct terms that are clearly not
+        passive and cross terms that differ by more than
+        :data:`~bayes_rcsa.io.checks.RECIPROCITY_REFUSE`.
+
+    Warns
+    -----
+    DataWarning
+        Cross terms that differ by more than
+        :data:`~bayes_rcsa.io.checks.RECIPROCITY_WARN`.
     """
     path = Path(path)
     columns, lines = read_csv_columns(path, SPINDLE_COLUMNS, what="spindle receptance file")
@@ -54,6 +70,11 @@ def read_spindle_csv(path) -> PointReceptance:
     block = np.empty((f.size, 2, 2), dtype=complex)
     for name, i, j in _ENTRIES:
         block[:, i, j] = columns[f"{name}_real"] + 1j * columns[f"{name}_imag"]
+    check_magnitude(f, block.reshape(f.size, 4), str(path))
+    if check:
+        check_passive(block[:, 0, 0], f"{path}: h (h_real, h_imag)")
+        check_passive(block[:, 1, 1], f"{path}: p (p_real, p_imag)")
+        check_reciprocal(block, f"{path}: l and n")
     return PointReceptance(f, block, source=str(path))
 
 

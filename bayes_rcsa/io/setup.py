@@ -92,8 +92,14 @@ class Setup:
     contact : ContactSpec
     measurements : tuple of MeasurementSpec
     extra : dict
-        Tables the core parser does not interpret (e.g. ``[likelihood]``,
-        ``[sampler]``), for later stages to read.
+        Tables later stages interpret (``[likelihood]``, ``[priors]``,
+        ``[sampler]``, ``[model]``), checked for shape and types only.
+    model_table : dict
+        The ``[model]`` table: ``terms`` (list of term names) and per-parameter
+        prior overrides (a ``[lo, hi]`` pair, a prior table as in ``[priors]``
+        or a number that fixes the parameter).  Term and parameter names are
+        validated against the term registry when the parameter model is
+        built.  Empty when the setup has no ``[model]`` table.
     """
 
     name: str
@@ -105,6 +111,7 @@ class Setup:
     contact: ContactSpec
     measurements: tuple[MeasurementSpec, ...]
     extra: dict[str, Any] = field(default_factory=dict)
+    model_table: dict[str, Any] = field(default_factory=dict)
 
     def model(self) -> ToolPointModel:
         """The RCSA forward model of this setup."""

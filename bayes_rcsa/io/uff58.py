@@ -24,6 +24,7 @@ import numpy as np
 from ..errors import DataError
 from ..model.receptance import FRF
 from .atomic import atomic_path
+from .checks import check_magnitude
 
 __all__ = ["read_frf_uff", "write_frf_uff"]
 
@@ -192,6 +193,7 @@ def read_frf_uff(path, index: int | None = None) -> FRF:
                 "expected a value in [0, 1]"
             )
     source = str(path) if len(frfs) == 1 else f"{path}[{index}]"
+    check_magnitude(x, values, source)
     return FRF(x, values, coherence, source=source)
 
 

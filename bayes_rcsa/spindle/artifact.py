@@ -43,7 +43,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError, SetupError
-from ..io._setup_parser import _Ctx, _check_keys, _holder, _load_document, _materials, _num, _str, _table, _tool
+from ..io.tables import (
+    TableContext, check_keys, check_top_level, load_document, number, parse_holder, parse_materials, parse_tool, string,
+    table,
+)
 from ..io.frf import FRF_SUFFIXES, read_frf
 from ..model.geometry import Holder, Tool, holder_segments, tool_overhang_segments
 from ..model.receptance import FRF
@@ -205,17 +208,17 @@ class ArtifactSetup:
     density_rsd: float = 0.0
 
 
-def _points(ctx: _Ctx, doc: dict) -> tuple[float, float]:
+def _points(ctx: TableContext, doc: dict) -> tuple[float, float]:
     where = "[points]"
-    tbl = _table(ctx, doc, "points", where)
-    _check_keys(ctx, tbl, where, ("point1", "point2"))
+    tbl = table(ctx, doc, "points", where)
+    check_keys(ctx, tbl, where, ("point1", "point2"))
     expected = "a finite distance >= 0 from the blank's free end (m)"
-    d1 = _num(ctx, tbl, where, "point1", lambda x: x >= 0, expected, default=0.0)
-    d2 = _num(ctx, tbl, where, "point2", lambda x: x >= 0, expected)
+    d1 = number(ctx, tbl, where, "point1", lambda x: x >= 0, expected, default=0.0)
+    d2 = number(ctx, tbl, where, "point2", lambda x: x >= 0, expected)
     return d1, d2
 
 
-def _measurements(ctx: _Ctx, doc: dict, load_data: bool) -> dict:
+def _measurements(ctx: TableContext, doc: dict, load_data: bool) -> dict:
     raw = doc.get("measurement")
     expected = "one [[measurement]] table per direction with direction, h11, h12 and/or h21, h22"
     if not isinstance(raw, list) or not raw or not all(isinstance(m, dict) for m in raw):
@@ -223,8 +226,8 @@ def _measurements(ctx: _Ctx, doc: dict, load_data: bool) -> dict:
     out = {}
     for i, m in enumerate(raw):
         where = f"[[measurement]] {i}"
-        _check_keys(ctx, m, where, ("direction",) + FRF_KEYS)
-        direction = _str(ctx, m, where, "direction", "\"x\" or \"y\"", default="x")
+        check_keys(ctx, m, where, ("direction",) + FRF_KEYS)
+        direction = string(ctx, m, where, "direction", "\"x\" or \"y\"", default="x")
         if direction not in DIRECTIONS:
             raise ctx.bad(where, "direction", direction, "\"x\" or \"y\"")
         if direction in out:
@@ -237,7 +240,7 @@ def _measurements(ctx: _Ctx, doc: dict, load_data: bool) -> dict:
         files = {}
         for key in FRF_KEYS:
             if key in m:
-                name = _str(ctx, m, where, key, "an FRF file name relative to the artifact file")
+                name = string(ctx, m, where, key, "an FRF file name relative to the artifact file")
                 if Path(name).suffix.lower() not in FRF_SUFFIXES:
                     raise ctx.bad(where, key, name, f"a file ending in one of {', '.join(FRF_SUFFIXES)}")
                 files[key] = ctx.resolve(name)
@@ -247,7 +250,8 @@ def _measurements(ctx: _Ctx, doc: dict, load_data: bool) -> dict:
         frfs = {}
         for key, path in files.items():
             try:
-                frfs[key] = read_frf(path)
+                # h11 and h22 are point receptances (checked for passivity); h12/h21 are transfers.
+                frfs[key] = read_frf(path, point=key in ("h11", "h22"))
             except DataError as exc:
                 raise DataError(f"{ctx.file}: {where} {key} = {m[key]!r}: {exc}") from exc
         try:
@@ -280,36 +284,36 @@ def load_artifact(path, load_data: bool = True) -> ArtifactSetup:
         that differ between the FRFs of one direction.
     """
     path = Path(path)
-    ctx = _Ctx(path)
-    doc = _load_document(path)
+    ctx = TableContext(path)
+    doc = load_document(path, "artifact file")
     known = ("name", "materials", "holder", "blank", "points", "measurement", "noise", "fit", "uncertainty")
-    _check_keys(ctx, doc, "(top level)", known)
-    name = _str(ctx, doc, "(top level)", "name", "a non-empty string", default=path.stem)
-    materials = _materials(ctx, doc)
-    holder = _holder(ctx, doc, materials)
-    blank_tbl = dict(_table(ctx, doc, "blank", "[blank]"))
-    cl = _num(ctx, blank_tbl, "[blank]", "clamping_length", lambda x: x > 0, "a finite number > 0 (m)")
+    check_top_level(ctx, doc, known)
+    name = string(ctx, doc, "(top level)", "name", "a non-empty string", default=path.stem)
+    materials = parse_materials(ctx, doc)
+    holder = parse_holder(ctx, doc, materials)
+    blank_tbl = dict(table(ctx, doc, "blank", "[blank]"))
+    cl = number(ctx, blank_tbl, "[blank]", "clamping_length", lambda x: x > 0, "a finite number > 0 (m)")
     del blank_tbl["clamping_length"]
-    blank = _tool(ctx, blank_tbl, "[blank]", "blank", materials, allow_name=False)
+    blank = parse_tool(ctx, blank_tbl, "[blank]", "blank", materials, allow_name=False)
     d1, d2 = _points(ctx, doc)
     try:
         artifact = Artifact(holder, blank, cl, (d1, d2))
     except SetupError as exc:
         raise SetupError(f"{ctx.file}: [blank]/[points]: {exc}") from exc
 
-    noise = _table(ctx, doc, "noise", "[noise]", required=False) or {}
-    _check_keys(ctx, noise, "[noise]", ("relative", "floor"))
-    rel = _num(ctx, noise, "[noise]", "relative", lambda x: x > 0, "a finite number > 0", default=None)
-    floor = _num(ctx, noise, "[noise]", "floor", lambda x: x >= 0, "a finite number >= 0 (m/N)", default=0.0)
-    fit = _table(ctx, doc, "fit", "[fit]", required=False) or {}
-    _check_keys(ctx, fit, "[fit]", ("max_modes", "unreliable_threshold"))
+    noise = table(ctx, doc, "noise", "[noise]", required=False) or {}
+    check_keys(ctx, noise, "[noise]", ("relative", "floor"))
+    rel = number(ctx, noise, "[noise]", "relative", lambda x: x > 0, "a finite number > 0", default=None)
+    floor = number(ctx, noise, "[noise]", "floor", lambda x: x >= 0, "a finite number >= 0 (m/N)", default=0.0)
+    fit = table(ctx, doc, "fit", "[fit]", required=False) or {}
+    check_keys(ctx, fit, "[fit]", ("max_modes", "unreliable_threshold"))
     max_modes = fit.get("max_modes", 8)
     if isinstance(max_modes, bool) or not isinstance(max_modes, int) or not 1 <= max_modes <= 20:
         raise ctx.bad("[fit]", "max_modes", max_modes, "an integer in [1, 20]")
-    thr = _num(ctx, fit, "[fit]", "unreliable_threshold", lambda x: x > 0, "a finite number > 0", default=0.05)
-    unc = _table(ctx, doc, "uncertainty", "[uncertainty]", required=False) or {}
-    _check_keys(ctx, unc, "[uncertainty]", ("youngs_modulus", "density"))
-    rsd = {k: _num(ctx, unc, "[uncertainty]", k, lambda x: 0 <= x < 0.5, "a relative standard deviation in [0, 0.5)",
+    thr = number(ctx, fit, "[fit]", "unreliable_threshold", lambda x: x > 0, "a finite number > 0", default=0.05)
+    unc = table(ctx, doc, "uncertainty", "[uncertainty]", required=False) or {}
+    check_keys(ctx, unc, "[uncertainty]", ("youngs_modulus", "density"))
+    rsd = {k: number(ctx, unc, "[uncertainty]", k, lambda x: 0 <= x < 0.5, "a relative standard deviation in [0, 0.5)",
                    default=0.0) for k in ("youngs_modulus", "density")}
     return ArtifactSetup(
         name=name, path=path, artifact=artifact, measurements=_measurements(ctx, doc, load_data),
