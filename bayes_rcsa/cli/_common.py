@@ -1,12 +1,27 @@
-"""Argument parsing helpers shared by the sub-commands."""
+"""Argument parsing helpers shared by the sub-commands.
+
+Every numeric option is parsed by a helper here (or, for argparse types,
+checked centrally by :func:`check_arguments`, which :func:`bayes_rcsa.cli.main.main`
+runs before any command), so that NaN, infinities, negative seeds and
+output paths that cannot be written are refused the same way everywhere:
+one line naming the option, exit status 2, before anything is created.
+"""
 
 from __future__ import annotations
 
+import argparse
 import math
+from pathlib import Path
 
 from ..errors import SetupError
 
-__all__ = ["parse_float", "parse_float_list", "parse_frequency_grid"]
+__all__ = [
+    "parse_float", "parse_float_list", "parse_frequency_grid", "positive_int", "nonnegative_int", "finite_float",
+    "sampler_int", "check_output_path", "check_arguments", "MAX_FREQUENCY_LINES",
+]
+
+#: Upper bound on the lines of a --freq grid: 1e6 complex lines are already 16 MB per FRF.
+MAX_FREQUENCY_LINES = 1_000_000
 
 
 def parse_float(text: str, option: str, positive: bool = False) -> float:
@@ -38,14 +53,38 @@ def parse_frequency_grid(text: str, option: str = "--freq"):
     start, stop, step = values
     if stop <= start:
         raise SetupError(f"{option} {text!r}: expected STOP > START")
-    n = int(math.floor((stop - start) / step + 1e-9)) + 1
+    n_float = (stop - start) / step + 1e-9
+    if n_float + 1 > MAX_FREQUENCY_LINES:
+        raise SetupError(f"{option} {text!r}: {n_float + 1:.3g} frequency lines; at most {MAX_FREQUENCY_LINES} "
+                         "are allowed (choose a larger STEP)")
+    n = int(math.floor(n_float)) + 1
     return start + step * np.arange(n)
+
+
+def nonnegative_int(text: str) -> int:
+    """argparse type: an integer >= 0 (seeds, counts where 0 means "all")."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected an integer >= 0") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected an integer >= 0")
+    return v
+
+
+def finite_float(text: str) -> float:
+    """argparse type: a finite float (NaN and infinities refused)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a number") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a finite number")
+    return v
 
 
 def positive_int(text: str) -> int:
     """argparse type: an integer >= 1."""
-    import argparse
-
     try:
         v = int(text)
     except ValueError:
@@ -63,3 +102,53 @@ def sampler_int(table: dict, key: str, default, path):
     if isinstance(v, bool) or not isinstance(v, int) or v < 1:
         raise SetupError(f"{path}: [sampler] {key} = {v!r}: expected a positive integer")
     return v
+
+
+def check_output_path(path, option: str = "--out", kind: str = "dir") -> Path:
+    """Refuse an output path that cannot be written, before anything is created.
+
+    Parameters
+    ----------
+    path : path-like
+    option : str
+        Option named in the message.
+    kind : {"dir", "file"}
+        An output directory must not be an existing file; an output file
+        must not be an existing directory.  For both, no existing parent
+        may be a file.
+
+    Returns
+    -------
+    Path
+    """
+    path = Path(path)
+    if kind == "dir" and path.exists() and not path.is_dir():
+        raise SetupError(f"{option} {path}: exists and is not a directory")
+    if kind == "file" and path.is_dir():
+        raise SetupError(f"{option} {path}: is a directory; expected an output file name")
+    for parent in path.absolute().parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise SetupError(f"{option} {path}: {parent} is a file, not a directory")
+            break
+    return path
+
+
+def check_arguments(args: argparse.Namespace) -> None:
+    """Checks every command shares, run before the command itself.
+
+    - every float option is finite (argparse's ``type=float`` accepts
+      ``nan`` and ``inf``);
+    - ``--seed`` is >= 0 (:func:`numpy.random.default_rng` refuses negative seeds);
+    - ``--out`` can be written: a directory, or a file for commands that set
+      ``out_kind="file"`` in their defaults.
+    """
+    for name, value in vars(args).items():
+        if isinstance(value, float) and not math.isfinite(value):
+            raise SetupError(f"--{name.replace('_', '-')} {value!r}: expected a finite number")
+    seed = getattr(args, "seed", None)
+    if isinstance(seed, int) and not isinstance(seed, bool) and seed < 0:
+        raise SetupError(f"--seed {seed}: expected an integer >= 0")
+    out = getattr(args, "out", None)
+    if out is not None:
+        check_output_path(out, "--out", getattr(args, "out_kind", "dir"))

@@ -11,16 +11,17 @@ it writes is exactly what a user gets from running them by hand:
    paper's cutting case b (4 flutes, Al 7050, Kt = 790 MPa, Kr = 230 MPa,
    95 % radial immersion, feed in y);
 
-and finally an ``index.html`` that links the three reports.
+and finally an ``index.html`` that links the three reports
+(:mod:`bayes_rcsa.report.index_html`).
 """
 
 from __future__ import annotations
 
 import argparse
-import html
-import json
 import sys
 from pathlib import Path
+
+from ._common import nonnegative_int, positive_int
 
 ORDER = 10
 
@@ -42,8 +43,8 @@ def register(subparsers) -> None:
         "DIR/index.html.  Takes about a minute.",
     )
     p.add_argument("--out", default=".", metavar="DIR", help="output directory (default: current directory)")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the whole run (default 0)")
-    p.add_argument("--max-steps", type=int, default=20000, metavar="N", help="sampler step cap (default 20000)")
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="random seed of the whole run (default 0)")
+    p.add_argument("--max-steps", type=positive_int, default=20000, metavar="N", help="sampler step cap (default 20000)")
     p.set_defaults(func=run)
 
 
@@ -58,60 +59,9 @@ def _step(title: str, argv: list[str]) -> None:
         raise BayesRCSAError(f"demo step '{argv[0]}' failed with exit status {status}")
 
 
-def _index_html(out: Path, summary: dict, freqs: dict, lobes: dict) -> str:
-    rows = []
-    for p in freqs["predictions"]:
-        if p.get("mode") != 1:
-            continue
-        measured = p.get("measured_hz")
-        err = "" if measured is None else f"{100 * (p['q50_hz'] - measured) / measured:+.2f} %"
-        rows.append(
-            f"<tr><td>{p['clamping_length'] * 1e3:.1f}</td><td>{html.escape(p['direction'])}</td>"
-            f"<td>{p['q05_hz']:.1f} &ndash; {p['q95_hz']:.1f}</td><td>{p['q50_hz']:.1f}</td>"
-            f"<td>{'' if measured is None else f'{measured:.1f}'}</td><td>{err}</td></tr>"
-        )
-    stiff = []
-    for s in summary.get("stiffness", []):
-        stiff.append(
-            f"<tr><td>{s['clamping_length'] * 1e3:.1f}</td>"
-            f"<td>{s['k_xf']['q05']:.4g} &ndash; {s['k_xf']['q95']:.4g}</td>"
-            f"<td>{s['k_thetaM']['q05']:.4g} &ndash; {s['k_thetaM']['q95']:.4g}</td></tr>"
-        )
-    rec = lobes.get("recommended")
-    rec_text = (
-        "no speed reaches the required P(stable)"
-        if not rec
-        else f"{rec['spindle_speed_rpm']:.0f} rpm, a<sub>p</sub> = {rec['depth_m'] * 1e3:.3f} mm "
-        f"(P(stable) = {rec['p_stable']:.2f})"
-    )
-    warnings = "".join(f"<li>{html.escape(w)}</li>" for w in summary.get("warnings", [])) or "<li>none</li>"
-    return f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>bayes_rcsa demo</title>
-<style>body{{font-family:sans-serif;max-width:1000px;margin:2em auto}}table{{border-collapse:collapse}}
-td,th{{border:1px solid #999;padding:3px 8px;text-align:right}}img{{max-width:100%}}</style></head><body>
-<h1>bayes_rcsa demo: ER32 collet + 7.94 mm end mill</h1>
-<p>Contact identified from the 25 mm and 40 mm hammer tests (x and y); 30 mm and 35 mm are held out.
-Sampler converged: <b>{summary.get('converged')}</b>. Warnings: <ul>{warnings}</ul></p>
-<h2>Contact stiffness, 90 % credible intervals</h2>
-<table><tr><th>clamping (mm)</th><th>k<sub>xf</sub> (N/m)</th><th>k<sub>&theta;M</sub> (N m/rad)</th></tr>
-{''.join(stiff)}</table>
-<h2>First tool-point natural frequency</h2>
-<table><tr><th>clamping (mm)</th><th>dir</th><th>90 % interval (Hz)</th><th>median (Hz)</th><th>measured (Hz)</th><th>error</th></tr>
-{''.join(rows)}</table>
-<p><a href="predict/report.html">prediction report</a> &middot; <a href="identify/summary.json">identify/summary.json</a>
-&middot; <a href="predict/frequencies.json">predict/frequencies.json</a> &middot; <a href="lobes/lobes.json">lobes/lobes.json</a></p>
-<img src="predict/frf_bands.png" alt="FRF bands"><img src="predict/natural_frequencies.png" alt="natural frequencies">
-<h2>Stability lobes at 30 mm, case b (95 % immersion, feed y)</h2>
-<p>Recommended operating point: {rec_text}</p>
-<img src="lobes/lobes.png" alt="stability lobes">
-<h2>Sampler</h2><img src="identify/trace.png" alt="trace"><img src="identify/corner.png" alt="corner">
-</body></html>
-"""
-
-
 def run(args: argparse.Namespace) -> int:
     from ..data import example_setup
-    from ..io.atomic import atomic_write_text
+    from ..report import write_demo_index
 
     out = Path(args.out)
     setup = str(example_setup())
@@ -126,10 +76,6 @@ def run(args: argparse.Namespace) -> int:
     _step("3/3 probabilistic stability lobes at 30 mm",
           ["lobes", setup, "--posterior", posterior, *LOBES_CASE, "--draws", "300", "--seed", seed,
            "--out", str(out / "lobes")])
-    summary = json.loads((out / "identify" / "summary.json").read_text())
-    freqs = json.loads((out / "predict" / "frequencies.json").read_text())
-    lobes = json.loads((out / "lobes" / "lobes.json").read_text())
-    index = out / "index.html"
-    atomic_write_text(index, _index_html(out, summary, freqs, lobes))
+    index = write_demo_index(out)
     print(f"\ndemo finished: open {index}", file=sys.stderr)
     return 0

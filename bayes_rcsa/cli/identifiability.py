@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from ..errors import SetupError
-from ._common import parse_float_list, positive_int, sampler_int
+from ._common import nonnegative_int, parse_float_list, positive_int, sampler_int
 
 __all__ = ["register", "run"]
 
@@ -46,7 +46,7 @@ def register(subparsers) -> None:
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
     p.add_argument("--lengths", default=None, metavar="L1,L2,...",
                    help="measured clamping lengths to use in m, e.g. 0.025,0.040 (default: all measured)")
-    p.add_argument("--seed", type=int, default=0, help="random seed of every fit (default 0)")
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="random seed of every fit (default 0)")
     p.add_argument("--max-steps", type=positive_int, default=None, metavar="N",
                    help="cap on sampler steps per fit (default: [sampler] max_steps or 20000)")
     p.add_argument("--walkers", type=positive_int, default=None, metavar="N",
@@ -61,6 +61,7 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..inference.sampler import SamplerSettings
+    from ..io.atomic import directory_lock, new_output_directory
     from ..io.setup import load_setup
     from ..posterior.study import run_study, write_study
 
@@ -74,8 +75,10 @@ def run(args: argparse.Namespace) -> int:
         check_every=pick(args.check_every, "check_every", 250),
         progress=not args.quiet,
     )
-    study = run_study(setup, lengths, settings, seed=args.seed, verbose=not args.quiet)
-    write_study(study, args.out, plots=not args.no_plots, posteriors=not args.no_posteriors, seed=args.seed)
+    with directory_lock(args.out):
+        study = run_study(setup, lengths, settings, seed=args.seed, verbose=not args.quiet)
+        with new_output_directory(args.out):
+            write_study(study, args.out, plots=not args.no_plots, posteriors=not args.no_posteriors, seed=args.seed)
     if not args.quiet:
         for line in study.document["findings"]:
             print(line, file=sys.stderr)

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from ..errors import SetupError
-from ._common import positive_int, sampler_int
+from ._common import finite_float, nonnegative_int, positive_int, sampler_int
 
 __all__ = ["register", "run"]
 
@@ -31,23 +31,24 @@ The likelihood band, noise model and priors can be tuned in the setup's [likelih
 
 
 def _lengths(text: str) -> tuple[float, ...]:
-    try:
-        vals = tuple(float(v) for v in text.split(",") if v.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected comma-separated clamping lengths in m, e.g. 0.025,0.040")
-    if not vals:
-        raise argparse.ArgumentTypeError("expected at least one clamping length")
+    vals = tuple(float(v) for v in _numbers(text, "clamping lengths in m, e.g. 0.025,0.040"))
+    if not vals or not all(v > 0 for v in vals):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected comma-separated clamping lengths > 0 in m, e.g. 0.025,0.040")
     return vals
 
 
 def _band(text: str) -> tuple[float, float]:
+    vals = _numbers(text, "LO,HI in Hz, e.g. 1000,1600")
+    if len(vals) != 2 or not 0 < vals[0] < vals[1]:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected LO,HI in Hz with 0 < LO < HI, e.g. 1000,1600")
+    return vals[0], vals[1]
+
+
+def _numbers(text: str, expected: str) -> list[float]:
     try:
-        lo, hi = (float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected LO,HI in Hz, e.g. 1000,1600")
-    return lo, hi
-
-
+        return [finite_float(v) for v in text.split(",") if v.strip()]
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected {expected}") from None
 
 
 def register(subparsers) -> None:
@@ -63,7 +64,7 @@ def register(subparsers) -> None:
                    help="use only measurements at these clamping lengths (m), e.g. 0.025,0.040")
     p.add_argument("--method", choices=("multi", "single", "deterministic"), default="multi",
                    help="identification method (default: multi)")
-    p.add_argument("--seed", type=int, default=0, help="random seed; same seed, same posterior (default 0)")
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="random seed; same seed, same posterior (default 0)")
     p.add_argument("--max-steps", type=positive_int, default=None, metavar="N",
                    help="cap on sampler steps; reaching it is reported as not converged "
                         "(default: [sampler] max_steps or 20000)")
@@ -74,9 +75,9 @@ def register(subparsers) -> None:
                    help="likelihood band in Hz for every measurement (default: rule around the dominant modes)")
     p.add_argument("--check-every", type=positive_int, default=None, metavar="N",
                    help="steps between convergence checks (default: [sampler] check_every or 250)")
-    p.add_argument("--ess-min", type=float, default=400.0, metavar="ESS",
+    p.add_argument("--ess-min", type=finite_float, default=400.0, metavar="ESS",
                    help="bulk ESS required for convergence (default 400)")
-    p.add_argument("--checkpoint-interval", type=float, default=2.0, metavar="SECONDS",
+    p.add_argument("--checkpoint-interval", type=finite_float, default=2.0, metavar="SECONDS",
                    help="seconds between checkpoint writes (default 2)")
     p.add_argument("--spindle-uncertainty", type=Path, default=None, metavar="FILE",
                    help="spindle samples (spindle_samples.npz from `bayes-rcsa spindle`): the predicted "
@@ -90,17 +91,26 @@ def run(args) -> int:
     from ..inference.identify import identify, write_outputs
     from ..inference.problem import IdentificationOptions, build_problem_from_setup
     from ..inference.sampler import SamplerSettings
+    from ..io.atomic import directory_lock, new_output_directory
     from ..io.setup import load_setup
 
-    if args.ess_min <= 0 or args.checkpoint_interval < 0:
-        raise SetupError("--ess-min must be > 0 and --checkpoint-interval >= 0")
+    # Everything that can be checked without sampling is checked before --out is touched.
+    if args.ess_min <= 0:
+        raise SetupError(f"--ess-min {args.ess_min!r}: expected a number > 0")
+    if args.checkpoint_interval < 0:
+        raise SetupError(f"--checkpoint-interval {args.checkpoint_interval!r}: expected a number >= 0 (seconds)")
+    bayesian = args.method != "deterministic"
+    if args.resume and not bayesian:
+        raise SetupError("--resume applies to the Bayesian methods only")
+    if args.spindle_uncertainty is not None and not bayesian:
+        raise SetupError("--spindle-uncertainty applies to the Bayesian methods only")
+    ckpt = args.out / "chain.h5"
+    if args.resume and not (ckpt.exists() or ckpt.with_name("chain.mirror.h5").exists()):
+        raise SetupError(f"--resume: no checkpoint found at {ckpt}")
     setup = load_setup(args.setup)
     options = IdentificationOptions.from_setup(setup.extra, method=args.method, lengths=args.lengths, band=args.band)
     problem = build_problem_from_setup(setup, options)
     sampler_extra = dict(setup.extra.get("sampler", {}) or {})
-    known = {"start", "walkers", "max_steps", "check_every"}
-    if set(sampler_extra) - known:
-        raise SetupError(f"{setup.path}: [sampler] unknown key(s) {sorted(set(sampler_extra) - known)}; expected some of {sorted(known)}")
     pick = lambda cli, key, default: cli if cli is not None else sampler_int(sampler_extra, key, default, setup.path)  # noqa: E731
     settings = SamplerSettings(
         n_walkers=pick(args.walkers, "walkers", None),
@@ -110,14 +120,10 @@ def run(args) -> int:
         checkpoint_interval=args.checkpoint_interval,
         progress=not args.quiet,
     )
-    args.out.mkdir(parents=True, exist_ok=True)
-    ckpt = args.out / "chain.h5"
-    if args.resume and args.method == "deterministic":
-        raise SetupError("--resume applies to the Bayesian methods only")
+    if bayesian:
+        settings.walkers(problem.priors.ndim)  # refuses an odd or too small walker count now
     spindle_samples = None
     if args.spindle_uncertainty is not None:
-        if args.method == "deterministic":
-            raise SetupError("--spindle-uncertainty applies to the Bayesian methods only")
         from ..spindle.uncertainty import load_spindle_samples
 
         spindle_samples = load_spindle_samples(args.spindle_uncertainty)
@@ -125,10 +131,11 @@ def run(args) -> int:
         if missing:
             raise SetupError(f"--spindle-uncertainty {args.spindle_uncertainty}: no samples for direction(s) "
                              f"{missing}; the file has {spindle_samples.directions}")
-    result = identify(problem, seed=args.seed, settings=settings,
-                      checkpoint_path=None if args.method == "deterministic" else ckpt, resume=args.resume,
-                      spindle_samples=spindle_samples)
-    write_outputs(result, args.out, plots=not args.no_plots)
+    with directory_lock(args.out), new_output_directory(args.out):
+        result = identify(problem, seed=args.seed, settings=settings,
+                          checkpoint_path=ckpt if bayesian else None, resume=args.resume,
+                          spindle_samples=spindle_samples)
+        write_outputs(result, args.out, plots=not args.no_plots)
     s = result.summary
     if not args.quiet:
         status = "converged" if s["converged"] else "NOT converged"

@@ -10,11 +10,14 @@ as one line on stderr with exit status 2, without a traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import sys
+import warnings
 
 from .. import __version__
 from ..errors import BayesRCSAError
+from ._common import check_arguments
 
 __all__ = ["main", "build_parser", "COMMANDS"]
 
@@ -58,15 +61,34 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+@contextlib.contextmanager
+def _one_line_warnings(command: str):
+    """Show every warning as one ``bayes-rcsa CMD: warning: ...`` line (no source line, no file path)."""
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        text = " ".join(str(message).split())
+        print(f"bayes-rcsa {command}: warning: {text}", file=sys.stderr if file is None else file)
+
+    with warnings.catch_warnings():
+        warnings.showwarning = show
+        yield
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    with _one_line_warnings(args.command):
+        return _run(args)
+
+
+def _run(args) -> int:
     try:
+        check_arguments(args)
         return int(args.func(args) or 0)
     except BayesRCSAError as exc:
-        print(f"bayes-rcsa {args.command}: error: {exc}", file=sys.stderr)
+        print(f"bayes-rcsa {args.command}: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
-    except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
+    except (FileNotFoundError, IsADirectoryError, NotADirectoryError, FileExistsError, PermissionError) as exc:
         print(f"bayes-rcsa {args.command}: error: {exc.strerror or exc}: {exc.filename}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

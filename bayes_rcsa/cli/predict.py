@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from ..errors import SetupError
-from ._common import parse_float_list, parse_frequency_grid
+from ._common import nonnegative_int, parse_float_list, parse_frequency_grid
 
 __all__ = ["register", "run"]
 
@@ -47,20 +47,21 @@ def register(subparsers) -> None:
     p.add_argument("--tool", default=None, help="tool name (default: the setup's only tool)")
     p.add_argument("--freq", default=None, metavar="START,STOP,STEP",
                    help="common frequency grid in Hz (default: measurement lines or the spindle grid)")
-    p.add_argument("--max-draws", type=int, default=1000, metavar="N",
+    p.add_argument("--max-draws", type=nonnegative_int, default=1000, metavar="N",
                    help="use a random subset of at most N posterior draws (default 1000; 0 = all)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the draw subset (default 0)")
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the draw subset (default 0)")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..io.atomic import directory_lock, new_output_directory
     from ..io.setup import load_setup
     from ..posterior.prediction_outputs import run_prediction, write_prediction_outputs
 
-    if args.max_draws < 0:
-        raise SetupError(f"--max-draws {args.max_draws}: expected 0 (all) or a positive number")
+    if not args.posterior.is_file():
+        raise SetupError(f"--posterior {args.posterior}: no such file (posterior.nc written by 'bayes-rcsa identify')")
     setup = load_setup(args.setup)
     if args.lengths is not None:
         lengths = parse_float_list(args.lengths, "--lengths", positive=True)
@@ -75,7 +76,8 @@ def run(args: argparse.Namespace) -> int:
     freq = parse_frequency_grid(args.freq) if args.freq is not None else None
     result = run_prediction(setup, args.posterior, lengths, directions, args.tool, freq,
                             max_draws=None if args.max_draws == 0 else args.max_draws, seed=args.seed)
-    write_prediction_outputs(result, args.out, plots=not args.no_plots)
+    with directory_lock(args.out), new_output_directory(args.out):
+        write_prediction_outputs(result, args.out, plots=not args.no_plots)
     n_nan = sum(1 for m in result.prediction.modes if m.nan_fraction > 0)
     if n_nan:
         print(f"warning: {n_nan} mode(s) have draws without a resonance inside the mode band "

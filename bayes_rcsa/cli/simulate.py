@@ -16,7 +16,7 @@ def register(subparsers) -> None:
         help="predict the tool-point FRF for given contact parameters",
         description="Predict the tool-point receptance h = u/F (m/N) of the set-up in SETUP at one clamping "
         "length for given tool-holder contact stiffness and damping, and write it as a tool-point FRF CSV "
-        "(frequency_hz,real,imag).  The frequency grid is the spindle file's unless --freq is given.",
+        "(frequency_hz,real,imag) or universal file.  The frequency grid is the spindle file's unless --freq is given.",
     )
     p.add_argument("setup", metavar="SETUP", help="setup TOML file")
     p.add_argument("--clamping-length", required=True, metavar="L", help="clamping length, m (e.g. 0.025)")
@@ -27,12 +27,15 @@ def register(subparsers) -> None:
     p.add_argument("--direction", default="x", choices=("x", "y"), help="spindle direction (default x)")
     p.add_argument("--tool", default=None, help="tool name (default: the setup's only tool)")
     p.add_argument("--freq", default=None, metavar="START,STOP,STEP", help="frequency grid in Hz")
-    p.add_argument("--out", required=True, metavar="FILE.csv", help="output CSV (written atomically)")
-    p.set_defaults(func=run)
+    p.add_argument("--out", required=True, metavar="FILE",
+                   help="output FRF file, written atomically; the suffix chooses the format (.csv, or .uff/.unv "
+                        "for a universal file dataset 58)")
+    p.set_defaults(func=run, out_kind="file")
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..io import load_setup, write_frf_csv
+    from ..io import load_setup
+    from ..io.writers import frf_writer_for, write_frf
     from ..model import FRF, Configuration
 
     cl = parse_float(args.clamping_length, "--clamping-length", positive=True)
@@ -42,6 +45,8 @@ def run(args: argparse.Namespace) -> int:
     ct = parse_float(args.ctheta, "--ctheta")
     if cx < 0 or ct < 0:
         raise SetupError("--cx/--ctheta: expected damping >= 0")
+    frf_writer_for(args.out)  # refuse an unknown output type before computing anything
+    freq = parse_frequency_grid(args.freq) if args.freq is not None else None
     setup = load_setup(args.setup, load_data=False, load_spindle=True)
     tool = args.tool
     if tool is None:
@@ -49,9 +54,7 @@ def run(args: argparse.Namespace) -> int:
             raise SetupError(f"--tool: the setup defines several tools {sorted(setup.tools)}; name one")
         tool = next(iter(setup.tools))
     model = setup.model()
-    if args.freq is not None:
-        freq = parse_frequency_grid(args.freq)
-    else:
+    if freq is None:
         freq = model.spindle_receptance(args.direction).frequency_hz
     config = Configuration(cl, args.direction, tool)
     h = model.frf(config, freq, kx, kt, cx, ct)
@@ -60,5 +63,5 @@ def run(args: argparse.Namespace) -> int:
         f"tool={tool} direction={args.direction} clamping_length={cl!r} m",
         f"k_xf={kx!r} N/m k_thetaM={kt!r} N*m/rad c_xf={cx!r} N*s/m c_thetaM={ct!r} N*m*s/rad",
     ]
-    write_frf_csv(args.out, FRF(freq, h, source=args.out), comments=comments)
+    write_frf(args.out, FRF(freq, h, source=args.out), comments=comments)
     return 0

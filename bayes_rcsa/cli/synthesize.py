@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
+from ._common import nonnegative_int
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -20,7 +22,7 @@ def register(subparsers) -> None:
     )
     p.add_argument("config", metavar="CONFIG", help="bench configuration TOML file")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory (must be new or empty unless --force)")
-    p.add_argument("--seed", type=int, default=None, metavar="N",
+    p.add_argument("--seed", type=nonnegative_int, default=None, metavar="N",
                    help="seed of the measurement noise (default: [noise] seed of CONFIG, else 0)")
     p.add_argument("--force", action="store_true", help="replace an existing non-empty DIR (after success only)")
     p.add_argument("--artifact", action="store_true",
@@ -33,10 +35,11 @@ def register(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from ..errors import SetupError
-    from ..synthetic import generate_campaign, load_bench_config, write_campaign
-
     from pathlib import Path
+
+    from ..errors import SetupError
+    from ..io.atomic import directory_lock
+    from ..synthetic import generate_campaign, load_bench_config, write_campaign
 
     out = Path(args.out)
     if out.exists() and not args.force and (not out.is_dir() or any(out.iterdir())):
@@ -49,13 +52,15 @@ def run(args: argparse.Namespace) -> int:
         from ..synthetic.artifact import default_bench_artifact, generate_artifact_tests, write_artifact_tests
 
         tests = generate_artifact_tests(config, default_bench_artifact(), np.random.default_rng(seed))
-        path = write_artifact_tests(tests, args.out, overwrite=args.force, seed=seed)
+        with directory_lock(args.out):
+            path = write_artifact_tests(tests, args.out, overwrite=args.force, seed=seed)
         print(f"wrote {len(tests.frfs)} artifact FRFs, the true flange receptances and {path.name} to "
               f"{path.parent} (seed {seed})")
         return 0
     campaign = generate_campaign(config, np.random.default_rng(seed))
     campaign = dataclasses.replace(campaign, truth={**campaign.truth, "seed": seed})
-    setup_path = write_campaign(campaign, args.out, overwrite=args.force)
+    with directory_lock(args.out):
+        setup_path = write_campaign(campaign, args.out, overwrite=args.force)
     effects = ", ".join(f"{k}={v:g}" for k, v in campaign.truth["hidden_effects"].items()) or "none"
     print(
         f"wrote {len(campaign.measurements)} tool-point FRFs, {len(campaign.spindle)} spindle file(s), "

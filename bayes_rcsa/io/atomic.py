@@ -3,12 +3,20 @@
 from __future__ import annotations
 
 import contextlib
+import fcntl
+import glob
 import os
+import shutil
 import tempfile
 from pathlib import Path
 from typing import Iterator
 
-__all__ = ["atomic_path", "atomic_write_text", "atomic_write_bytes"]
+from ..errors import SetupError
+
+__all__ = [
+    "atomic_path", "atomic_write_text", "atomic_write_bytes", "begin_directory",
+    "directory_lock", "new_output_directory", "clean_stale_temporaries", "pid_alive",
+]
 
 
 def _umask() -> int:
@@ -72,8 +80,6 @@ def begin_directory(out_dir, overwrite: bool = False) -> tuple[Path, Path]:
     SetupError
         ``out_dir`` is a file, or a non-empty directory without ``overwrite``.
     """
-    from ..errors import SetupError
-
     out_dir = Path(out_dir).resolve()
     if out_dir.exists():
         if not out_dir.is_dir():
@@ -81,6 +87,128 @@ def begin_directory(out_dir, overwrite: bool = False) -> tuple[Path, Path]:
         if any(out_dir.iterdir()) and not overwrite:
             raise SetupError(f"{out_dir}: directory exists and is not empty (choose another or allow overwriting)")
     out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".tmp", dir=out_dir.parent))
+    clean_stale_temporaries(out_dir)
+    # The owner's PID in the name lets a later run recognise (and remove) what a killed run left behind.
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.{os.getpid()}.", suffix=".tmp", dir=out_dir.parent))
     os.chmod(tmp, 0o777 & ~_umask())
     return out_dir, tmp
+
+
+def pid_alive(pid: int) -> bool:
+    """Whether a process with this PID exists (on this machine)."""
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # exists, owned by someone else
+    return True
+
+
+def clean_stale_temporaries(out_dir) -> list[Path]:
+    """Remove temporary siblings ``.NAME.PID.*.tmp`` of ``out_dir`` left by runs that died.
+
+    Only directories whose owner PID (in the name) no longer runs are
+    removed, so a concurrent run's work in progress is never touched.
+
+    Returns
+    -------
+    list of Path
+        The removed directories.
+    """
+    out_dir = Path(out_dir).resolve()
+    prefix = f".{out_dir.name}."
+    removed = []
+    for cand in out_dir.parent.glob(glob.escape(prefix) + "*.tmp"):
+        pid_text = cand.name[len(prefix):].split(".", 1)[0]
+        if not pid_text.isdigit() or not cand.is_dir() or cand.is_symlink():
+            continue
+        if pid_alive(int(pid_text)):
+            continue
+        shutil.rmtree(cand, ignore_errors=True)
+        removed.append(cand)
+    return removed
+
+
+def _lock_file(out_dir: Path) -> Path:
+    return out_dir.parent / f".{out_dir.name}.lock"
+
+
+@contextlib.contextmanager
+def directory_lock(out_dir, option: str = "--out") -> Iterator[Path]:
+    """Hold an exclusive lock on the output directory ``out_dir`` while the block runs.
+
+    The lock is ``fcntl.flock`` on the hidden file ``.NAME.lock`` beside
+    ``out_dir`` (so the directory itself need not exist yet, and commands
+    that replace the directory atomically keep their lock).  The file holds
+    the owner's PID for the message of a second run; it is removed on
+    release.  The kernel drops the lock when its owner dies, so a killed run
+    never blocks the next one.
+
+    Parameters
+    ----------
+    out_dir : path-like
+    option : str
+        Command-line option named in the message.
+
+    Yields
+    ------
+    Path
+        ``out_dir`` resolved.
+
+    Raises
+    ------
+    SetupError
+        Another process holds the lock: ``"DIR is in use by PID n"``.
+    """
+    out_dir = Path(out_dir).resolve()
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    lock = _lock_file(out_dir)
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            owner = os.read(fd, 32).decode("ascii", "replace").strip() or "unknown"
+            os.close(fd)
+            raise SetupError(f"{option} {out_dir} is in use by PID {owner} (another bayes-rcsa run writes there; "
+                             "wait for it or choose another directory)") from None
+        # The previous owner unlinks the file on release: if it did so between our open() and
+        # flock(), we hold a lock on a deleted file; start again on the current one.
+        try:
+            same = os.stat(lock).st_ino == os.fstat(fd).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    try:
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode("ascii"))
+        yield out_dir
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(lock)
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def new_output_directory(out_dir, option: str = "--out") -> Iterator[Path]:
+    """Create ``out_dir`` if needed for a command that writes into it in place; undo on failure.
+
+    If the block raises and this call created the directory, the directory
+    is removed again when it is still empty, so an early failure leaves
+    nothing behind.  Take :func:`directory_lock` around it.
+    """
+    out_dir = Path(out_dir)
+    created = not out_dir.exists()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        yield out_dir
+    except BaseException:
+        if created:
+            with contextlib.suppress(OSError):
+                out_dir.rmdir()  # only succeeds when empty
+        raise
