@@ -89,7 +89,7 @@ def main() -> None:
     args = ap.parse_args()
     problem = make_problem()
     lines = [o.n_lines for o in problem.observations]
-    print(f"problem: {len(lines)} lengths, band lines {lines}, sampled parameters {list(problem.layout.names)}")
+    print(f"problem: {len(lines)} lengths, band lines {lines}, sampled parameters {list(problem.parameters.names)}")
     settings = SamplerSettings(ess_min=1000.0, progress=False)
     walls, eps, esss, conv = [], [], [], []
     for r in range(args.runs):
@@ -108,7 +108,7 @@ def main() -> None:
     batch = problem.priors.sample(np.random.default_rng(1), 16)
     v_eps = evals_per_second(lp, batch)
     n_eps = evals_per_second(lambda b: [lp(row[None, :]) for row in b], batch)
-    t_emcee, t_ours = checkpoint_cost(32, problem.layout.ndim)
+    t_emcee, t_ours = checkpoint_cost(32, problem.parameters.ndim)
 
     print()
     print(f"{'quantity':<52}{'value':>14}{'ratio':>10}")

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from _bench_setup import example_model, median_time
-from bayes_rcsa.inference.parameters import GrowthLaw
+from bayes_rcsa.params import GrowthLaw, LogUniform, ParameterModel, Uniform
 from bayes_rcsa.model import Configuration
 from bayes_rcsa.posterior import PosteriorDraws, PredictionTarget, natural_frequency, predict
 
@@ -32,7 +32,10 @@ def draws(rng: np.random.Generator) -> PosteriorDraws:
         "g_xf": rng.uniform(0.44, 0.46, N_DRAWS), "g_thetaM": rng.uniform(0.0, 0.5, N_DRAWS),
         "c_xf": np.full(N_DRAWS, 10.0), "c_thetaM": np.full(N_DRAWS, 5e-4),
     }
-    return PosteriorDraws(values, GrowthLaw(0.025, 0.040, 0.5), "multi", ("k_xf", "k_thetaM", "g_xf", "g_thetaM"))
+    priors = {"k_xf": LogUniform(1e5, 1e8), "k_thetaM": LogUniform(1e4, 1e7), "g_xf": Uniform(0.0, 0.5),
+              "g_thetaM": Uniform(0.0, 0.5)}
+    pm = ParameterModel.from_priors(GrowthLaw(0.025, 0.040, 0.5), priors, {"c_xf": 10.0, "c_thetaM": 5e-4})
+    return PosteriorDraws(pm, values, "multi")
 
 
 def naive(model, d: PosteriorDraws, targets) -> list:

@@ -10,7 +10,7 @@ import numpy as np
 from bayes_rcsa.data import example_setup
 from bayes_rcsa.io import load_setup
 from bayes_rcsa.model import Configuration, ConfigurationStack
-from bayes_rcsa.posterior.natural_frequencies import natural_frequency
+from bayes_rcsa.model.natural_frequencies import natural_frequency
 
 
 def main() -> dict:

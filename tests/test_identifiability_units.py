@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from bayes_rcsa.inference.priors import LogNormal, LogUniform, Normal, PriorSet, Uniform
+from bayes_rcsa.params.priors import LogNormal, LogUniform, Normal, PriorSet, Uniform
 from bayes_rcsa.posterior.identifiability import (
     combination_name,
     contraction,

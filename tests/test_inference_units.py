@@ -12,8 +12,8 @@ from bayes_rcsa.inference.band import Band, band_mask, default_band
 from bayes_rcsa.inference.checkpoint import Checkpoint
 from bayes_rcsa.inference.deterministic import PercentageObjective
 from bayes_rcsa.inference.likelihood import residual_correlation_length
-from bayes_rcsa.inference.parameters import GrowthLaw
-from bayes_rcsa.inference.priors import LogNormal, LogUniform, Normal, PriorSet, Uniform, prior_from_spec
+from bayes_rcsa.params.growth import GrowthLaw
+from bayes_rcsa.params.priors import LogNormal, LogUniform, Normal, PriorSet, Uniform, prior_from_spec
 from bayes_rcsa.inference.problem import IdentificationOptions, build_problem
 from bayes_rcsa.model import FRF
 from bayes_rcsa.posterior import natural_frequency
@@ -153,7 +153,7 @@ def small_problem():
 def _reference_loglik(prob, theta):
     """Independent per-walker, per-line implementation of the documented likelihood."""
     out = []
-    names = prob.layout.names
+    names = prob.parameters.names
     la, lb = prob.growth.l_a, prob.growth.l_b
     for t in theta:
         v = dict(zip(names, t))
@@ -233,7 +233,7 @@ def test_problem_validation(small_problem):
     with pytest.raises(DataError, match="contains no frequency line"):
         build_problem(model, camp.measurements, contact, IdentificationOptions(band=(9000.0, 9500.0)))
     one = build_problem(model, camp.measurements, contact, IdentificationOptions(method="single", lengths=(0.030,)))
-    assert one.layout.names == ("k_xf", "k_thetaM", "sigma_0")  # constant contact, no growth
+    assert one.parameters.names == ("k_xf", "k_thetaM", "sigma_0")  # constant contact, no growth
     assert not one.growth.has_growth
 
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from bayes_rcsa.errors import DataError, SetupError
-from bayes_rcsa.inference.parameters import GrowthLaw
+from bayes_rcsa.params import GrowthLaw, LogUniform, ParameterModel, Uniform
 from bayes_rcsa.model import Configuration, Holder, HolderSegment, Material, PointReceptance, Tool, ToolPointModel, ToolSegment
 from bayes_rcsa.posterior import PosteriorDraws, PredictionTarget, find_modes, load_posterior, mode_statistics, predict
 from bayes_rcsa.posterior.predict import predictive_frf, QUANTILE_LEVELS, ModePrediction, column_quantiles, parameter_influence
@@ -33,7 +33,14 @@ def _draws(n=400, seed=0, growth=GrowthLaw(0.025, 0.040, 0.5)):
     v = {"k_xf": 10 ** rng.normal(6.25, 0.01, n), "k_thetaM": 10 ** rng.normal(5.65, 0.05, n),
          "g_xf": rng.uniform(0.4, 0.5, n), "g_thetaM": rng.uniform(0.0, 0.5, n),
          "c_xf": np.full(n, 10.0), "c_thetaM": np.full(n, 5e-4)}
-    return PosteriorDraws(v, growth, "multi", ("k_xf", "k_thetaM", "g_xf", "g_thetaM"), (0.025, 0.040))
+    return PosteriorDraws(_contact_model(growth), v, "multi", (0.025, 0.040))
+
+
+def _contact_model(growth, fixed=None):
+    """k_xf, k_thetaM, g_xf, g_thetaM sampled (log-uniform / uniform priors), damping fixed."""
+    priors = {"k_xf": LogUniform(1e5, 1e8), "k_thetaM": LogUniform(1e4, 1e7), "g_xf": Uniform(0.0, 0.5),
+              "g_thetaM": Uniform(0.0, 0.5)}
+    return ParameterModel.from_priors(growth, priors, fixed or {"c_xf": 10.0, "c_thetaM": 5e-4})
 
 
 def _model():
@@ -78,32 +85,49 @@ def test_subset_needs_a_generator_and_is_reproducible():
     assert d.subset(100, None) is d
 
 
-def test_load_posterior_reads_sampled_and_fixed_parameters(tmp_path):
+def test_load_posterior_reads_the_parameter_model_not_the_setup(tmp_path):
+    import json as _json
+
     from bayes_rcsa.inference.diagnostics import build_inference_data, write_netcdf
+    from bayes_rcsa.params import LogUniform as LU
 
     rng = np.random.default_rng(0)
     post = {"k_xf": 10 ** rng.normal(6.2, 0.01, (4, 25)), "k_thetaM": 10 ** rng.normal(5.6, 0.05, (4, 25)),
             "g_xf": rng.uniform(0, 0.5, (4, 25)), "g_thetaM": rng.uniform(0, 0.5, (4, 25)),
             "sigma_0": rng.uniform(0.01, 0.02, (4, 25))}
-    idata = build_inference_data(post, np.zeros((4, 25)), np.zeros((4, 25, 3)), np.ones(3, complex),
-                                 {"fit_clamping_length": np.array([0.025, 0.040])}, {"fit_clamping_length": ["fm"]},
-                                 {"fm": ["a", "b"]}, {"method": "multi", "l_a": 0.025, "l_b": 0.040, "growth_bound": 0.5,
-                                                      "fixed_c_xf": 12.0})
-    path = write_netcdf(idata, tmp_path / "posterior.nc")
-    setup = SimpleNamespace(path=tmp_path / "setup.toml",
-                            contact=SimpleNamespace(translational_damping=99.0, rotational_damping=7e-4))
+    pm = ParameterModel.from_priors(GrowthLaw(0.025, 0.040, 0.5),
+                                    {"k_xf": LU(1e5, 1e8), "k_thetaM": LU(1e4, 1e7), "g_xf": Uniform(0, 0.5),
+                                     "g_thetaM": Uniform(0, 0.5), "sigma_0": LU(1e-4, 10)},
+                                    {"c_xf": 12.0, "c_thetaM": 7e-4}, n_measurements=1)
+
+    def write(attrs, name):
+        idata = build_inference_data(post, np.zeros((4, 25)), np.zeros((4, 25, 3)), np.ones(3, complex),
+                                     {"fit_clamping_length": np.array([0.025, 0.040])}, {"fit_clamping_length": ["fm"]},
+                                     {"fm": ["a", "b"]}, {"method": "multi", **attrs})
+        return write_netcdf(idata, tmp_path / name)
+
+    path = write({"parameter_model": _json.dumps(pm.to_dict())}, "posterior.nc")
+    # the setup was edited after the fit: other damping, other stiffness bounds
+    setup = SimpleNamespace(path=tmp_path / "setup.toml", extra={},
+                            contact=SimpleNamespace(translational_damping=99.0, rotational_damping=[1e-5, 1e-3],
+                                                    translational_stiffness=(1e5, 1e8), rotational_stiffness=(1e3, 1e7),
+                                                    growth_bound=0.5))
     d = load_posterior(path, setup)
     assert d.n_draws == 100 and d.growth == GrowthLaw(0.025, 0.040, 0.5) and d.fit_lengths == (0.025, 0.040)
+    assert d.parameters == pm and d.parameter_model_source == "posterior"
     np.testing.assert_array_equal(d.values["k_xf"], post["k_xf"].ravel())
     assert d.sampled == ("k_xf", "k_thetaM", "g_xf", "g_thetaM")
-    assert np.all(d.values["c_xf"] == 12.0)  # the file's record wins over the setup
-    assert np.all(d.values["c_thetaM"] == 7e-4)  # from the setup
-    with pytest.raises(DataError, match="not recorded"):
-        load_posterior(path)
-    setup_sampled = SimpleNamespace(path=setup.path, contact=SimpleNamespace(translational_damping=1.0,
-                                                                             rotational_damping=[1e-5, 1e-3]))
-    with pytest.raises(DataError, match="samples it"):
-        load_posterior(path, setup_sampled)
+    assert np.all(d.values["c_xf"] == 12.0) and np.all(d.values["c_thetaM"] == 7e-4)  # the posterior's, not the setup's
+    text = "\n".join(d.notes)
+    assert "c_xf = 12" in text and "translational_damping = 99" in text and "rotational_damping" in text
+    assert "rotational_stiffness" in text and "translational_stiffness" not in text  # only what differs
+    # without a setup: the same values, no warnings
+    bare = load_posterior(path)
+    assert np.all(bare.values["c_xf"] == 12.0) and not any(n.startswith("warning") for n in bare.notes)
+    # a file of an older version (no parameter model) is refused, never completed from the setup
+    old = write({"l_a": 0.025, "l_b": 0.040, "growth_bound": 0.5, "fixed_c_xf": 12.0}, "old.nc")
+    with pytest.raises(DataError, match="parameter_model"):
+        load_posterior(old, setup)
     with pytest.raises(DataError, match="not found"):
         load_posterior(tmp_path / "nope.nc")
 

@@ -2,8 +2,7 @@
 
 Separate, small objects in the spirit of bilby:
 
-* :mod:`.priors` -- one prior per parameter (``ln_prob``, ``sample``, bounds), :class:`PriorSet`;
-* :mod:`.parameters` -- parameter vector layout and the bounded linear growth law k(l);
+* :mod:`bayes_rcsa.params` (upstream) -- priors, the growth law, the parameter model and model terms;
 * :mod:`.band` -- the likelihood band (default rule, overrides);
 * :mod:`.likelihood` -- the vectorised complex-FRF likelihood and its tempering;
 * :mod:`.posterior` -- log prior + log likelihood;
@@ -20,15 +19,16 @@ matplotlib; they are loaded when diagnostics or plots are made.
 
 from .band import Band, default_band
 from .identify import IdentificationResult, identify, posterior_stiffness, predict_frf, write_outputs
-from .parameters import GrowthLaw, ParameterLayout
-from .priors import LogNormal, LogUniform, Normal, PriorSet, Uniform
+from ..params.growth import GrowthLaw
+from ..params.model import ParameterModel
+from ..params.priors import LogNormal, LogUniform, Normal, PriorSet, Uniform  # re-exported for API continuity
 from .problem import IdentificationOptions, Problem, build_problem, build_problem_from_setup
 from .sampler import SamplerSettings
 
 __all__ = [
     "Band", "default_band",
     "IdentificationResult", "identify", "posterior_stiffness", "predict_frf", "write_outputs",
-    "GrowthLaw", "ParameterLayout",
+    "GrowthLaw", "ParameterModel",
     "LogNormal", "LogUniform", "Normal", "PriorSet", "Uniform",
     "IdentificationOptions", "Problem", "build_problem", "build_problem_from_setup",
     "SamplerSettings",

@@ -25,7 +25,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from .likelihood import FRFLikelihood
-from .parameters import ParameterLayout
 
 __all__ = ["DeterministicFit", "PercentageObjective", "fit_deterministic"]
 
@@ -60,15 +59,15 @@ class PercentageObjective:
     Parameters
     ----------
     likelihood : FRFLikelihood
-        Provides the forward model, the band lines and the layout.
+        Provides the forward model, the band lines and the parameter model.
     """
 
     def __init__(self, likelihood: FRFLikelihood):
         self.likelihood = likelihood
-        layout: ParameterLayout = likelihood.layout
-        noise = {layout.noise_name(j) for j in range(layout.n_measurements)}
-        self.free = np.array([i for i, n in enumerate(layout.names) if n not in noise], dtype=int)
-        bounds = layout.priors.optimisation_bounds()
+        pm = likelihood.parameters
+        noise = set(pm.noise_names)
+        self.free = np.array([i for i, n in enumerate(pm.names) if n not in noise], dtype=int)
+        bounds = pm.priors.optimisation_bounds()
         self.theta_fill = np.array([0.5 * (lo + hi) for lo, hi in bounds])
         self.bounds = [bounds[i] for i in self.free]
         self.inv_abs = 1.0 / np.abs(likelihood.data)
@@ -106,7 +105,7 @@ def fit_deterministic(likelihood: FRFLikelihood, rng: np.random.Generator, x0: n
     Parameters
     ----------
     likelihood : FRFLikelihood
-        Its observations define the bands; its layout the parameters.
+        Its observations define the bands; its parameter model the parameters.
     rng : numpy.random.Generator
         Seeds the differential evolution.
     x0 : (ndim,) full sampling vector, optional
@@ -132,7 +131,7 @@ def fit_deterministic(likelihood: FRFLikelihood, rng: np.random.Generator, x0: n
         nm = minimize(penalised, de.x, method="Nelder-Mead", options={"xatol": 1e-9, "fatol": 1e-10, "maxiter": 4000})
     x = nm.x if nm.fun <= de.fun else de.x
     theta = obj.full(x)[0]
-    values_all = likelihood.layout.values(theta[None, :])
-    names = [likelihood.layout.names[i] for i in obj.free]
+    values_all = likelihood.parameters.values(theta[None, :])
+    names = [likelihood.parameters.names[i] for i in obj.free]
     values = {n: float(values_all[n][0]) for n in names}
     return DeterministicFit(values, theta, float(min(nm.fun, de.fun)), bool(de.success), obj.n_evaluations, str(de.message))

@@ -15,23 +15,24 @@ optimiser, the walker start and emcee's proposals, so changing one stage
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
 from ..errors import SetupError
 from ..model.assembly import Configuration, ConfigurationStack
-from ..posterior.natural_frequencies import NATURAL_FREQUENCY_RULE, natural_frequency
+from ..model.natural_frequencies import NATURAL_FREQUENCY_RULE, natural_frequency
+from ..params.forward import ForwardModel
+from ..params.model import PARAMETER_MODEL_ATTR, ParameterModel
 from . import results as R
 from .band import band_mask
 from .checkpoint import Checkpoint
 from .deterministic import DeterministicFit, fit_deterministic
 from .likelihood import residual_correlation_length
-from .parameters import PARAMETER_UNITS
 from .posterior import LogPosterior
 from .problem import Problem
 from .sampler import ChainResult, Optimum, SamplerSettings, find_optimum, initial_ensemble, run_ensemble
@@ -98,18 +99,17 @@ class IdentificationResult:
 
     def values(self) -> dict[str, np.ndarray]:
         """Physical values of all parameters per kept draw, ``{name: (n,)}``."""
-        return self.problem.layout.values(self.flat_theta)
+        return self.problem.parameters.values(self.flat_theta)
 
 
-def sampling_labels(names: Sequence[str]) -> list[str]:
-    """Axis labels of the sampling coordinates (log10 for log-scale priors)."""
+def sampling_labels(parameters: ParameterModel) -> list[str]:
+    """Axis labels of the sampling coordinates: ``log10`` / ``ln`` for log-scale priors, with units."""
     out = []
-    for n in names:
-        unit = PARAMETER_UNITS.get(n, "")
-        if n.startswith("g_"):
-            out.append(n)
-        else:
-            out.append(f"log10 {n}" + (f" [{unit}]" if unit and unit != "1" else ""))
+    for n in parameters.names:
+        unit = parameters.unit(n)
+        kind = parameters.priors[n].kind
+        prefix = {"log-uniform": "log10 ", "log-normal": "ln "}.get(kind, "")
+        out.append(f"{prefix}{n}" + (f" [{unit}]" if unit and unit != "1" else ""))
     return out
 
 
@@ -124,11 +124,11 @@ def posterior_stiffness(result: IdentificationResult, lengths) -> tuple[np.ndarr
     k_xf, k_thetaM : each (n_draws, n_lengths), N/m and N m/rad
     """
     lengths = np.atleast_1d(np.asarray(lengths, dtype=float))
-    layout = result.problem.layout
-    if layout.growth.has_growth:
-        layout.growth.check_lengths(lengths, "prediction clamping length")
-    kx, kt, _, _ = layout.contact(result.flat_theta, lengths)
-    return kx, kt
+    pm = result.problem.parameters
+    if pm.growth.has_growth:
+        pm.growth.check_lengths(lengths, "prediction clamping length")
+    c = pm.contact(pm.values(result.flat_theta), lengths)
+    return c.k_xf, c.k_thetaM
 
 
 def predict_frf(result: IdentificationResult, configuration: Configuration, frequency_hz, max_draws: int | None = None,
@@ -151,12 +151,12 @@ def predict_frf(result: IdentificationResult, configuration: Configuration, freq
         if rng is None:
             raise SetupError("predict_frf: a subset of draws needs an explicit rng")
         theta = theta[rng.choice(theta.shape[0], max_draws, replace=False)]
-    layout = result.problem.layout
-    if layout.growth.has_growth:
-        layout.growth.check_lengths([configuration.clamping_length], "prediction clamping length")
-    cache = result.problem.model.precompute(configuration, frequency_hz)
-    kx, kt, cx, ct = layout.contact(theta, [configuration.clamping_length])
-    return cache.frf(kx[:, 0], kt[:, 0], cx[:, 0], ct[:, 0])
+    pm = result.problem.parameters
+    if pm.growth.has_growth:
+        pm.growth.check_lengths([configuration.clamping_length], "prediction clamping length")
+    model = result.problem.model
+    stack = ConfigurationStack([model.precompute(configuration, frequency_hz)])
+    return ForwardModel(pm, stack, model).frf_theta(theta)
 
 
 # -- the workflow ------------------------------------------------------------
@@ -169,14 +169,14 @@ def _fingerprint(problem: Problem, seed: int, settings: SamplerSettings, n_walke
         h.update(np.ascontiguousarray(o.values).tobytes())
     return {
         "method": problem.method,
-        "names": list(problem.layout.names),
+        "names": list(problem.parameters.names),
         "seed": int(seed),
         "n_walkers": int(n_walkers),
         "check_every": int(settings.check_every),
         "data_sha256": h.hexdigest(),
         "lengths": [o.configuration.clamping_length for o in problem.observations],
         "priors": problem.priors.describe(),
-        "fixed": dict(problem.layout.fixed),
+        "fixed": dict(problem.parameters.fixed),
     }
 
 
@@ -201,20 +201,25 @@ def _predicted_natural_frequencies(problem: Problem, stack: ConfigurationStack, 
     draw is evaluated with its own spindle sample (balanced random
     assignment from ``rng``), so the intervals include the spindle uncertainty.
     """
-    lengths = np.array([c.clamping_length for c, _ in problem.all_measurements])
+    pm = problem.parameters
+    forward = ForwardModel(pm, stack, problem.model)
     out = np.empty((theta.shape[0], len(problem.all_measurements)))
     stacks = assignment = None
     if spindle_samples is not None:
+        if pm.terms:
+            raise SetupError(f"--spindle-uncertainty with model terms {list(pm.term_names)} is not supported yet: "
+                             f"run without one of them")
         from ..spindle.uncertainty import assign_samples, variant_stacks
 
         stacks = variant_stacks(problem.model, spindle_samples, [c.configuration for c in stack.caches],
                                 [c.frequency_hz for c in stack.caches])
         assignment = assign_samples(theta.shape[0], spindle_samples.n_samples, rng)
     for a in range(0, theta.shape[0], batch):
-        kx, kt, cx, ct = problem.layout.contact(theta[a : a + batch], lengths)
+        values = pm.values(theta[a : a + batch])
         if stacks is None:
-            h = stack.frf(kx, kt, cx, ct)
+            h = forward.frf(values)
         else:
+            kx, kt, cx, ct = forward.contact(values)
             from ..spindle.uncertainty import mixed_stack_frf
 
             h = mixed_stack_frf(stacks, assignment[a : a + batch], kx, kt, cx, ct)
@@ -228,9 +233,11 @@ def _common_summary(problem: Problem, seed: int) -> dict:
     return {
         "method": problem.method,
         "seed": int(seed),
-        "parameter_names": list(problem.layout.names),
-        "fixed_parameters": dict(problem.layout.fixed),
+        "parameter_names": list(problem.parameters.names),
+        "fixed_parameters": dict(problem.parameters.fixed),
         "priors": problem.priors.describe(),
+        "model_terms": [t.describe() for t in problem.parameters.terms],
+        "parameter_model": problem.parameters.to_dict(),
         "reference_clamping_length": g.l_a,
         "feasible_range": [g.l_a, g.l_b] if g.has_growth else None,
         "growth_bound": g.growth_bound,
@@ -239,7 +246,7 @@ def _common_summary(problem: Problem, seed: int) -> dict:
         "measurements_used": [
             {"clamping_length": o.configuration.clamping_length, "direction": o.configuration.direction,
              "tool": o.configuration.tool, "source": o.source, "band": o.band.as_dict(), "n_lines": o.n_lines,
-             "n_low_coherence_lines": o.n_low_coherence, "noise_parameter": problem.layout.noise_name(j)}
+             "n_low_coherence_lines": o.n_low_coherence, "noise_parameter": problem.parameters.noise_name(j)}
             for j, o in enumerate(problem.observations)
         ],
         "natural_frequency_rule": NATURAL_FREQUENCY_RULE,
@@ -249,7 +256,9 @@ def _common_summary(problem: Problem, seed: int) -> dict:
 def _stiffness_and_frequencies(problem: Problem, theta_flat: np.ndarray, nat: np.ndarray, measured_nat: np.ndarray):
     used_lengths = {round(o.configuration.clamping_length, 12) for o in problem.observations}
     lengths = sorted({round(c.clamping_length, 12) for c, _ in problem.all_measurements})
-    kx, kt, _, _ = problem.layout.contact(theta_flat, lengths)
+    pm = problem.parameters
+    c = pm.contact(pm.values(theta_flat), lengths)
+    kx, kt = c.k_xf, c.k_thetaM
     stiffness = [R.stiffness_entry(l, kx[:, i], kt[:, i], l in used_lengths) for i, l in enumerate(lengths)]
     used_cfg = {(o.configuration, o.source) for o in problem.observations}
     freqs = [
@@ -262,7 +271,7 @@ def _stiffness_and_frequencies(problem: Problem, theta_flat: np.ndarray, nat: np
 def _check_start(problem: Problem) -> dict[int, float]:
     """Sampling coordinates of the user's ``[sampler] start`` values, checked against the prior."""
     start = problem.options.start or {}
-    names = problem.layout.names
+    names = problem.parameters.names
     unknown = set(start) - set(names)
     if unknown:
         raise SetupError(f"sampler.start: unknown parameter(s) {sorted(unknown)}; sampled parameters: {list(names)}")
@@ -320,7 +329,7 @@ def identify(
         return _identify_deterministic(problem, seed, rng_opt, t_start)
 
     lp_full = LogPosterior(problem.priors, problem.likelihood)
-    n_walkers = settings.walkers(problem.layout.ndim)
+    n_walkers = settings.walkers(problem.parameters.ndim)
     fingerprint = _fingerprint(problem, seed, settings, n_walkers)
     ckpt = Checkpoint(checkpoint_path) if checkpoint_path is not None else None
     warnings: list[str] = []
@@ -351,7 +360,7 @@ def identify(
     if not resume:
         initial = initial_ensemble(lp, x0, rng_init, n_walkers)
         if ckpt is not None:
-            ckpt.create(n_walkers, problem.layout.ndim, {
+            ckpt.create(n_walkers, problem.parameters.ndim, {
                 "fingerprint": fingerprint, "tempering": beta, "residual_correlation": tau_r,
                 "optimum": optimum.x.tolist(), "optimum_log_posterior": optimum.log_posterior,
             })
@@ -371,14 +380,14 @@ def identify(
 
     stack, measured_nat, _ = _evaluation_stack(problem)
     nat = _predicted_natural_frequencies(problem, stack, flat, spindle_samples=spindle_samples, rng=rng_spindle)
-    values = problem.layout.values(flat)
-    names = problem.layout.names
+    values = problem.parameters.values(flat)
+    names = problem.parameters.names
     diag = chain.diagnostics or {}
     params = {}
     for j, n in enumerate(names):
         get = lambda key: float(diag[key][j]) if key in diag else None  # noqa: E731
         params[n] = R.parameter_summary(values[n], get("rhat"), get("ess_bulk"), get("ess_tail"),
-                                        PARAMETER_UNITS.get(n, "1"))
+                                        problem.parameters.unit(n))
     stiffness, freqs = _stiffness_and_frequencies(problem, flat, nat, measured_nat)
 
     if not chain.converged:
@@ -432,7 +441,7 @@ def identify(
             "noise_floor": problem.likelihood.noise.floor,
             "min_coherence": problem.likelihood.noise.min_coherence,
         },
-        "optimum": {n: float(v[0]) for n, v in problem.layout.values(optimum.x[None, :]).items() if n in names},
+        "optimum": {n: float(v[0]) for n, v in problem.parameters.values(optimum.x[None, :]).items() if n in names},
         "timing": {
             "wall_time_s": wall,
             "sampling_time_s": chain.wall_time,
@@ -458,7 +467,7 @@ def _identify_deterministic(problem: Problem, seed: int, rng: np.random.Generato
     theta = fit.theta[None, None, :]
     stack, measured_nat, _ = _evaluation_stack(problem)
     nat = _predicted_natural_frequencies(problem, stack, fit.theta[None, :])
-    params = {n: R.parameter_summary(np.array([v]), unit=PARAMETER_UNITS.get(n, "1")) for n, v in fit.values.items()}
+    params = {n: R.parameter_summary(np.array([v]), unit=problem.parameters.unit(n)) for n, v in fit.values.items()}
     stiffness, freqs = _stiffness_and_frequencies(problem, fit.theta[None, :], nat, measured_nat)
     warnings = []
     if not fit.success:
@@ -515,13 +524,12 @@ def write_outputs(result: IdentificationResult, out_dir, plots: bool = True) -> 
     out.mkdir(parents=True, exist_ok=True)
     written = []
     problem = result.problem
-    names = problem.layout.names
     if result.chain is not None:
         written.append(_write_posterior(result, out / "posterior.nc"))
     if plots:
         from . import plots as P
 
-        labels = sampling_labels(names)
+        labels = sampling_labels(problem.parameters)
         if result.chain is not None:
             written.append(P.trace_plot(result.chain.chain, labels, result.chain.burn, out / "trace.png"))
             written.append(P.corner_plot(result.flat_theta, labels, out / "corner.png"))
@@ -537,10 +545,11 @@ def _write_posterior(result: IdentificationResult, path: Path) -> Path:
     problem = result.problem
     nc, nd, _ = result.theta.shape
     flat = result.flat_theta
-    values = problem.layout.values(flat)
-    post = {n: values[n].reshape(nc, nd) for n in problem.layout.names}
+    pm = problem.parameters
+    values = pm.values(flat)
+    post = {n: values[n].reshape(nc, nd) for n in pm.names}
     lengths = np.array(sorted({round(c.clamping_length, 12) for c, _ in problem.all_measurements}))
-    kx, kt, _, _ = problem.layout.contact(flat, lengths)
+    kx, kt, _, _ = pm.contact(values, lengths)
     post["k_xf_at_length"] = kx.reshape(nc, nd, -1)
     post["k_thetaM_at_length"] = kt.reshape(nc, nd, -1)
     post["natural_frequency"] = result.natural_frequency
@@ -575,7 +584,8 @@ def _write_posterior(result: IdentificationResult, path: Path) -> Path:
         attrs={"method": problem.method, "seed": result.seed, "converged": result.summary["converged"],
                "tempering": result.tempering, "growth_bound": problem.growth.growth_bound,
                "l_a": problem.growth.l_a, "l_b": problem.growth.l_b, "created_by": "bayes_rcsa identify",
-               # fixed parameters (e.g. damping) so that predictions need not re-read the setup
-               **{f"fixed_{k}": float(v) for k, v in problem.layout.fixed.items()}},
+               # the whole parameter model (priors, fixed values, terms): predictions never re-read the setup
+               PARAMETER_MODEL_ATTR: json.dumps(pm.to_dict()),
+               **{f"fixed_{k}": float(v) for k, v in pm.fixed.items()}},
     )
     return write_netcdf(idata, path)

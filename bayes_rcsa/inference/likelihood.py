@@ -63,8 +63,9 @@ import numpy as np
 from ..errors import DataError, SetupError
 from ..model.assembly import Configuration, ConfigurationStack, ToolPointModel
 from ..model.receptance import FRF
+from ..params.forward import ForwardModel
+from ..params.model import ParameterModel
 from .band import Band, MIN_LINES, band_mask
-from .parameters import ParameterLayout
 
 __all__ = [
     "Observation",
@@ -172,7 +173,7 @@ class FRFLikelihood:
     model : ToolPointModel
     observations : sequence of Observation
         One per measurement; their order defines ``sigma_0, sigma_1, ...``.
-    layout : ParameterLayout
+    parameters : ParameterModel
     noise : NoiseModel
     tempering : float
         beta in (0, 1], the power of the likelihood (1 / correlation length).
@@ -180,28 +181,36 @@ class FRFLikelihood:
     Notes
     -----
     The forward model is precomputed on the band lines only, once.  A call
-    costs one :meth:`ConfigurationStack.frf` plus a few elementwise
+    costs one :meth:`bayes_rcsa.params.ForwardModel.frf` (without structural
+    model terms: one :meth:`ConfigurationStack.frf`) plus a few elementwise
     operations per line.
+
+    Attributes
+    ----------
+    parameters : ParameterModel
+    forward : ForwardModel
+        On :attr:`stack`, the band lines of all observations.
     """
 
     def __init__(
         self,
         model: ToolPointModel,
         observations: Sequence[Observation],
-        layout: ParameterLayout,
+        parameters: ParameterModel,
         noise: NoiseModel = NoiseModel(),
         tempering: float = 1.0,
         stack: ConfigurationStack | None = None,
     ):
         if len(observations) == 0:
             raise SetupError("the likelihood needs at least one measurement")
-        if layout.n_measurements != len(observations):
-            raise SetupError(f"layout has {layout.n_measurements} noise scales for {len(observations)} measurements")
+        if parameters.n_measurements != len(observations):
+            raise SetupError(f"the parameter model has {parameters.n_measurements} noise scales for "
+                             f"{len(observations)} measurements")
         if not (0 < tempering <= 1):
             raise SetupError(f"likelihood tempering = {tempering!r}: expected 0 < beta <= 1")
         self.model = model
         self.observations = tuple(observations)
-        self.layout = layout
+        self.parameters = parameters
         self.noise = noise
         self.tempering = float(tempering)
         self.stack = stack if stack is not None else ConfigurationStack(
@@ -221,8 +230,8 @@ class FRFLikelihood:
         self._float_slices = [slice(2 * s.start, 2 * s.stop) for s in self.stack.slices]
         self.lengths = np.array([o.configuration.clamping_length for o in self.observations])
         self.n_per = np.array([o.n_lines for o in self.observations])
-        self._fixed_damping = {n: float(layout.fixed[n]) for n in ("c_xf", "c_thetaM") if n in layout.fixed}
-        self._noise_names = [layout.noise_name(j) for j in range(layout.n_measurements)]
+        self.forward = ForwardModel(parameters, self.stack, model)
+        self._noise_names = list(parameters.noise_names)
 
     @property
     def n_lines(self) -> int:
@@ -230,18 +239,14 @@ class FRFLikelihood:
 
     def with_tempering(self, beta: float) -> "FRFLikelihood":
         """The same likelihood raised to the power ``beta`` (shares the cache)."""
-        return FRFLikelihood(self.model, self.observations, self.layout, self.noise, beta, stack=self.stack)
+        return FRFLikelihood(self.model, self.observations, self.parameters, self.noise, beta, stack=self.stack)
 
     def model_frf(self, theta: np.ndarray) -> np.ndarray:
         """Predicted FRF on all band lines, (n, n_lines) complex m/N."""
-        return self._model_frf(self.layout.values(np.atleast_2d(theta)))
+        return self.forward.frf_theta(theta)
 
     def _model_frf(self, v) -> np.ndarray:
-        kx, kt, cx, ct = self.layout.contact_from_values(v, self.lengths)
-        # Fixed damping enters as a scalar: saves a per-line gather in the hot path.
-        cx = self._fixed_damping.get("c_xf", cx)
-        ct = self._fixed_damping.get("c_thetaM", ct)
-        return self.stack.frf(kx, kt, cx, ct)
+        return self.forward.frf(v)
 
     def _terms(self, v):
         """|r_n|^2 / v_n and v_n for parameter values ``v``: two (n, n_lines) arrays."""
@@ -256,7 +261,7 @@ class FRFLikelihood:
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:
         """Tempered log-likelihood, (n,) for theta (n, ndim)."""
-        v = self.layout.values(np.atleast_2d(theta))
+        v = self.parameters.values(np.atleast_2d(theta))
         q, var = self._terms(v)
         s2 = np.column_stack([v[n] for n in self._noise_names]) ** 2  # (n, n_meas)
         qj = np.stack([q[:, sl].sum(axis=1) for sl in self.stack.slices], axis=1)
@@ -268,7 +273,7 @@ class FRFLikelihood:
 
         Sums to :meth:`__call__` over the line axis; used for LOO/WAIC.
         """
-        v = self.layout.values(np.atleast_2d(theta))
+        v = self.parameters.values(np.atleast_2d(theta))
         q, var = self._terms(v)
         s2 = np.column_stack([v[n] for n in self._noise_names])[:, self.stack.index] ** 2
         return self.tempering * (-q / s2 - np.log(np.pi * s2 * var))
@@ -280,7 +285,7 @@ class FRFLikelihood:
 
     def normalised_residuals(self, theta: np.ndarray) -> np.ndarray:
         """``r_n / sigma_n`` for one parameter vector, (n_lines,) complex."""
-        v = self.layout.values(np.atleast_2d(theta))
+        v = self.parameters.values(np.atleast_2d(theta))
         h = self._model_frf(v)[0]
         var = (np.abs(h) ** 2 + self.floor2) / self.coherence
         s = np.array([v[n][0] for n in self._noise_names])[self.stack.index]

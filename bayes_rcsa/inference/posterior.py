@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .likelihood import FRFLikelihood
-from .priors import PriorSet
+from ..params.priors import PriorSet
 
 __all__ = ["LogPosterior"]
 

@@ -29,22 +29,34 @@ scales, default ``[1e-4, 10]``).
 ``[priors]``: replaces the prior of ``k_xf``, ``k_thetaM``, ``g_xf``,
 ``g_thetaM``, ``c_xf`` or ``c_thetaM`` by a table, e.g.
 ``k_xf = {distribution = "log-normal", median = 2e6, sigma = 0.5}``.
+
+``[model]``: ``terms = ["tip_mass", ...]`` adds registered model terms
+(:mod:`bayes_rcsa.params.terms`); any other key names a parameter of the
+model (a term's, or a contact parameter) and gives its prior with the syntax
+of ``[priors]`` (a ``[lo, hi]`` pair means the parameter's default kind of
+prior) or a number to hold it fixed.
+
+The result's :class:`~bayes_rcsa.params.ParameterModel` is the single
+description of what is sampled and fixed; it is written into posterior.nc.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Mapping, Sequence
 
 from ..errors import SetupError
 from ..io.setup import ContactSpec, Setup
 from ..model.assembly import Configuration, ToolPointModel
 from ..model.receptance import FRF
+from ..params.growth import GrowthLaw
+from ..params.model import CONTACT_NAMES, ParameterModel, contact_parameter, noise_name, term_parameters
+from ..params.parameter import Parameter
+from ..params.priors import LogUniform, Prior, PriorSet, Uniform, prior_from_spec
+from ..params.terms import make_term
 from .band import Band, resolve_band
 from .likelihood import FRFLikelihood, NoiseModel, make_observation
-from .parameters import GrowthLaw, ParameterLayout
-from .priors import LogUniform, Prior, PriorSet, Uniform, prior_from_spec
 
 __all__ = ["METHODS", "IdentificationOptions", "Problem", "build_problem", "build_problem_from_setup", "select_measurements"]
 
@@ -74,6 +86,9 @@ class IdentificationOptions:
         Log-uniform prior bounds of the relative noise scales.
     priors : mapping
         User prior tables (``[priors]``).
+    model : mapping
+        The setup's ``[model]`` table: ``terms`` and per-parameter prior
+        overrides or fixed values.
     start : mapping or None
         Physical parameter values to start the walkers around (``[sampler]
         start``) instead of the global optimum.
@@ -89,6 +104,7 @@ class IdentificationOptions:
     tempering: Any = "auto"
     noise_scale: tuple[float, float] = (1e-4, 10.0)
     priors: Mapping[str, Any] = field(default_factory=dict)
+    model: Mapping[str, Any] = field(default_factory=dict)
     start: Mapping[str, float] | None = None
 
     def __post_init__(self) -> None:
@@ -100,7 +116,7 @@ class IdentificationOptions:
 
     @classmethod
     def from_setup(cls, extra: Mapping[str, Any], **overrides) -> "IdentificationOptions":
-        """Options from the setup's ``[likelihood]``, ``[priors]`` and ``[sampler]`` tables.
+        """Options from the setup's ``[likelihood]``, ``[priors]``, ``[model]`` and ``[sampler]`` tables.
 
         Keyword ``overrides`` (command-line values) win when not ``None``.
         """
@@ -122,6 +138,10 @@ class IdentificationOptions:
         if start is not None and not isinstance(start, Mapping):
             raise SetupError(f"sampler.start = {start!r}: expected a table of parameter = value")
         kw["priors"] = priors
+        model_table = extra.get("model", {}) or {}
+        if not isinstance(model_table, Mapping):
+            raise SetupError(f"[model] = {model_table!r}: expected a table (terms = [...], parameter = prior or value)")
+        kw["model"] = dict(model_table)
         kw["start"] = None if start is None else {k: _number(v, f"sampler.start.{k}") for k, v in start.items()}
         kw.update({k: v for k, v in overrides.items() if v is not None})
         return cls(**kw)
@@ -151,7 +171,8 @@ class Problem:
         The measurements used in the fit.
     observations : tuple of Observation
         Their band lines.
-    layout : ParameterLayout
+    parameters : ParameterModel
+        What is sampled and fixed, the growth law and the model terms.
     likelihood : FRFLikelihood
         Untempered (beta = 1).
     growth : GrowthLaw
@@ -164,7 +185,7 @@ class Problem:
     method: str
     measurements: tuple
     observations: tuple
-    layout: ParameterLayout
+    parameters: ParameterModel
     likelihood: FRFLikelihood
     growth: GrowthLaw
     options: IdentificationOptions
@@ -172,7 +193,7 @@ class Problem:
 
     @property
     def priors(self) -> PriorSet:
-        return self.layout.priors
+        return self.parameters.priors
 
     def band_of(self, frf: FRF) -> Band:
         o = self.options
@@ -254,43 +275,104 @@ def build_problem(
         )
     growth = feasible if len(lengths) > 1 else GrowthLaw(lengths[0], lengths[0], float(contact.growth_bound))
 
-    user = dict(options.priors)
-    allowed = {"k_xf", "k_thetaM", "g_xf", "g_thetaM", "c_xf", "c_thetaM"}
-    if set(user) - allowed:
-        raise SetupError(f"[priors]: unknown parameter(s) {sorted(set(user) - allowed)}; expected some of {sorted(allowed)}")
-    priors: dict[str, Prior] = {}
-    fixed: dict[str, float] = {}
-    priors["k_xf"] = prior_from_spec(user.get("k_xf", list(contact.translational_stiffness)), "contact.translational_stiffness")
-    priors["k_thetaM"] = prior_from_spec(user.get("k_thetaM", list(contact.rotational_stiffness)), "contact.rotational_stiffness")
-    if growth.has_growth:
-        q = growth.growth_bound
-        if q <= 0:
-            fixed["g_xf"] = fixed["g_thetaM"] = 0.0
-        else:
-            priors["g_xf"] = prior_from_spec(user["g_xf"], "priors.g_xf", "uniform") if "g_xf" in user else Uniform(0.0, q)
-            priors["g_thetaM"] = prior_from_spec(user["g_thetaM"], "priors.g_thetaM", "uniform") if "g_thetaM" in user else Uniform(0.0, q)
-            for name in ("g_xf", "g_thetaM"):
-                lo, hi = priors[name].bounds
-                if lo < 0 or hi > q:
-                    raise SetupError(f"priors.{name}: support [{lo:g}, {hi:g}] must lie within [0, Q = {q:g}] (growth law)")
-    else:
-        fixed["g_xf"] = fixed["g_thetaM"] = 0.0
-    for name, spec in (("c_xf", contact.translational_damping), ("c_thetaM", contact.rotational_damping)):
-        p, v = _damping(spec, name, user)
-        if p is not None:
-            priors[name] = p
-        else:
-            fixed[name] = v
-    noise_prior = LogUniform(*options.noise_scale)
     observations = []
-    for j, (cfg, frf) in enumerate(used):
+    for cfg, frf in used:
         band = resolve_band(frf, options.band, ratio=options.band_ratio, rel_height=options.band_rel_height)
         observations.append(make_observation(frf, cfg, band, options.min_coherence))
-        priors[ParameterLayout.noise_name(j)] = noise_prior
-    layout = ParameterLayout(PriorSet(priors), fixed, growth, len(used))
+    parameters = build_parameter_model(model, contact, growth, options, len(used))
     noise = NoiseModel(options.noise_floor, options.min_coherence)
-    likelihood = FRFLikelihood(model, observations, layout, noise)
-    return Problem(model, options.method, used, tuple(observations), layout, likelihood, growth, options, all_meas)
+    likelihood = FRFLikelihood(model, observations, parameters, noise)
+    return Problem(model, options.method, used, tuple(observations), parameters, likelihood, growth, options, all_meas)
+
+
+def build_parameter_model(model: ToolPointModel, contact: ContactSpec, growth: GrowthLaw,
+                          options: IdentificationOptions, n_measurements: int) -> ParameterModel:
+    """The parameter model of a fit: contact priors, growth, damping, ``[model]`` terms, noise scales.
+
+    Parameters
+    ----------
+    model : ToolPointModel
+        Terms read their default priors from its geometry.
+    contact : ContactSpec
+        The setup's ``[contact]`` table.
+    growth : GrowthLaw
+        Of the selected measurements (no growth for a single clamping length).
+    options : IdentificationOptions
+        ``priors`` (``[priors]``), ``model`` (``[model]``) and ``noise_scale``.
+    n_measurements : int
+
+    Raises
+    ------
+    SetupError
+        Unknown parameter or term names (the message lists the known ones),
+        a prior outside the growth law, a parameter given in both
+        ``[priors]`` and ``[model]``.
+    """
+    user = dict(options.priors)
+    allowed = set(CONTACT_NAMES)
+    if set(user) - allowed:
+        raise SetupError(f"[priors]: unknown parameter(s) {sorted(set(user) - allowed)}; expected some of {sorted(allowed)}")
+    table = dict(options.model or {})
+    term_names = table.pop("terms", [])
+    if isinstance(term_names, str) or not isinstance(term_names, (list, tuple)):
+        raise SetupError(f"[model] terms = {term_names!r}: expected a list of term names")
+    if len(set(term_names)) != len(term_names):
+        raise SetupError(f"[model] terms = {list(term_names)}: a term is listed twice")
+    terms = [make_term(n, "[model] terms") for n in term_names]
+    term_params = term_parameters(terms, model)
+    known = set(CONTACT_NAMES) | {p.name for p in term_params}
+    unknown = sorted(set(table) - known)
+    if unknown:
+        raise SetupError(f"[model]: unknown parameter(s) {unknown}; expected 'terms' or some of {sorted(known)}")
+    both = sorted(set(table) & set(user))
+    if both:
+        raise SetupError(f"[model] and [priors] both set {both}; give each parameter once")
+
+    params: list[Parameter] = []
+
+    def add(name: str, prior: Prior | None = None, value: float | None = None) -> None:
+        params.append(contact_parameter(name, prior, value))
+
+    add("k_xf", prior_from_spec(user.get("k_xf", list(contact.translational_stiffness)), "contact.translational_stiffness"))
+    add("k_thetaM", prior_from_spec(user.get("k_thetaM", list(contact.rotational_stiffness)), "contact.rotational_stiffness"))
+    if growth.has_growth and growth.growth_bound > 0:
+        q = growth.growth_bound
+        for name in ("g_xf", "g_thetaM"):
+            prior = prior_from_spec(user[name], f"priors.{name}", "uniform") if name in user else Uniform(0.0, q)
+            lo, hi = prior.bounds
+            if lo < 0 or hi > q:
+                raise SetupError(f"priors.{name}: support [{lo:g}, {hi:g}] must lie within [0, Q = {q:g}] (growth law)")
+            add(name, prior)
+    else:
+        add("g_xf", value=0.0)
+        add("g_thetaM", value=0.0)
+    for name, spec in (("c_xf", contact.translational_damping), ("c_thetaM", contact.rotational_damping)):
+        prior, value = _damping(spec, name, user)
+        add(name, prior, value)
+    params += term_params
+    for name, spec in table.items():
+        i = next(k for k, p in enumerate(params) if p.name == name)
+        params[i] = _override(params[i], spec, growth)
+    noise_prior = LogUniform(*options.noise_scale)
+    params += [Parameter(noise_name(j), "1", "noise", prior=noise_prior, label=f"relative noise of measurement {j}")
+               for j in range(n_measurements)]
+    return ParameterModel(params, growth, terms, n_measurements)
+
+
+def _override(p: Parameter, spec, growth: GrowthLaw) -> Parameter:
+    """``p`` with the ``[model]`` table's prior (pair or table) or fixed value (number)."""
+    where = f"model.{p.name}"
+    if isinstance(spec, (int, float)) and not isinstance(spec, bool):
+        value = _number(spec, where)
+        if p.role == "growth" and not (0 <= value <= growth.growth_bound):
+            raise SetupError(f"{where} = {value!r}: a growth factor must lie in [0, Q = {growth.growth_bound:g}]")
+        return p.fixed_at(value)
+    default_kind = p.prior.kind if p.prior is not None and p.prior.kind in ("uniform", "log-uniform") else "log-uniform"
+    if p.role == "growth":
+        default_kind = "uniform"
+    return p.with_prior(prior_from_spec(spec, where, default_kind))
+
+
 
 
 def build_problem_from_setup(setup: Setup, options: IdentificationOptions) -> Problem:
@@ -300,4 +382,9 @@ def build_problem_from_setup(setup: Setup, options: IdentificationOptions) -> Pr
         if m.frf is None:
             raise SetupError(f"{setup.path}: measurement {m.file} was not loaded (load_setup(..., load_data=True))")
         meas.append((m.configuration, m.frf))
+    if not options.model:
+        # the [model] table: Setup.model_table once the setup parser validates it, else the raw extra table
+        table = getattr(setup, "model_table", None) or setup.extra.get("model") or {}
+        if table:
+            options = replace(options, model=dict(table))
     return build_problem(setup.model(), meas, setup.contact, options)

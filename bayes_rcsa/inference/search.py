@@ -31,7 +31,10 @@ The search
    best polished point is the optimum.
 
 Sampled damping is held at the centre of its prior during the grid stage
-and freed in the polish.
+and freed in the polish.  Sampled model-term parameters are held at their
+baseline (where the term vanishes) when the prior allows it, else at the
+centre of their prior; the grid evaluates the full forward model (terms
+included) through :class:`bayes_rcsa.params.ForwardModel`.
 """
 
 from __future__ import annotations
@@ -42,7 +45,7 @@ import numpy as np
 
 from ..errors import ConvergenceError
 from .likelihood import FRFLikelihood, weighted_sums
-from .priors import PriorSet
+from ..params.priors import PriorSet
 
 __all__ = ["grid_candidates", "polish", "peak_bandwidth"]
 
@@ -64,14 +67,17 @@ def peak_bandwidth(frequency_hz: np.ndarray, values: np.ndarray) -> float:
     return float((f_hi - f_lo) / frequency_hz[i])
 
 
-def _length_maps(likelihood: FRFLikelihood, log_kx: np.ndarray, log_kt: np.ndarray, cx: float, ct: float,
+def _length_maps(likelihood: FRFLikelihood, log_kx: np.ndarray, log_kt: np.ndarray, held: dict[str, float],
                  max_lines: int, chunk_sets: int = 16384) -> dict[float, np.ndarray]:
     """Profile log-likelihood map ``(n_x, n_t)`` of each distinct clamping length.
 
     The model is evaluated on at most ``max_lines`` lines per measurement
-    (a subsampled stack), every grid point being one parameter set.
+    (a subsampled stack), every grid point being one parameter set with the
+    stiffness of the grid at every length (no growth) and the other
+    parameters at the ``held`` values (physical units).
     """
     from ..model.assembly import ConfigurationStack
+    from ..params.forward import ForwardModel
 
     obs_all = likelihood.observations
     caches, data, weight, n_used = [], [], [], []
@@ -82,6 +88,7 @@ def _length_maps(likelihood: FRFLikelihood, log_kx: np.ndarray, log_kt: np.ndarr
         weight.append(likelihood.weight[likelihood.stack.slices[j]][idx])
         n_used.append(idx.size)
     sub = ConfigurationStack(caches)
+    forward = ForwardModel(likelihood.parameters, sub, likelihood.model)
     d = np.concatenate(data)
     w2 = np.repeat(np.concatenate(weight), 2)
     float_slices = [slice(2 * sl.start, 2 * sl.stop) for sl in sub.slices]
@@ -90,7 +97,11 @@ def _length_maps(likelihood: FRFLikelihood, log_kx: np.ndarray, log_kt: np.ndarr
     kt_all = 10.0 ** log_kt[kk.ravel()]
     q = np.empty((kx_all.size, len(obs_all)))
     for a in range(0, kx_all.size, chunk_sets):
-        r = sub.frf(kx_all[a : a + chunk_sets], kt_all[a : a + chunk_sets], cx, ct)
+        kx = kx_all[a : a + chunk_sets]
+        values = {n: np.full(kx.size, v) for n, v in held.items()}
+        values.update({"k_xf": kx, "k_thetaM": kt_all[a : a + chunk_sets],
+                       "g_xf": np.zeros(kx.size), "g_thetaM": np.zeros(kx.size)})
+        r = forward.frf(values)
         r -= d
         q[a : a + chunk_sets] = weighted_sums(r, w2, float_slices)
     with np.errstate(divide="ignore"):
@@ -153,9 +164,9 @@ def grid_candidates(likelihood: FRFLikelihood, priors: PriorSet, max_lines: int 
     -------
     list of (ndim,) sampling vectors (noise coordinates at their profile values)
     """
-    layout = likelihood.layout
-    names = layout.names
-    growth = layout.growth
+    pm = likelihood.parameters
+    names = pm.names
+    growth = pm.growth
     lengths = sorted({round(o.configuration.clamping_length, 12) for o in likelihood.observations})
     x_of = {L: ((L - growth.l_a) / (growth.l_b - growth.l_a) if growth.has_growth else 0.0) for L in lengths}
 
@@ -168,7 +179,7 @@ def grid_candidates(likelihood: FRFLikelihood, priors: PriorSet, max_lines: int 
 
     def g_values(name, step_decades):
         if name not in names:
-            return np.array([float(layout.fixed[name])])
+            return np.array([float(pm.fixed[name])])
         lo, hi = (phys(name, v) for v in priors[name].optimisation_bounds())
         # the shift log10(1 + g x) changes by about one stiffness step per growth step
         n = int(min(61, max(2, math.ceil(0.4343 * (hi - lo) / step_decades) + 1)))
@@ -184,7 +195,20 @@ def grid_candidates(likelihood: FRFLikelihood, priors: PriorSet, max_lines: int 
         if name in names:
             lo, hi = priors[name].optimisation_bounds()
             return phys(name, 0.5 * (lo + hi))
-        return float(layout.fixed[name])
+        return float(pm.fixed[name])
+
+    def held_value(name):
+        """Start of a parameter the grid does not search: a term's baseline if inside the prior, else the centre."""
+        p = pm[name]
+        if name in names and p.baseline is not None:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                u = priors[name].to_sampling(p.baseline)
+            if priors[name].in_support(u):
+                return float(p.baseline)
+        return centre(name)
+
+    searched = {"k_xf", "k_thetaM", "g_xf", "g_thetaM"}
+    held = {n: held_value(n) for n in pm.all_names if n not in searched and n not in pm.noise_names}
 
     # ridge width in log10 k is about log10(1 + 2 df/f); three grid points across it
     rel = min(peak_bandwidth(o.frequency_hz, o.values) for o in likelihood.observations)
@@ -197,7 +221,7 @@ def grid_candidates(likelihood: FRFLikelihood, priors: PriorSet, max_lines: int 
     ext_t = math.log10(1 + max(0.0, gt.max())) if growth.has_growth else 0.0
     log_kx = np.arange(x_lo, x_hi + ext_x + 1.5 * s_x, s_x)
     log_kt = np.arange(t_lo, t_hi + ext_t + 1.5 * s_t, s_t)
-    maps = _length_maps(likelihood, log_kx, log_kt, centre("c_xf"), centre("c_thetaM"), max_lines)
+    maps = _length_maps(likelihood, log_kx, log_kt, held, max_lines)
     n_x0 = int(np.searchsorted(log_kx, x_hi + 1e-9 * s_x))
     n_t0 = int(np.searchsorted(log_kt, t_hi + 1e-9 * s_t))
     lp_x = ln_prior("k_xf", 10.0 ** log_kx[:n_x0])
@@ -230,8 +254,7 @@ def grid_candidates(likelihood: FRFLikelihood, priors: PriorSet, max_lines: int 
     for v, i, k, a, b in refined[:n_best]:
         if not np.isfinite(v):
             continue
-        values = {"k_xf": 10.0 ** log_kx[i], "k_thetaM": 10.0 ** log_kt[k], "g_xf": gx[a], "g_thetaM": gt[b],
-                  "c_xf": centre("c_xf"), "c_thetaM": centre("c_thetaM")}
+        values = {**held, "k_xf": 10.0 ** log_kx[i], "k_thetaM": 10.0 ** log_kt[k], "g_xf": gx[a], "g_thetaM": gt[b]}
         theta = np.zeros(len(names))
         for j, n in enumerate(names):
             if n in values:
@@ -244,18 +267,18 @@ def grid_candidates(likelihood: FRFLikelihood, priors: PriorSet, max_lines: int 
 
 def _profile_noise(likelihood: FRFLikelihood, priors: PriorSet, theta: np.ndarray) -> np.ndarray:
     """Set the noise coordinates of ``theta`` to their maximum-likelihood values (within the prior)."""
-    layout = likelihood.layout
+    pm = likelihood.parameters
     theta = theta.copy()
-    noise_idx = [layout.names.index(layout.noise_name(j)) for j in range(layout.n_measurements)]
+    noise_idx = [pm.names.index(n) for n in pm.noise_names]
     for j in noise_idx:
-        lo, hi = priors[layout.names[j]].optimisation_bounds()
+        lo, hi = priors[pm.names[j]].optimisation_bounds()
         theta[j] = 0.5 * (lo + hi)
     r = likelihood.model_frf(theta[None, :])[0] - likelihood.data
     w = likelihood.weight
     for m, j in enumerate(noise_idx):
         sl = likelihood.stack.slices[m]
         s = math.sqrt(float(np.sum(np.abs(r[sl]) ** 2 * w[sl])) / (sl.stop - sl.start))
-        p = priors[layout.names[j]]
+        p = priors[pm.names[j]]
         lo, hi = p.optimisation_bounds()
         theta[j] = float(np.clip(p.to_sampling(s), lo, hi))  # the prior support, not a fudge: outside it has no mass
     return theta

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["pack_coefficients", "tool_point_kernel"]
+__all__ = ["pack_coefficients", "tool_point_kernel", "tool_point_kernel_batched"]
 
 _ORDER = ("t22", "e00", "e11", "g", "p", "q", "r")
 
@@ -32,6 +32,39 @@ def pack_coefficients(arrays: dict) -> np.ndarray:
     return out
 
 
+@njit(cache=True, fastmath=False, nogil=True, inline="always")
+def _fill_set(kx, kt, cx, ct, starts, omega, C, out, s):  # pragma: no cover - compiled
+    """Lines of parameter set ``s`` (the shared inner loop of both kernels)."""
+    n_cfg = kx.shape[1]
+    for c in range(n_cfg):
+        kxr = kx[s, c]
+        ktr = kt[s, c]
+        cxs = cx[s, c]
+        cts = ct[s, c]
+        for j in range(starts[c], starts[c + 1]):
+            kxi = omega[j] * cxs
+            kti = omega[j] * cts
+            axr = C[2, j] * kxr - C[3, j] * kxi + 1.0
+            axi = C[2, j] * kxi + C[3, j] * kxr
+            btr = C[4, j] * ktr - C[5, j] * kti + 1.0
+            bti = C[4, j] * kti + C[5, j] * ktr
+            kkr = kxr * ktr - kxi * kti
+            kki = kxr * kti + kxi * ktr
+            t1r = C[8, j] * btr - C[9, j] * bti
+            t1i = C[8, j] * bti + C[9, j] * btr
+            t2r = C[10, j] * axr - C[11, j] * axi
+            t2i = C[10, j] * axi + C[11, j] * axr
+            numr = (t1r * kxr - t1i * kxi) + (t2r * ktr - t2i * kti) - (C[12, j] * kkr - C[13, j] * kki)
+            numi = (t1r * kxi + t1i * kxr) + (t2r * kti + t2i * ktr) - (C[12, j] * kki + C[13, j] * kkr)
+            denr = axr * btr - axi * bti - (C[6, j] * kkr - C[7, j] * kki)
+            deni = axr * bti + axi * btr - (C[6, j] * kki + C[7, j] * kkr)
+            inv = 1.0 / (denr * denr + deni * deni)
+            out[s, j] = complex(
+                C[0, j] - (numr * denr + numi * deni) * inv,
+                C[1, j] - (numi * denr - numr * deni) * inv,
+            )
+
+
 @njit(cache=True, fastmath=False, nogil=True)
 def tool_point_kernel(kx, kt, cx, ct, starts, omega, C, out):  # pragma: no cover - compiled
     """Fill ``out`` (n_sets, n_lines) complex with the tool-point receptance.
@@ -44,32 +77,17 @@ def tool_point_kernel(kx, kt, cx, ct, starts, omega, C, out):  # pragma: no cove
     C : (14, n_lines) packed coefficients from :func:`pack_coefficients`
     out : (n_sets, n_lines) complex128
     """
-    n_sets, n_cfg = kx.shape
-    for s in range(n_sets):
-        for c in range(n_cfg):
-            kxr = kx[s, c]
-            ktr = kt[s, c]
-            cxs = cx[s, c]
-            cts = ct[s, c]
-            for j in range(starts[c], starts[c + 1]):
-                kxi = omega[j] * cxs
-                kti = omega[j] * cts
-                axr = C[2, j] * kxr - C[3, j] * kxi + 1.0
-                axi = C[2, j] * kxi + C[3, j] * kxr
-                btr = C[4, j] * ktr - C[5, j] * kti + 1.0
-                bti = C[4, j] * kti + C[5, j] * ktr
-                kkr = kxr * ktr - kxi * kti
-                kki = kxr * kti + kxi * ktr
-                t1r = C[8, j] * btr - C[9, j] * bti
-                t1i = C[8, j] * bti + C[9, j] * btr
-                t2r = C[10, j] * axr - C[11, j] * axi
-                t2i = C[10, j] * axi + C[11, j] * axr
-                numr = (t1r * kxr - t1i * kxi) + (t2r * ktr - t2i * kti) - (C[12, j] * kkr - C[13, j] * kki)
-                numi = (t1r * kxi + t1i * kxr) + (t2r * kti + t2i * ktr) - (C[12, j] * kki + C[13, j] * kkr)
-                denr = axr * btr - axi * bti - (C[6, j] * kkr - C[7, j] * kki)
-                deni = axr * bti + axi * btr - (C[6, j] * kki + C[7, j] * kkr)
-                inv = 1.0 / (denr * denr + deni * deni)
-                out[s, j] = complex(
-                    C[0, j] - (numr * denr + numi * deni) * inv,
-                    C[1, j] - (numi * denr - numr * deni) * inv,
-                )
+    for s in range(kx.shape[0]):
+        _fill_set(kx, kt, cx, ct, starts, omega, C, out, s)
+
+
+@njit(cache=True, fastmath=False, nogil=True)
+def tool_point_kernel_batched(kx, kt, cx, ct, starts, omega, CB, out):  # pragma: no cover - compiled
+    """:func:`tool_point_kernel` with coefficients per parameter set.
+
+    ``CB`` is (B, 14, n_lines) with B = 1 (shared) or n_sets (a model term made
+    the substructures depend on the parameters); the same arithmetic per line.
+    """
+    nb = CB.shape[0]
+    for s in range(kx.shape[0]):
+        _fill_set(kx, kt, cx, ct, starts, omega, CB[s if nb > 1 else 0], out, s)

@@ -28,13 +28,49 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..errors import SetupError
-from ._kernels import pack_coefficients, tool_point_kernel
+from ._kernels import pack_coefficients, tool_point_kernel, tool_point_kernel_batched
 from .coupling import attach, contact_compliance
 from .geometry import Holder, Tool, holder_segments, tool_overhang_segments
 from .receptance import PointReceptance
 from .timoshenko import TwoPort, free_free_receptances
 
-__all__ = ["Configuration", "ToolPointModel", "CachedConfiguration", "ConfigurationStack"]
+__all__ = ["Configuration", "ToolPointModel", "CachedConfiguration", "ConfigurationStack", "tool_point_coefficients",
+           "COEFFICIENT_NAMES"]
+
+#: The parameter-independent coefficients of the fast path, in the order the kernels pack them.
+COEFFICIENT_NAMES = ("t22", "e00", "e11", "g", "p", "q", "r")
+
+
+def tool_point_coefficients(holder_tip: np.ndarray, tool: TwoPort) -> dict[str, np.ndarray]:
+    """Coefficients of the fast tool-point formula (module docstring) from the substructures.
+
+    The one implementation of the formula, used by :meth:`ToolPointModel.precompute`
+    and by the general path of the parameter model when a term changes a
+    substructure.
+
+    Parameters
+    ----------
+    holder_tip : (..., n_freq, 2, 2) complex
+        Spindle + holder point receptance at the holder tip.
+    tool : TwoPort with (..., n_freq, 2, 2) blocks
+        Tool overhang, end 1 base, end 2 tip.
+
+    Returns
+    -------
+    dict of name (:data:`COEFFICIENT_NAMES`) -> (..., n_freq) complex
+    """
+    e = holder_tip + tool.r11
+    a0, a1 = tool.r21[..., 0, 0], tool.r21[..., 0, 1]
+    b0, b1 = tool.r12[..., 0, 0], tool.r12[..., 1, 0]
+    return {
+        "t22": tool.r22[..., 0, 0].copy(),
+        "e00": e[..., 0, 0].copy(),
+        "e11": e[..., 1, 1].copy(),
+        "g": e[..., 0, 1] * e[..., 1, 0],
+        "p": a0 * b0,
+        "q": a1 * b1,
+        "r": a0 * e[..., 0, 1] * b1 + a1 * e[..., 1, 0] * b0,
+    }
 
 DIRECTIONS = ("x", "y")
 
@@ -79,6 +115,10 @@ class CachedConfiguration:
     r: np.ndarray
     holder_tip: np.ndarray  # (n_freq, 2, 2) spindle+holder point receptance at the holder tip
     tool: TwoPort  # tool overhang two-port, end 1 base, end 2 tip
+    # Substructures before coupling, for model terms that change one of them (kept: ~5 blocks of
+    # (n_freq, 2, 2) complex, 320 bytes per line).
+    spindle: np.ndarray | None = None  # (n_freq, 2, 2) flange receptance of the spindle
+    holder: TwoPort | None = None  # free-free holder with the clamped shank, end 1 flange, end 2 holder tip
 
     def frf(self, k_xf, k_thetaM, c_xf=0.0, c_thetaM=0.0) -> np.ndarray:
         """Tool-point receptance h = u/F for a batch of contact parameters.
@@ -166,13 +206,18 @@ class ToolPointModel:
         holder_tip : (n_freq, 2, 2) complex
         tool : TwoPort with (n_freq, 2, 2) blocks
         """
+        spindle, holder, overhang = self._parts(configuration, frequency_hz)
+        return attach(spindle, holder), overhang
+
+    def _parts(self, configuration: Configuration, frequency_hz) -> tuple[np.ndarray, TwoPort, TwoPort]:
+        """Flange receptance, holder two-port and tool-overhang two-port on ``frequency_hz``."""
         f = np.asarray(frequency_hz, dtype=float)
         omega = 2 * np.pi * f
         tool = self.tool(configuration.tool)
         spindle = self.spindle_receptance(configuration.direction).interpolate(f)
         holder = free_free_receptances(holder_segments(self.holder, tool, configuration.clamping_length), omega)
         overhang = free_free_receptances(tool_overhang_segments(self.holder, tool, configuration.clamping_length), omega)
-        return attach(spindle, holder), overhang
+        return spindle, holder, overhang
 
     def precompute(self, configuration: Configuration, frequency_hz) -> CachedConfiguration:
         """Cache everything independent of the contact parameters.
@@ -183,23 +228,17 @@ class ToolPointModel:
         frequency_hz : (n_freq,) Hz, inside the spindle file's range
         """
         f = np.asarray(frequency_hz, dtype=float)
-        holder_tip, t = self.substructures(configuration, f)
-        e = holder_tip + t.r11
-        a0, a1 = t.r21[:, 0, 0], t.r21[:, 0, 1]
-        b0, b1 = t.r12[:, 0, 0], t.r12[:, 1, 0]
+        spindle, holder, t = self._parts(configuration, f)
+        holder_tip = attach(spindle, holder)
         return CachedConfiguration(
             configuration=configuration,
             frequency_hz=f,
             omega=2 * np.pi * f,
-            t22=t.r22[:, 0, 0].copy(),
-            e00=e[:, 0, 0].copy(),
-            e11=e[:, 1, 1].copy(),
-            g=e[:, 0, 1] * e[:, 1, 0],
-            p=a0 * b0,
-            q=a1 * b1,
-            r=a0 * e[:, 0, 1] * b1 + a1 * e[:, 1, 0] * b0,
+            **tool_point_coefficients(holder_tip, t),
             holder_tip=holder_tip,
             tool=t,
+            spindle=spindle,
+            holder=holder,
         )
 
     def frf(self, configuration: Configuration, frequency_hz, k_xf, k_thetaM, c_xf=0.0, c_thetaM=0.0) -> np.ndarray:
@@ -233,9 +272,10 @@ class ConfigurationStack:
         cat = lambda name: np.concatenate([getattr(c, name) for c in caches])  # noqa: E731
         self._arrays = tuple(cat(n) for n in ("omega", "t22", "e00", "e11", "g", "p", "q", "r"))
         self._starts = edges.astype(np.int64)
-        self._packed = pack_coefficients(dict(zip(("t22", "e00", "e11", "g", "p", "q", "r"), self._arrays[1:])))
+        self._packed = pack_coefficients(dict(zip(COEFFICIENT_NAMES, self._arrays[1:])))
         self.frequency_hz = cat("frequency_hz")
         self.omega = self._arrays[0]
+        self._parts = None  # substructures of all lines, built on first use by a model term
 
     @property
     def configurations(self) -> list[Configuration]:
@@ -287,6 +327,52 @@ class ConfigurationStack:
                 v = np.broadcast_to(v, v.shape[:-1] + (n_cfg,))
                 per_line.append(v[..., self.index])
         return _fast_h(*self._arrays, *per_line)
+
+    def substructures(self) -> tuple[np.ndarray, TwoPort, TwoPort]:
+        """Flange receptance, holder and tool two-ports of all lines, each with a leading batch axis of 1.
+
+        Returns
+        -------
+        spindle : (1, n_lines, 2, 2) complex
+        holder, tool : TwoPort with (1, n_lines, 2, 2) blocks
+        """
+        if self._parts is None:
+            if any(c.spindle is None or c.holder is None for c in self.caches):
+                raise SetupError("a model term needs the substructures, but a cache was built without them "
+                                 "(use ToolPointModel.precompute)")
+            cat = lambda arrays: np.concatenate(arrays)[None]  # noqa: E731
+            two = lambda name: TwoPort(*(cat([getattr(getattr(c, name), r) for c in self.caches])  # noqa: E731
+                                         for r in ("r11", "r12", "r21", "r22")))
+            self._parts = (cat([c.spindle for c in self.caches]), two("holder"), two("tool"))
+        return self._parts
+
+    def frf_with(self, coefficients: Mapping[str, np.ndarray], k_xf, k_thetaM, c_xf, c_thetaM) -> np.ndarray:
+        """Tool-point FRFs from batched coefficients (a term changed a substructure).
+
+        Parameters
+        ----------
+        coefficients : mapping name -> (B, n_lines) complex
+            :func:`tool_point_coefficients` of the changed substructures on
+            this stack's lines; ``B`` is 1 or ``n_sets``.
+        k_xf, k_thetaM, c_xf, c_thetaM : (n_sets, n_configs)
+
+        Returns
+        -------
+        (n_sets, n_lines) complex, m/N
+        """
+        kx, kt, cx, ct = (np.ascontiguousarray(v, dtype=float) for v in (k_xf, k_thetaM, c_xf, c_thetaM))
+        n_sets = kx.shape[0]
+        b = max(np.shape(coefficients[name])[0] for name in COEFFICIENT_NAMES)
+        if b not in (1, n_sets):
+            raise SetupError(f"substructure batch of {b} for {n_sets} parameter sets: expected 1 or {n_sets}")
+        packed = np.empty((b, 14, self.n_lines))
+        for i, name in enumerate(COEFFICIENT_NAMES):
+            c = np.broadcast_to(coefficients[name], (b, self.n_lines))
+            packed[:, 2 * i] = c.real
+            packed[:, 2 * i + 1] = c.imag
+        out = np.empty((n_sets, self.n_lines), dtype=complex)
+        tool_point_kernel_batched(kx, kt, cx, ct, self._starts, self.omega, packed, out)
+        return out
 
     def split(self, values: np.ndarray) -> list[np.ndarray]:
         """Split ``(..., n_lines)`` into one array per configuration."""

@@ -1,6 +1,6 @@
 """Posterior predictions: quantities derived from identified contact parameters."""
 
-from .natural_frequencies import NATURAL_FREQUENCY_RULE, natural_frequency
+from ..model.natural_frequencies import NATURAL_FREQUENCY_RULE, natural_frequency
 
 __all__ = ["natural_frequency", "NATURAL_FREQUENCY_RULE"]
 

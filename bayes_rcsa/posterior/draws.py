@@ -1,79 +1,114 @@
-"""Posterior draws of the contact parameters in physical units, with their growth law.
+"""Posterior draws in physical units, with the parameter model they belong to.
 
-Predictions need, per draw, the six contact parameters ``k_xf``,
-``k_thetaM`` (at the reference clamping length), ``g_xf``, ``g_thetaM``,
-``c_xf`` and ``c_thetaM`` plus the growth law that carries the stiffness to
-other clamping lengths.  They come either from an identification run in
-memory (:func:`draws_from_result`) or from the ``posterior.nc`` it wrote
-(:func:`load_posterior`, read through the inference package's reader).
+Predictions need, per draw, the physical value of every parameter of the
+fit (contact stiffness and damping at the reference length, growth factors,
+model-term parameters) plus the :class:`~bayes_rcsa.params.ParameterModel`
+that carries them to other clamping lengths and into the forward model.
+They come either from an identification run in memory
+(:func:`draws_from_result`) or from the ``posterior.nc`` it wrote
+(:func:`load_posterior`).
 
-``posterior.nc`` stores the *sampled* parameters only.  A parameter that was
-held fixed in the fit is taken from an attribute ``fixed_<name>`` of the
-file when present, and otherwise from the setup the fit was made from: a
-growth factor absent from the file was fixed at 0 (one clamping length, or
-``growth_bound = 0``), a damping absent from the file is the setup's fixed
-``[contact]`` damping.  Anything else missing is an error, never a guess.
+``posterior.nc`` stores the sampled parameters as variables and the whole
+parameter model (priors, fixed values, growth law, model terms) as the JSON
+attribute ``parameter_model``.  Fixed parameters (e.g. a fixed contact
+damping) are taken from there, never from the setup: a setup edited after
+the fit cannot change what the posterior means.  When a setup is passed,
+:func:`load_posterior` compares it with the recorded model and lists the
+differences as notes (the products write them into their JSON outputs).
+Files without the attribute were written by an older version and are
+refused with a :class:`DataError` (rerun ``identify``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import json
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
 
 import numpy as np
 
 from ..errors import DataError, SetupError
-from ..inference.parameters import GrowthLaw
+from ..params.growth import GrowthLaw
+from ..params.model import CONTACT_NAMES, PARAMETER_MODEL_ATTR, ParameterModel
+from ..params.terms import Contact
 
-__all__ = ["CONTACT_NAMES", "PosteriorDraws", "draws_from_result", "load_posterior"]
-
-CONTACT_NAMES = ("k_xf", "k_thetaM", "g_xf", "g_thetaM", "c_xf", "c_thetaM")
+__all__ = ["CONTACT_NAMES", "PARAMETER_MODEL_ATTR", "PosteriorDraws", "draws_from_result", "load_posterior",
+           "setup_differences"]
 
 
 @dataclass(frozen=True)
 class PosteriorDraws:
-    """Flat posterior draws of the contact parameters.
+    """Flat posterior draws of a fit's parameters.
 
     Attributes
     ----------
+    parameters : ParameterModel
+        What was sampled and fixed, the growth law and the model terms.
     values : dict of str to (n_draws,) float
-        Physical values of every name in :data:`CONTACT_NAMES` (N/m,
-        N m/rad, 1, 1, N s/m, N m s/rad); fixed parameters are repeated.
-    growth : GrowthLaw
-        ``k(l) = k(l_a) (1 + g (l - l_a) / (l_b - l_a))``; without growth
-        (single clamping length) the stiffness is the same at every length.
+        Physical values of every non-noise parameter of ``parameters``
+        (fixed ones repeated; filled in from the model when absent), plus
+        the noise scales when available.
     method : str
         Identification method (``"multi"``, ``"single"``, ...).
-    sampled : tuple of str
-        Contact parameters that were sampled (the others were fixed).
     fit_lengths : tuple of float
         m, clamping lengths of the measurements used in the fit.
     source : str
         Where the draws came from (file name or ``"memory"``).
+    parameter_model_source : str
+        ``"posterior"`` when the parameter model was read from posterior.nc,
+        ``"memory"`` for an in-memory fit.
+    notes : tuple of str
+        Fixed values taken from the posterior and differences between the
+        setup and the recorded model (for the products' outputs).
+
+    Notes
+    -----
+    Stable API: ``parameters``, ``values``, ``growth``, ``sampled``,
+    ``n_draws``, :meth:`contact`, :meth:`take`, :meth:`subset`,
+    :meth:`median_values`, :meth:`provenance`.
     """
 
+    parameters: ParameterModel
     values: Mapping[str, np.ndarray]
-    growth: GrowthLaw
     method: str = "multi"
-    sampled: tuple[str, ...] = ()
     fit_lengths: tuple[float, ...] = ()
     source: str = "memory"
+    parameter_model_source: str = "memory"
+    notes: tuple[str, ...] = field(default_factory=tuple)
 
     def __post_init__(self) -> None:
-        missing = [n for n in CONTACT_NAMES if n not in self.values]
+        pm = self.parameters
+        if not isinstance(pm, ParameterModel):
+            raise SetupError(f"{self.source}: PosteriorDraws needs a ParameterModel, got {type(pm).__name__}")
+        values = {n: np.asarray(v, dtype=float).reshape(-1) for n, v in self.values.items()}
+        missing = [n for n in pm.names if n not in values and pm[n].role != "noise"]
         if missing:
-            raise DataError(f"{self.source}: posterior draws lack {missing}")
-        sizes = {np.asarray(self.values[n]).shape for n in CONTACT_NAMES}
-        if len(sizes) != 1 or len(next(iter(sizes))) != 1 or next(iter(sizes))[0] == 0:
+            raise DataError(f"{self.source}: posterior draws lack the sampled parameter(s) {missing}")
+        sizes = {v.shape for v in values.values()}
+        if len(sizes) != 1 or next(iter(sizes))[0] == 0:
             raise DataError(f"{self.source}: posterior draws must be non-empty 1-D arrays of one length, got shapes {sizes}")
+        n = next(iter(sizes))[0]
+        for name, v in pm.fixed.items():
+            values.setdefault(name, np.full(n, v))
+        object.__setattr__(self, "values", values)
+        object.__setattr__(self, "notes", tuple(self.notes))
+
+    @property
+    def growth(self) -> GrowthLaw:
+        return self.parameters.growth
+
+    @property
+    def sampled(self) -> tuple[str, ...]:
+        """Sampled parameters other than noise scales (contact, growth, model terms), in vector order."""
+        return self.parameters.physical_names
 
     @property
     def n_draws(self) -> int:
-        return int(np.asarray(self.values["k_xf"]).size)
+        return int(next(iter(self.values.values())).size)
 
-    def contact(self, lengths) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Contact parameters of every draw at ``lengths``.
+    def contact(self, lengths) -> Contact:
+        """Contact parameters of every draw at ``lengths`` (growth law and joint terms).
 
         Parameters
         ----------
@@ -81,21 +116,16 @@ class PosteriorDraws:
 
         Returns
         -------
-        k_xf, k_thetaM, c_xf, c_thetaM : each (n_draws, n_len)
+        Contact
+            ``k_xf``, ``k_thetaM``, ``c_xf``, ``c_thetaM``, each (n_draws, n_len); unpacks like a tuple.
         """
-        lengths = np.atleast_1d(np.asarray(lengths, dtype=float))
-        v = self.values
-        kx = self.growth.stiffness(v["k_xf"], v["g_xf"], lengths)
-        kt = self.growth.stiffness(v["k_thetaM"], v["g_thetaM"], lengths)
-        shape = kx.shape
-        cx = np.broadcast_to(np.asarray(v["c_xf"], dtype=float)[:, None], shape)
-        ct = np.broadcast_to(np.asarray(v["c_thetaM"], dtype=float)[:, None], shape)
-        return kx, kt, cx, ct
+        return self.parameters.contact(self.values, lengths)
 
     def take(self, index) -> "PosteriorDraws":
         """The draws at ``index`` (an integer array or slice)."""
         values = {n: np.asarray(v)[index] for n, v in self.values.items()}
-        return PosteriorDraws(values, self.growth, self.method, self.sampled, self.fit_lengths, self.source)
+        return PosteriorDraws(self.parameters, values, self.method, self.fit_lengths, self.source,
+                              self.parameter_model_source, self.notes)
 
     def subset(self, max_draws: int | None, rng: np.random.Generator | None) -> "PosteriorDraws":
         """At most ``max_draws`` draws chosen at random without replacement (all if fewer)."""
@@ -108,18 +138,27 @@ class PosteriorDraws:
         return self.take(np.sort(rng.choice(self.n_draws, max_draws, replace=False)))
 
     def median_values(self) -> dict[str, float]:
-        """Posterior median of each contact parameter (physical units)."""
-        return {n: float(np.median(self.values[n])) for n in CONTACT_NAMES}
+        """Posterior median of every non-noise parameter (physical units)."""
+        return {n: float(np.median(self.values[n])) for n in self.parameters.all_names
+                if self.parameters[n].role != "noise" and n in self.values}
+
+    def provenance(self) -> dict:
+        """Where the parameter model came from, for the products' JSON outputs."""
+        return {
+            "parameter_model_source": self.parameter_model_source,
+            "parameter_model_notes": list(self.notes),
+            "fixed_parameters": dict(self.parameters.fixed),
+            "model_terms": list(self.parameters.term_names),
+        }
 
 
 def draws_from_result(result) -> PosteriorDraws:
     """Draws of an :class:`bayes_rcsa.inference.identify.IdentificationResult` in memory."""
     problem = result.problem
-    values = problem.layout.values(result.flat_theta)
-    sampled = tuple(n for n in CONTACT_NAMES if n in problem.layout.names)
+    pm = problem.parameters
+    values = pm.values(result.flat_theta)
     lengths = tuple(sorted({float(o.configuration.clamping_length) for o in problem.observations}))
-    return PosteriorDraws({n: np.asarray(values[n], dtype=float) for n in CONTACT_NAMES}, problem.growth,
-                          problem.method, sampled, lengths, "memory")
+    return PosteriorDraws(pm, values, problem.method, lengths, "memory", "memory")
 
 
 def _attrs(idata) -> dict:
@@ -131,21 +170,77 @@ def _attrs(idata) -> dict:
     return out
 
 
+def _fmt(v) -> str:
+    return f"{v:.6g}" if isinstance(v, float) else repr(v)
+
+
+def setup_differences(pm: ParameterModel, setup) -> list[str]:
+    """Differences between a setup's ``[contact]``/``[model]`` and a recorded parameter model.
+
+    One warning line per differing key, naming the key, both values and
+    that the posterior's value is used.
+    """
+    out = []
+    contact = getattr(setup, "contact", None)
+    where = getattr(setup, "path", "the setup")
+    if contact is not None:
+        for key, name in (("translational_damping", "c_xf"), ("rotational_damping", "c_thetaM")):
+            spec = getattr(contact, key, None)
+            if spec is None or name not in pm:
+                continue
+            p = pm[name]
+            if isinstance(spec, (list, tuple)):
+                if not p.sampled:
+                    out.append(f"warning: {where} [contact] {key} = {list(spec)} (sampled), but the fit held {name} fixed "
+                               f"at {_fmt(p.value)}; using the posterior's value")
+                elif p.prior.describe().get("lo") is not None and [p.prior.describe()["lo"], p.prior.describe()["hi"]] != [
+                        float(v) for v in spec]:
+                    out.append(f"warning: {where} [contact] {key} = {list(spec)} differs from the fit's prior of {name} "
+                               f"{p.prior.describe()}; using the posterior")
+            else:
+                if p.sampled:
+                    out.append(f"warning: {where} [contact] {key} = {_fmt(float(spec))} (fixed), but the fit sampled "
+                               f"{name}; using the posterior's draws")
+                elif float(spec) != p.value:
+                    out.append(f"warning: {where} [contact] {key} = {_fmt(float(spec))} differs from the fit's fixed "
+                               f"{name} = {_fmt(p.value)}; using the posterior's value")
+        for key, name in (("translational_stiffness", "k_xf"), ("rotational_stiffness", "k_thetaM")):
+            spec = getattr(contact, key, None)
+            if spec is None or name not in pm or not pm[name].sampled:
+                continue
+            d = pm[name].prior.describe()
+            if d.get("distribution") == "log-uniform" and [d["lo"], d["hi"]] != [float(v) for v in spec]:
+                out.append(f"warning: {where} [contact] {key} = {list(spec)} differs from the fit's prior of {name} "
+                           f"[{_fmt(d['lo'])}, {_fmt(d['hi'])}]; using the posterior")
+        q = getattr(contact, "growth_bound", None)
+        if q is not None and pm.growth.has_growth and float(q) != pm.growth.growth_bound:
+            out.append(f"warning: {where} [contact] growth_bound = {_fmt(float(q))} differs from the fit's "
+                       f"Q = {_fmt(pm.growth.growth_bound)}; using the posterior")
+    extra = getattr(setup, "extra", None) or {}
+    table = getattr(setup, "model_table", None) or extra.get("model") or {}
+    terms = list(table.get("terms", [])) if isinstance(table, Mapping) else []
+    if terms != list(pm.term_names) and (terms or pm.term_names):
+        out.append(f"warning: {where} [model] terms = {terms} differ from the fit's terms {list(pm.term_names)}; "
+                   f"using the posterior's")
+    return out
+
+
 def load_posterior(path, setup=None) -> PosteriorDraws:
-    """Read the draws of a ``posterior.nc`` written by ``bayes-rcsa identify``.
+    """Read the draws and the parameter model of a ``posterior.nc`` written by ``bayes-rcsa identify``.
 
     Parameters
     ----------
     path : path-like
     setup : Setup, optional
-        The setup the fit was made from; supplies fixed damping values that
-        the file does not record.
+        Only compared with the recorded model: differences (e.g. a
+        ``[contact]`` damping edited after the fit) become warning notes;
+        the posterior's values are always used.
 
     Raises
     ------
     DataError
-        The file is not a bayes_rcsa posterior, or lacks a parameter that
-        neither its attributes nor the setup supply.
+        The file is not a bayes_rcsa posterior, lacks the parameter model
+        (an older version wrote it) or a sampled parameter.
     """
     from ..inference.diagnostics import read_netcdf
 
@@ -160,43 +255,31 @@ def load_posterior(path, setup=None) -> PosteriorDraws:
     if post is None:
         raise DataError(f"{path}: no 'posterior' group")
     attrs = _attrs(idata)
-    for key in ("l_a", "l_b"):
-        if key not in attrs:
-            raise DataError(f"{path}: attribute {key!r} (growth law range) missing; not written by 'bayes-rcsa identify'?")
-    growth = GrowthLaw(float(attrs["l_a"]), float(attrs["l_b"]), float(attrs.get("growth_bound", 0.0)))
+    if PARAMETER_MODEL_ATTR not in attrs:
+        raise DataError(f"{path}: attribute {PARAMETER_MODEL_ATTR!r} (the fit's parameter model) missing; the file was "
+                        f"written by an older bayes_rcsa or another program; rerun 'bayes-rcsa identify'")
+    try:
+        d = json.loads(str(attrs[PARAMETER_MODEL_ATTR]))
+    except ValueError as exc:
+        raise DataError(f"{path}: attribute {PARAMETER_MODEL_ATTR!r} is not valid JSON ({exc})") from None
+    pm = ParameterModel.from_dict(d, f"{path}: {PARAMETER_MODEL_ATTR}")
     values: dict[str, np.ndarray] = {}
-    sampled = []
-    n = None
-    for name in CONTACT_NAMES:
-        if name in post.data_vars:
-            values[name] = np.asarray(post[name].values, dtype=float).reshape(-1)
-            n = values[name].size
-            sampled.append(name)
-    if n is None:
-        raise DataError(f"{path}: the posterior holds none of the contact parameters {list(CONTACT_NAMES)}")
-    for name in CONTACT_NAMES:
-        if name in values:
-            continue
-        if f"fixed_{name}" in attrs:
-            fixed = float(attrs[f"fixed_{name}"])
-        elif name.startswith("g_"):
-            fixed = 0.0
-        elif setup is not None:
-            spec = setup.contact.translational_damping if name == "c_xf" else setup.contact.rotational_damping
-            if isinstance(spec, (list, tuple)):
-                raise DataError(
-                    f"{path}: {name} is not in the posterior, but the setup {setup.path} samples it "
-                    f"({list(spec)}); was the posterior made from another setup?"
-                )
-            fixed = float(spec)
-        else:
-            raise DataError(f"{path}: {name} was fixed in the fit and its value is not recorded; pass the setup")
-        values[name] = np.full(n, fixed)
+    for name in pm.names:
+        if name not in post.data_vars:
+            if pm[name].role == "noise":
+                continue
+            raise DataError(f"{path}: sampled parameter {name!r} of the parameter model has no draws in the posterior")
+        values[name] = np.asarray(post[name].values, dtype=float).reshape(-1)
     for name in ("k_xf", "k_thetaM"):
-        if not np.all(np.isfinite(values[name]) & (values[name] > 0)):
+        if name in values and not np.all(np.isfinite(values[name]) & (values[name] > 0)):
             raise DataError(f"{path}: {name} draws must be finite and positive")
     fit_lengths: tuple[float, ...] = ()
     const = getattr(idata, "constant_data", None)
     if const is not None and "fit_clamping_length" in const.data_vars:
         fit_lengths = tuple(sorted({float(v) for v in np.asarray(const["fit_clamping_length"].values).ravel()}))
-    return PosteriorDraws(values, growth, str(attrs.get("method", "multi")), tuple(sampled), fit_lengths, str(path))
+    notes = [f"{n} = {_fmt(v)} {pm.unit(n)} (fixed in the fit; value taken from {path.name})"
+             for n, v in pm.fixed.items()]
+    if setup is not None:
+        notes += setup_differences(pm, setup)
+    return PosteriorDraws(pm, values, str(attrs.get("method", "multi")), fit_lengths, str(path), "posterior",
+                          tuple(notes))

@@ -5,7 +5,7 @@ Contraction and verdicts
 For every sampled parameter the *contraction* is ``1 - Var_post / Var_prior``
 in the sampling coordinate of its prior (``log10 k`` for a log-uniform
 stiffness, ``g`` itself for a growth factor; see
-:mod:`bayes_rcsa.inference.priors`): 0 means the data taught nothing, 1 that
+:mod:`bayes_rcsa.params.priors`): 0 means the data taught nothing, 1 that
 they pinned the parameter down completely.  The verdict is
 
 ``not identified``
@@ -97,10 +97,10 @@ def prior_moments(prior, rng: np.random.Generator | None = None, n_mc: int = 200
     """Mean and variance of a prior's sampling coordinate.
 
     Exact for the uniform, log-uniform, (truncated) normal and (truncated)
-    log-normal priors of :mod:`bayes_rcsa.inference.priors`; other priors
+    log-normal priors of :mod:`bayes_rcsa.params.priors`; other priors
     are estimated from ``n_mc`` draws, which needs ``rng``.
     """
-    from ..inference.priors import LogNormal, LogUniform, Normal, Uniform
+    from ..params.priors import LogNormal, LogUniform, Normal, Uniform
 
     if isinstance(prior, (Uniform, LogUniform)):
         lo, hi = prior.bounds
@@ -118,7 +118,7 @@ def prior_moments(prior, rng: np.random.Generator | None = None, n_mc: int = 200
 
 def prior_cdf(prior, u) -> np.ndarray:
     """Prior cumulative distribution of the sampling coordinate ``u`` (``NaN`` if unknown)."""
-    from ..inference.priors import LogNormal, LogUniform, Normal, Uniform
+    from ..params.priors import LogNormal, LogUniform, Normal, Uniform
 
     u = np.asarray(u, dtype=float)
     if isinstance(prior, (Uniform, LogUniform)):
@@ -297,7 +297,7 @@ def fisher_information(likelihood, theta_map: np.ndarray, names: Sequence[str], 
     Parameters
     ----------
     likelihood : FRFLikelihood
-        Untempered likelihood of the fit (forward model, weights, layout).
+        Untempered likelihood of the fit (forward model, weights, parameter model).
     theta_map : (ndim,) sampling coordinates of the MAP point
     names : contact parameters to differentiate (sampled ones)
     tempering : float
@@ -311,23 +311,23 @@ def fisher_information(likelihood, theta_map: np.ndarray, names: Sequence[str], 
     ``eigenvectors`` (columns), ``condition_number`` (``inf`` if singular),
     ``stiff``/``sloppy`` combinations as in :func:`ridge_analysis`.
     """
-    layout = likelihood.layout
-    priors = layout.priors
+    pm = likelihood.parameters
+    priors = pm.priors
     theta_map = np.asarray(theta_map, dtype=float)
-    values = layout.values(theta_map[None, :])
+    values = pm.values(theta_map[None, :])
     z0, _ = log_space(values, names)
     z0 = z0[0]
     p = len(names)
     pts = np.repeat(theta_map[None, :], 2 * p, axis=0)
     for i, n in enumerate(names):
-        j = layout.names.index(n)
+        j = pm.names.index(n)
         prior = priors[n]
         for s, sign in enumerate((1.0, -1.0)):
             with np.errstate(invalid="ignore", divide="ignore"):
                 pts[2 * i + s, j] = float(prior.to_sampling(_from_log(n, z0[i] + sign * step)))
     h = likelihood.model_frf(pts)
     jac = (h[0::2] - h[1::2]).T / (2 * step)  # (n_lines, p)
-    s2 = layout.noise(theta_map[None, :])[0] ** 2
+    s2 = pm.noise(values)[0] ** 2
     wl = likelihood.weight / s2[likelihood.stack.index]
     fim = 2.0 * tempering * np.real(jac.conj().T @ (wl[:, None] * jac))
     fim = 0.5 * (fim + fim.T)

@@ -37,8 +37,9 @@ import numpy as np
 from ..errors import SetupError
 from ..model.assembly import Configuration, ConfigurationStack, ToolPointModel
 from ..model.receptance import FRF
-from .draws import CONTACT_NAMES, PosteriorDraws
-from .natural_frequencies import natural_frequency
+from ..params.forward import ForwardModel
+from .draws import PosteriorDraws
+from ..model.natural_frequencies import natural_frequency
 
 __all__ = [
     "QUANTILE_LEVELS",
@@ -319,12 +320,13 @@ def predictive_frf(draws: PosteriorDraws, model: ToolPointModel, configuration: 
     """Tool-point FRF of every draw, (n_draws, n_freq) complex m/N.
 
     ``cache`` (a :class:`CachedConfiguration` of the same configuration and
-    lines) saves the precomputation when given.
+    lines) saves the precomputation when given.  The draws' parameter model
+    (growth law, model terms) is applied through
+    :class:`bayes_rcsa.params.ForwardModel`.
     """
     if cache is None:
         cache = model.precompute(configuration, frequency_hz)
-    kx, kt, cx, ct = draws.contact([configuration.clamping_length])
-    return ConfigurationStack([cache]).frf(kx, kt, cx, ct)
+    return ForwardModel(draws.parameters, ConfigurationStack([cache]), model).frf(draws.values)
 
 
 def find_modes(frequency_hz, magnitude, rel_height: float = MODE_REL_HEIGHT,
@@ -452,7 +454,7 @@ def predict(draws: PosteriorDraws, model: ToolPointModel, targets: Sequence[Pred
 
 def parameter_influence(draws: PosteriorDraws, modes: Sequence[ModePrediction], frequencies: Sequence[np.ndarray],
                         n_bins: int = INFLUENCE_BINS) -> list[dict]:
-    """How much the predicted natural frequencies depend on each sampled contact parameter.
+    """How much the predicted natural frequencies depend on each sampled parameter (contact, growth, terms).
 
     The draws are split into ``n_bins`` equally populated bins of one
     parameter's value; within each bin the other parameters follow their
@@ -483,7 +485,7 @@ def parameter_influence(draws: PosteriorDraws, modes: Sequence[ModePrediction], 
         largest minus the smallest bin median, ``fraction_of_interval`` its
         ratio to the width of the mode's 90 % interval.
     """
-    names = [n for n in CONTACT_NAMES if n in draws.sampled]
+    names = list(draws.sampled)
     if not names or not modes or draws.n_draws < 2 * n_bins:
         return []
     order = {n: np.argsort(np.asarray(draws.values[n]), kind="stable") for n in names}

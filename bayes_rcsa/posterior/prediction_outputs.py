@@ -25,12 +25,13 @@ from typing import Sequence
 
 import numpy as np
 
-from ..errors import BayesRCSAError, SetupError
-from ..inference.parameters import GrowthLaw, PARAMETER_UNITS
+from ..errors import SetupError
 from ..io.atomic import atomic_path, atomic_write_text
-from .draws import CONTACT_NAMES, PosteriorDraws, load_posterior
+from ..params.growth import GrowthLaw
+from ..params.priors import PriorSet
+from .draws import PosteriorDraws, load_posterior
 from .identifiability import VERDICT_RULE, parameter_identifiability
-from .natural_frequencies import NATURAL_FREQUENCY_RULE
+from ..model.natural_frequencies import NATURAL_FREQUENCY_RULE
 from .predict import (
     MODE_REL_HEIGHT,
     MODE_REL_PROMINENCE,
@@ -76,10 +77,12 @@ class PredictionRun:
     draws : PosteriorDraws
         The (possibly subsampled) draws used.
     identifiability : dict or None
-        Contraction and verdict of the sampled contact parameters (priors
-        rebuilt from the setup), ``None`` if they could not be rebuilt.
+        Contraction and verdict of the sampled parameters (priors from the
+        posterior's parameter model), ``None`` for a fit without sampled
+        physical parameters.
     meta : dict
-        Setup, posterior file, seed, requested lengths, notes.
+        Setup, posterior file, seed, requested lengths, where the parameter
+        model came from (``parameter_model_source``) and notes.
     """
 
     prediction: Prediction
@@ -104,27 +107,17 @@ def check_prediction_lengths(draws: PosteriorDraws, setup, lengths: Sequence[flo
         GrowthLaw(l_a, l_b).check_lengths(lengths, "prediction clamping length")
 
 
-def contact_identifiability(setup, draws: PosteriorDraws) -> dict | None:
-    """Contraction and verdicts of the sampled contact parameters of ``draws``.
+def contact_identifiability(draws: PosteriorDraws) -> dict | None:
+    """Contraction and verdicts of the sampled parameters of ``draws`` (noise scales excepted).
 
-    The priors are rebuilt from the setup exactly as the identification
-    built them (same method and fitted lengths).  Returns ``None`` when that
-    is impossible (e.g. the setup changed since the fit).
+    The priors are the ones the fit used, recorded in the draws' parameter
+    model (posterior.nc), so nothing is rebuilt from the setup.  Returns
+    ``None`` when no physical parameter was sampled.
     """
-    from ..inference.priors import PriorSet
-    from ..inference.problem import IdentificationOptions, build_problem_from_setup
-
-    names = [n for n in CONTACT_NAMES if n in draws.sampled]
-    if not names or not draws.fit_lengths:
+    names = list(draws.sampled)
+    if not names:
         return None
-    method = draws.method if draws.method in ("multi", "single") else "multi"
-    try:
-        options = IdentificationOptions.from_setup(setup.extra, method=method, lengths=tuple(draws.fit_lengths))
-        priors = build_problem_from_setup(setup, options).priors
-    except BayesRCSAError:
-        return None
-    if any(n not in priors.names for n in names):
-        return None
+    priors = draws.parameters.priors
     sub = PriorSet({n: priors[n] for n in names})
     with np.errstate(divide="ignore", invalid="ignore"):
         theta = np.column_stack([np.asarray(sub[n].to_sampling(draws.values[n]), dtype=float) for n in names])
@@ -153,7 +146,7 @@ def run_prediction(setup, posterior_path, lengths: Sequence[float], directions: 
     draws = draws_all.subset(max_draws, np.random.default_rng(seed))
     targets = prediction_targets(setup, lengths, directions, tool, frequency_hz, draws.fit_lengths)
     prediction = predict(draws, setup.model(), targets)
-    ident = contact_identifiability(setup, draws)  # the same draws as the influence, so the report's ranges agree
+    ident = contact_identifiability(draws)  # the same draws as the influence, so the report's ranges agree
     meta = {
         "setup": str(setup.path),
         "posterior": str(posterior_path),
@@ -165,6 +158,7 @@ def run_prediction(setup, posterior_path, lengths: Sequence[float], directions: 
         "n_draws": draws.n_draws,
         "subset_seed": seed,
         "lengths": lengths,
+        **draws.provenance(),
     }
     return PredictionRun(prediction, draws, ident, meta)
 
@@ -195,8 +189,9 @@ def influence_summary(influence: Sequence[dict]) -> dict:
 def frequencies_document(run: PredictionRun) -> dict:
     """Content of ``frequencies.json``."""
     p = run.prediction
-    params = {n: {**quantile_dict(run.draws.values[n]), "unit": PARAMETER_UNITS[n], "sampled": n in run.draws.sampled}
-              for n in CONTACT_NAMES}
+    pm = run.draws.parameters
+    params = {n: {**quantile_dict(run.draws.values[n]), "unit": pm.unit(n), "sampled": n in run.draws.sampled}
+              for n in pm.all_names if pm[n].role != "noise"}
     return {
         **run.meta,
         "natural_frequency_rule": NATURAL_FREQUENCY_RULE,
@@ -225,7 +220,9 @@ def _write_bands_csv(path: Path, prediction: Prediction) -> Path:
 
 
 def _unit(name: str) -> str:
-    u = PARAMETER_UNITS.get(name, "")
+    from ..params.model import CONTACT_UNITS
+
+    u = CONTACT_UNITS.get(name, "")
     return "" if u == "1" else u
 
 

@@ -25,7 +25,6 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import SetupError
-from ..inference.parameters import PARAMETER_UNITS
 from ..io.atomic import atomic_write_text
 from .draws import CONTACT_NAMES, PosteriorDraws, draws_from_result
 from .identifiability import (
@@ -172,7 +171,7 @@ def analyse_fit(spec: FitSpec, result, rng: np.random.Generator) -> FitAnalysis:
     problem = result.problem
     draws = draws_from_result(result)
     params = parameter_identifiability(result.flat_theta, problem.priors)
-    contact = [n for n in CONTACT_NAMES if n in problem.layout.names]
+    contact = [n for n in CONTACT_NAMES if n in problem.parameters.names]
     values = result.values()
     z, labels = log_space(values, contact)
     ridge = ridge_analysis(z, contact)
@@ -189,7 +188,7 @@ def analyse_fit(spec: FitSpec, result, rng: np.random.Generator) -> FitAnalysis:
             statements.append(s)
     for name, p in params.items():
         p.setdefault("value_quoted", p["verdict"] == "identified")
-        p["unit"] = PARAMETER_UNITS.get(name, "1")
+        p["unit"] = problem.parameters.unit(name)
     ik = contact.index("k_xf"), contact.index("k_thetaM")
     entry = {
         "name": spec.name,

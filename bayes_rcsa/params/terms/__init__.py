@@ -45,7 +45,7 @@ def known_terms() -> tuple[str, ...]:
 
 
 # Built-in terms, one module each (each registers itself on import).
-_BUILTIN: tuple[str, ...] = ()
+_BUILTIN: tuple[str, ...] = ("tip_mass",)
 
 for _mod in _BUILTIN:
     importlib.import_module(f"{__name__}.{_mod}")
