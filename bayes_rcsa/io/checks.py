@@ -97,10 +97,12 @@ def passivity_problem(values) -> str | None:
       |H| with a positive sign, or more than 75 % of the |H|-weighted lines
       have Im h > 0 (a sign-flipped resonant FRF has ~100 %, a clean one
       ~1 %);
-    - swapped columns: at the largest |H| the imaginary part is small
-      (|Im h| < |h|/2, a passive resonance peak has Im h ~ -|h|) while more
-      than 90 % of the |H|-weighted lines have a negative *real* part, which
-      is what a passive imaginary part looks like in the real column.
+    - swapped columns: the largest |H| is an interior resonance peak whose
+      imaginary part is small (|Im h| < |h|/2; a passive resonance peak has
+      Im h ~ -|h|) while more than 90 % of the |H|-weighted lines have a
+      one-signed *real* part (negative: swapped; positive: swapped and the
+      other sign convention), which is what a passive imaginary part looks
+      like in the real column.
     """
     v = np.asarray(values, dtype=complex).ravel()
     if v.size == 0:
@@ -117,9 +119,20 @@ def passivity_problem(values) -> str | None:
         return (f"Im h > 0 where the signal is strong ({100 * frac_im_pos:.0f} % of the |H|-weighted lines, "
                 f"Im h/|h| = {s:+.2f} at the largest peak): the imaginary part has the wrong sign, e.g. the file "
                 "uses the e^{-iωt} convention (negate the imag column)")
-    if abs(s) < 0.5 and frac_re_neg > 0.9:
-        return (f"the real part is negative on {100 * frac_re_neg:.0f} % of the |H|-weighted lines while the largest "
-                f"peak has almost no imaginary part (Im h/|h| = {s:+.2f}): the real and imag columns look swapped")
+    # Swapped columns keep |H| (and so the resonance peak) but move the passive, one-signed
+    # imaginary part into the real column.  Only judged at an interior peak: a band that holds no
+    # resonance (e.g. only the mass line above it) legitimately has a one-signed real part.
+    edge = max(2, v.size // 100)
+    if edge <= k < v.size - edge and abs(s) < 0.5:
+        frac_re_pos = float(np.sum(w[v.real > 0]))
+        if frac_re_neg > 0.9:
+            return (f"the real part is negative on {100 * frac_re_neg:.0f} % of the |H|-weighted lines while the "
+                    f"resonance peak has almost no imaginary part (Im h/|h| = {s:+.2f}): the real and imag columns "
+                    "look swapped")
+        if frac_re_pos > 0.9:
+            return (f"the real part is positive on {100 * frac_re_pos:.0f} % of the |H|-weighted lines while the "
+                    f"resonance peak has almost no imaginary part (Im h/|h| = {s:+.2f}): the real and imag columns "
+                    "look swapped and the imaginary part has the wrong sign (e^{-iωt} convention?)")
     return None
 
 
