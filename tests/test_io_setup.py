@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import re
 import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -278,3 +280,65 @@ def test_dump_toml_rejects_what_toml_cannot_hold():
     with pytest.raises(TypeError, match="cannot write"):
         dump_toml({"a": object()})
     assert tomllib.loads(dump_toml({"a": None, "b": np.float64(0.1), "c": np.arange(3)})) == {"b": 0.1, "c": [0, 1, 2]}
+
+
+def test_model_table_is_parsed_and_survives_a_round_trip(tmp_path):
+    import shutil
+
+    from bayes_rcsa.io import dump_toml, setup_document
+
+    d = tmp_path / "ex"
+    shutil.copytree(Path(__file__).resolve().parent.parent / "bayes_rcsa" / "data" / "example", d)
+    p = d / "setup.toml"
+    p.write_text(p.read_text() + '\n[model]\nterms = ["tip_mass"]\ntip_mass_kg = { distribution = "uniform", '
+                 'lo = 0.0, hi = 0.01 }\nk_xf = 2e7\n\n[priors]\ng_xf = [0.0, 0.3]\n')
+    s = load_setup(p)
+    assert s.model_table == {"terms": ["tip_mass"], "tip_mass_kg": {"distribution": "uniform", "lo": 0.0, "hi": 0.01},
+                             "k_xf": 2e7}
+    (d / "sub").mkdir()
+    q = d / "sub" / "again.toml"  # another directory: data file names are rewritten relative to it
+    q.write_text(dump_toml(setup_document(s, relative_to=q.parent)))
+    s2 = load_setup(q)
+    for name in ("materials", "holder", "tools", "contact", "extra", "model_table", "spindle_files"):
+        assert getattr(s2, name) == getattr(s, name), name
+    assert [(m.file, m.clamping_length, m.direction, m.tool) for m in s2.measurements] == \
+           [(m.file, m.clamping_length, m.direction, m.tool) for m in s.measurements]
+    # Without [model] the table is empty and the writer adds none.
+    plain = load_setup(Path(__file__).resolve().parent.parent / "bayes_rcsa" / "data" / "example" / "setup.toml",
+                       load_data=False)
+    assert plain.model_table == {} and "model" not in setup_document(plain)
+
+
+@pytest.mark.parametrize("text, fragments", [
+    ('[model]\nterms = "tip_mass"\n', ["[model] terms = 'tip_mass'", "list of term names"]),
+    ('[model]\nterms = ["tip_mass", "tip_mass"]\n', ["each term at most once"]),
+    ('[model]\nterms = [1]\n', ["[model] terms = [1]"]),
+    ('[model]\ntip_mass_kg = "heavy"\n', ["[model] tip_mass_kg = 'heavy'", "a number (fixed value)"]),
+    ('[model]\ntip_mass_kg = { distribution = "normal", mu = 0.0, sigma = 0 }\n', ["[model] tip_mass_kg.sigma = 0"]),
+    ('[priors]\nk_xf = { distribution = "log-normal", median = 1e7, sigma = -1 }\n', ["[priors] k_xf.sigma = -1"]),
+    ('[priors]\nk_xf = ["a", 1e9]\n', ["[priors] k_xf = ['a', 1000000000.0]"]),
+    ('[priors]\nk_xf = { distribution = "lognormla", median = 1e7, sigma = 1 }\n', ["did you mean 'lognormal'"]),
+    ('[priors]\nk_xf = 5\n', ["[priors] k_xf = 5", "a [lo, hi] pair"]),
+    ('[prior]\nk_xf = [1e6, 1e8]\n', ["unknown table [prior]", "did you mean 'priors'"]),
+    ('[sampler]\nwalkers = 0\n', ["[sampler] walkers = 0", "a positive integer"]),
+    ('[sampler]\nwalker = 32\n', ["[sampler]", "'walker'", "did you mean 'walkers'"]),
+    ('[sampler]\nstart = { k_xf = "x" }\n', ["[sampler] start.k_xf = 'x'"]),
+])
+def test_stage_tables_are_checked_for_shape(example, text, fragments):
+    path, _ = example
+    base = EXAMPLE.replace("[sampler]\nwalkers = 32\n", "")
+    path.write_text(base + "\n" + text)
+    with pytest.raises(SetupError) as exc:
+        load_setup(path, load_data=False)
+    for fragment in fragments:
+        assert fragment in str(exc.value), (fragment, str(exc.value))
+
+
+@pytest.mark.parametrize("prefix, fragment", [("likelihood = 5\n", "[likelihood]: expected a table"),
+                                              ('sampler = "fast"\n', "[sampler]: expected a table"),
+                                              ("colour = 1\n", "unknown key 'colour'")])
+def test_top_level_values_of_the_wrong_kind(example, prefix, fragment):
+    path, _ = example
+    path.write_text(prefix + EXAMPLE.replace("[sampler]\nwalkers = 32\n", ""))
+    with pytest.raises(SetupError, match=re.escape(fragment)):
+        load_setup(path, load_data=False)

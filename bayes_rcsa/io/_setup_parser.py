@@ -301,6 +301,7 @@ def parse_setup(path: Path, load_data: bool, load_spindle: bool | None = None) -
         measurements=measurements,
         extra=stage_tables,
         model_table=dict(stage_tables.get("model", {})),
+        spindle_files=dict(spindle_files),
     )
     if load_data:
         _check_campaign(setup)

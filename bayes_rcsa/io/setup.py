@@ -100,6 +100,8 @@ class Setup:
         or a number that fixes the parameter).  Term and parameter names are
         validated against the term registry when the parameter model is
         built.  Empty when the setup has no ``[model]`` table.
+    spindle_files : dict of direction to Path
+        The ``[spindle]`` files (absolute), loaded or not.
     """
 
     name: str
@@ -112,6 +114,7 @@ class Setup:
     measurements: tuple[MeasurementSpec, ...]
     extra: dict[str, Any] = field(default_factory=dict)
     model_table: dict[str, Any] = field(default_factory=dict)
+    spindle_files: dict[str, Path] = field(default_factory=dict)
 
     def model(self) -> ToolPointModel:
         """The RCSA forward model of this setup."""

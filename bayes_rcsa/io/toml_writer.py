@@ -20,7 +20,7 @@ import re
 from pathlib import PurePath
 from typing import Any
 
-__all__ = ["dump_toml"]
+__all__ = ["dump_toml", "setup_document"]
 
 _BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
 _ESCAPES = {'"': '\\"', "\\": "\\\\", "\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f", "\r": "\\r"}
@@ -141,3 +141,84 @@ def dump_toml(data: dict[str, Any]) -> str:
     lines: list[str] = []
     _emit_table(lines, data, [], root=True)
     return "\n".join(lines).lstrip("\n") + "\n"
+
+
+def setup_document(setup, relative_to=None) -> dict[str, Any]:
+    """The TOML document of a parsed :class:`~bayes_rcsa.io.setup.Setup`.
+
+    ``load_setup`` of ``dump_toml(setup_document(s, d))`` written into
+    directory ``d`` gives back the same setup: geometry, materials, contact
+    priors, measurements, the spindle files, the later stages' tables
+    (``[likelihood]``, ``[priors]``, ``[sampler]``) and the ``[model]`` table.
+
+    Parameters
+    ----------
+    setup : Setup
+    relative_to : path-like, optional
+        Directory the data file names are written relative to (default: the
+        setup file's directory).  Files outside it keep absolute paths.
+
+    Returns
+    -------
+    dict
+        For :func:`dump_toml`.
+    """
+    import os
+    from pathlib import Path
+
+    base = Path(relative_to if relative_to is not None else setup.path.parent).absolute()
+
+    def rel(path) -> str:
+        p = Path(path).absolute()
+        try:
+            return p.relative_to(base).as_posix()
+        except ValueError:
+            return Path(os.path.relpath(p, base)).as_posix() if p.anchor == base.anchor else p.as_posix()
+
+    def material(m) -> dict:
+        return {"youngs_modulus": m.youngs_modulus, "density": m.density, "poisson_ratio": m.poisson_ratio,
+                "loss_factor": m.loss_factor}
+
+    materials = {name: material(m) for name, m in setup.materials.items()}
+
+    def material_name(m) -> str:
+        for name, known in setup.materials.items():
+            if known == m:
+                return name
+        raise ValueError(f"material {m!r} is not among the setup's materials")
+
+    def tool(t) -> dict:
+        return {"material": material_name(t.material), "total_length": t.total_length,
+                "segments": [{"length": s.length, "diameter": s.diameter, "diameter_ratio": s.diameter_ratio}
+                             for s in t.segments]}
+
+    c = setup.contact
+
+    def pair(v):
+        return list(v) if isinstance(v, tuple) else v
+
+    doc: dict[str, Any] = {
+        "name": setup.name,
+        "materials": materials,
+        "spindle": {d: rel(path) for d, path in setup.spindle_files.items()},
+        "holder": {"material": material_name(setup.holder.material),
+                   "segments": [{"length": s.length, "outer_diameter": s.outer_diameter,
+                                 "inner_diameter": s.inner_diameter} for s in setup.holder.segments]},
+        "tools": {name: tool(t) for name, t in setup.tools.items()},
+        "contact": {
+            "translational_stiffness": list(c.translational_stiffness),
+            "rotational_stiffness": list(c.rotational_stiffness),
+            "growth_bound": c.growth_bound,
+            "clamping_range": None if c.clamping_range is None else list(c.clamping_range),
+            "translational_damping": pair(c.translational_damping),
+            "rotational_damping": pair(c.rotational_damping),
+        },
+    }
+    for key in ("likelihood", "priors", "sampler"):
+        if key in setup.extra:
+            doc[key] = setup.extra[key]
+    if setup.model_table:
+        doc["model"] = setup.model_table
+    doc["measurement"] = [{"file": rel(m.file), "clamping_length": m.clamping_length, "direction": m.direction,
+                           "tool": m.tool} for m in setup.measurements]
+    return doc
