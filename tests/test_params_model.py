@@ -23,7 +23,7 @@ from bayes_rcsa.params import (
     make_term, register_term,
 )
 from bayes_rcsa.params.terms import TERMS
-from bayes_rcsa.params.terms.tip_mass import add_tip_impedance
+from bayes_rcsa.model.coupling import add_end_impedance
 from bayes_rcsa.posterior import load_posterior
 from bayes_rcsa.posterior.predict import predictive_frf
 from bayes_rcsa.synthetic import default_bench_config, true_tool_point_frf
@@ -128,7 +128,7 @@ def test_tip_impedance_equals_inverting_the_full_receptance_matrix(campaign):
     tool = model.precompute(Configuration(0.030), f).tool
     m, j = 0.004, 0.004 * 0.004**2
     w2 = (2 * np.pi * f) ** 2
-    got = add_tip_impedance(tool, (-m * w2)[None, :], (-j * w2)[None, :])
+    got = add_end_impedance(tool, (-m * w2)[None, :], (-j * w2)[None, :])
     for i in range(f.size):
         # independent: the 4x4 receptance R of both ends, dynamic stiffness R^-1 plus the mass, inverted again
         r = np.block([[tool.r11[i], tool.r12[i]], [tool.r21[i], tool.r22[i]]])
@@ -223,3 +223,27 @@ def test_toy_term_identify_write_reload_predict(toy_term, tmp_path):
     manual = model.precompute(Configuration(0.030), f).frf(kx[:, 0], kt[:, 0], cx[:, 0], ct[:, 0])
     np.testing.assert_allclose(h, manual * (1 + sub.values["toy_gain"])[:, None], rtol=1e-12)
     assert not np.allclose(h, manual)
+
+
+def test_tip_kernel_equals_coupling_the_loaded_tool(campaign):
+    """Compiled tip attachment after the joint == the loaded tool two-port coupled by the general 2x2 algebra."""
+    from bayes_rcsa.model.coupling import attach, contact_compliance
+
+    cfg, camp = campaign
+    model = bench_model(cfg, camp)
+    f = np.linspace(600.0, 1800.0, 120)
+    lengths = (0.025, 0.040)
+    caches = [model.precompute(Configuration(l), f) for l in lengths]
+    pm = ParameterModel.from_priors(GrowthLaw(0.025, 0.040, 0.5), PRIORS, FIXED, terms=["tip_mass"])
+    rng = np.random.default_rng(2)
+    values = {**_values(rng, 6), "tip_mass_kg": rng.uniform(0.0, 0.02, 6)}
+    h = ForwardModel(pm, ConfigurationStack(caches), model).frf(values)
+    c = pm.contact(values, lengths)
+    for i, cache in enumerate(caches):
+        rg = 0.5 * model.tool("tool").segments[-1].diameter
+        w2 = cache.omega**2
+        m = values["tip_mass_kg"][:, None]
+        loaded = add_end_impedance(cache.tool, -m * w2, -m * rg**2 * w2)  # (6, n, 2, 2) blocks
+        comp = contact_compliance(cache.omega, c.k_xf[:, i], c.k_thetaM[:, i], c.c_xf[:, i], c.c_thetaM[:, i])
+        ref = attach(cache.holder_tip, loaded, comp)[..., 0, 0]
+        np.testing.assert_allclose(h[:, i * f.size:(i + 1) * f.size], ref, rtol=1e-9)

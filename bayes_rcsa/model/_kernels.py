@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["pack_coefficients", "tool_point_kernel", "tool_point_kernel_batched"]
+__all__ = ["pack_coefficients", "tool_point_kernel", "tool_point_kernel_batched", "tool_point_kernel_tip"]
 
 _ORDER = ("t22", "e00", "e11", "g", "p", "q", "r")
 
@@ -91,3 +91,60 @@ def tool_point_kernel_batched(kx, kt, cx, ct, starts, omega, CB, out):  # pragma
     nb = CB.shape[0]
     for s in range(kx.shape[0]):
         _fill_set(kx, kt, cx, ct, starts, omega, CB[s if nb > 1 else 0], out, s)
+
+
+@njit(cache=True, fastmath=False, nogil=True, inline="always")
+def _recip(z):  # pragma: no cover - compiled
+    """1 / z by one real division (numba's complex division guards against overflow with branches)."""
+    d = 1.0 / (z.real * z.real + z.imag * z.imag)
+    return complex(z.real * d, -z.imag * d)
+
+
+@njit(cache=True, fastmath=False, nogil=True)
+def tool_point_kernel_tip(kx, kt, cx, ct, starts, omega, E, T12, T21, T22, Z, out):  # pragma: no cover - compiled
+    """Tool-point receptance with a diagonal dynamic stiffness attached at the tool tip.
+
+    Per set and line, with ``D = E + diag(1/Kx, 1/Kt)`` the full tool-point
+    block without the attachment is ``H = T22 - T21 D^-1 T12``, and with the
+    tip dynamic stiffness ``Z = diag(z_u, z_psi)`` it is
+    ``H' = (H^-1 + Z)^-1 = H (I + Z H)^-1``, of which ``h' = H'[0, 0]``.
+
+    Parameters
+    ----------
+    kx, kt, cx, ct : (n_sets, n_configs) float64
+    starts : (n_configs + 1,) int64
+    omega : (n_lines,) rad/s
+    E : (n_lines, 2, 2) complex, holder-tip receptance plus the tool's T11
+    T12, T21, T22 : (n_lines, 2, 2) complex, tool-overhang blocks
+    Z : (B, n_lines, 2) complex, B = 1 or n_sets
+    out : (n_sets, n_lines) complex128
+    """
+    n_sets, n_cfg = kx.shape
+    nb = Z.shape[0]
+    for s in range(n_sets):
+        b = s if nb > 1 else 0
+        for c in range(n_cfg):
+            for j in range(starts[c], starts[c + 1]):
+                kxc = complex(kx[s, c], omega[j] * cx[s, c])
+                ktc = complex(kt[s, c], omega[j] * ct[s, c])
+                d00 = E[j, 0, 0] + _recip(kxc)
+                d11 = E[j, 1, 1] + _recip(ktc)
+                d01 = E[j, 0, 1]
+                d10 = E[j, 1, 0]
+                idet = _recip(d00 * d11 - d01 * d10)
+                # X = D^-1 T12
+                x00 = (d11 * T12[j, 0, 0] - d01 * T12[j, 1, 0]) * idet
+                x01 = (d11 * T12[j, 0, 1] - d01 * T12[j, 1, 1]) * idet
+                x10 = (d00 * T12[j, 1, 0] - d10 * T12[j, 0, 0]) * idet
+                x11 = (d00 * T12[j, 1, 1] - d10 * T12[j, 0, 1]) * idet
+                h00 = T22[j, 0, 0] - (T21[j, 0, 0] * x00 + T21[j, 0, 1] * x10)
+                h01 = T22[j, 0, 1] - (T21[j, 0, 0] * x01 + T21[j, 0, 1] * x11)
+                h10 = T22[j, 1, 0] - (T21[j, 1, 0] * x00 + T21[j, 1, 1] * x10)
+                h11 = T22[j, 1, 1] - (T21[j, 1, 0] * x01 + T21[j, 1, 1] * x11)
+                zu = Z[b, j, 0]
+                zp = Z[b, j, 1]
+                m00 = 1.0 + zu * h00
+                m01 = zu * h01
+                m10 = zp * h10
+                m11 = 1.0 + zp * h11
+                out[s, j] = (h00 * m11 - h01 * m10) * _recip(m00 * m11 - m01 * m10)

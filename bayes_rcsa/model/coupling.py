@@ -18,7 +18,8 @@ import numpy as np
 
 from .timoshenko import TwoPort
 
-__all__ = ["inv2", "matmul2", "contact_compliance", "couple", "attach", "rigid_coupling", "elastic_coupling"]
+__all__ = ["inv2", "matmul2", "contact_compliance", "couple", "attach", "rigid_coupling", "elastic_coupling",
+           "add_end_impedance"]
 
 
 def inv2(a: np.ndarray) -> np.ndarray:
@@ -111,3 +112,35 @@ def rigid_coupling(a11, a12, a21, a22, b11) -> np.ndarray:
 def elastic_coupling(a11, a12, a21, a22, b11, compliance) -> np.ndarray:
     """Elastic coupling ``C11 = A11 - A12 (A22 + B11 + K^-1)^-1 A21``."""
     return a11 - matmul2(a12, matmul2(inv2(a22 + b11 + compliance), a21))
+
+
+def add_end_impedance(tool: TwoPort, z_u: np.ndarray, z_psi: np.ndarray) -> TwoPort:
+    """Tool two-port with a diagonal dynamic stiffness ``diag(z_u, z_psi)`` added at end 2 (Woodbury update).
+
+    Parameters
+    ----------
+    tool : TwoPort, blocks (B0, n_lines, 2, 2)
+    z_u, z_psi : (B, n_lines) complex or real, N/m and N m/rad
+
+    Returns
+    -------
+    TwoPort with blocks (B, n_lines, 2, 2) (B broadcast against B0)
+    """
+    r22 = tool.r22
+    m = np.empty(np.broadcast_shapes(r22.shape, z_u.shape + (2, 2)), dtype=complex)
+    # M = I + R22 Z with Z diagonal: column k of R22 scaled by z_k
+    m[..., 0, 0] = 1.0 + r22[..., 0, 0] * z_u
+    m[..., 1, 0] = r22[..., 1, 0] * z_u
+    m[..., 0, 1] = r22[..., 0, 1] * z_psi
+    m[..., 1, 1] = 1.0 + r22[..., 1, 1] * z_psi
+    w = inv2(m)
+    w[..., 0, :] *= z_u[..., None]  # W = Z M^-1: row k scaled by z_k
+    w[..., 1, :] *= z_psi[..., None]
+    w_r21 = matmul2(w, tool.r21)
+    w_r22 = matmul2(w, r22)
+    return TwoPort(
+        r11=tool.r11 - matmul2(tool.r12, w_r21),
+        r12=tool.r12 - matmul2(tool.r12, w_r22),
+        r21=tool.r21 - matmul2(r22, w_r21),
+        r22=r22 - matmul2(r22, w_r22),
+    )

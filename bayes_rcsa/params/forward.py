@@ -11,9 +11,13 @@ sets into tool-point FRFs on every line of a
    identification's hot path, unchanged by the term machinery);
    with them: the cached substructures (flange receptance, holder and tool
    two-ports, batch axis 1) go through the spindle hooks, then the
-   substructure hooks (which may give them a batch axis of ``n_sets``), the
-   holder is re-coupled to the spindle only if one of the two changed, the
-   fast-path coefficients are recomputed per set
+   substructure hooks (which may give them a batch axis of ``n_sets``).
+   If only a tip attachment was added (:meth:`Substructures.add_tip`, e.g.
+   the tip mass), a compiled kernel applies it to the assembled tool-point
+   block (:meth:`ConfigurationStack.frf_tip`).  Otherwise the holder is
+   re-coupled to the spindle only if one of the two changed, a tip
+   attachment is folded into the tool two-port, the fast-path coefficients
+   are recomputed per set
    (:func:`bayes_rcsa.model.assembly.tool_point_coefficients`) and the
    compiled batched kernel evaluates them;
 3. the *frf* terms act on the assembled FRFs.
@@ -29,7 +33,7 @@ from typing import Mapping
 import numpy as np
 
 from ..model.assembly import ConfigurationStack, ToolPointModel, tool_point_coefficients
-from ..model.coupling import attach
+from ..model.coupling import add_end_impedance, attach
 from .model import ParameterModel
 from .terms import Contact, Substructures, TermContext
 
@@ -115,17 +119,25 @@ class ForwardModel:
         return subs
 
     def _general(self, values, kx, kt, cx, ct) -> np.ndarray:
-        base_spindle, base_holder, _ = self.stack.substructures()
+        base_spindle, base_holder, base_tool = self.stack.substructures()
         subs = self.substructures(values)
+        shape = kx.shape
+        cx = np.broadcast_to(np.asarray(cx, dtype=float), shape)
+        ct = np.broadcast_to(np.asarray(ct, dtype=float), shape)
+        same = subs.spindle is base_spindle and subs.holder is base_holder and subs.tool is base_tool
+        if same and subs.tip is None:
+            return self.stack.frf(kx, kt, cx, ct)  # every term at its baseline
+        if same:
+            # only something attached at the tip: the cached blocks stay shared by all sets
+            return self.stack.frf_tip(subs.tip, kx, kt, cx, ct)
+        tool = subs.tool
+        if subs.tip is not None:
+            tool = add_end_impedance(tool, subs.tip[..., 0], subs.tip[..., 1])
         if subs.spindle is base_spindle and subs.holder is base_holder:
-            # only the tool changed: the cached spindle + holder coupling still holds
+            # the cached spindle + holder coupling still holds
             if self._holder_tip is None:
                 self._holder_tip = np.concatenate([c.holder_tip for c in self.stack.caches])[None]
             holder_tip = self._holder_tip
         else:
             holder_tip = attach(subs.spindle, subs.holder)
-        coeff = tool_point_coefficients(holder_tip, subs.tool)
-        shape = kx.shape
-        cx = np.broadcast_to(np.asarray(cx, dtype=float), shape)
-        ct = np.broadcast_to(np.asarray(ct, dtype=float), shape)
-        return self.stack.frf_with(coeff, kx, kt, cx, ct)
+        return self.stack.frf_with(tool_point_coefficients(holder_tip, tool), kx, kt, cx, ct)

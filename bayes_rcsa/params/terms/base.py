@@ -67,14 +67,29 @@ class Substructures:
         Free-free holder with the clamped shank; end 1 the flange, end 2 the holder tip.
     tool : TwoPort, blocks (B, n_lines, 2, 2)
         Free-free tool overhang; end 1 its base (at the holder tip), end 2 the tool tip.
+    tip : (B, n_lines, 2) complex or None
+        Diagonal dynamic stiffness (N/m, N m/rad) attached at the tool tip's
+        (u, psi), e.g. ``-omega^2 (m, m r_g^2)`` of a tip mass; ``None`` if
+        nothing is attached.  Kept apart from ``tool`` so that the forward
+        model can apply it after the joint with a compiled kernel (the tool
+        two-port then stays shared by all parameter sets).
     """
 
     spindle: np.ndarray
     holder: TwoPort
     tool: TwoPort
+    tip: np.ndarray | None = None
 
     def replace(self, **changes) -> "Substructures":
         return replace(self, **changes)
+
+    def add_tip(self, z_u: np.ndarray, z_psi: np.ndarray) -> "Substructures":
+        """A copy with ``diag(z_u, z_psi)`` (each (B, n_lines)) added to the tip's dynamic stiffness."""
+        z_u, z_psi = np.asarray(z_u), np.asarray(z_psi)
+        z = np.empty(np.broadcast_shapes(z_u.shape, z_psi.shape) + (2,), dtype=complex)
+        z[..., 0] = z_u
+        z[..., 1] = z_psi
+        return replace(self, tip=z if self.tip is None else self.tip + z)
 
 
 @dataclass(frozen=True)

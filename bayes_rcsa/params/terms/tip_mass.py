@@ -15,9 +15,12 @@ the tool's circumference (the synthetic bench's default, 4 mm for the
     R21' = R21 - R22 W R21      R22' = R22 - R22 W R22
 
 which stays reciprocal and passive for ``m >= 0`` and is exactly ``R``
-for ``m = 0`` (the baseline).  The term acts on the tool before coupling,
-so the contact and the growth law see the loaded tool, as in the real
-assembly.
+for ``m = 0`` (the baseline).  The term hands ``Z`` to the forward model as
+the substructures' tip impedance (:meth:`Substructures.add_tip`): the
+forward model applies it to the assembled tool-point block,
+``H' = H (I + Z H)^-1`` (the same physics, the tool two-port staying shared
+by all parameter sets), or folds it into the tool two-port with
+:func:`bayes_rcsa.model.coupling.add_end_impedance` when another term has changed a substructure.
 
 Parameter
 ---------
@@ -35,51 +38,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...model.coupling import inv2, matmul2
-from ...model.timoshenko import TwoPort
+from ...model.coupling import add_end_impedance
 from ..parameter import Parameter
 from ..priors import Uniform
 from . import register_term
 from .base import ModelTerm
 
-__all__ = ["TipMass", "tip_radius_of_gyration"]
+__all__ = ["TipMass", "tip_radius_of_gyration", "add_end_impedance"]
 
 
 def tip_radius_of_gyration(model, configurations) -> np.ndarray:
     """Radius of gyration (m) per configuration: half the tip diameter of its tool, (n_cfg,)."""
     return np.array([0.5 * model.tool(c.tool).segments[-1].diameter for c in configurations], dtype=float)
-
-
-def add_tip_impedance(tool: TwoPort, z_u: np.ndarray, z_psi: np.ndarray) -> TwoPort:
-    """Tool two-port with a diagonal dynamic stiffness ``diag(z_u, z_psi)`` added at end 2.
-
-    Parameters
-    ----------
-    tool : TwoPort, blocks (B0, n_lines, 2, 2)
-    z_u, z_psi : (B, n_lines) complex or real, N/m and N m/rad
-
-    Returns
-    -------
-    TwoPort with blocks (B, n_lines, 2, 2) (B broadcast against B0)
-    """
-    r22 = tool.r22
-    m = np.empty(np.broadcast_shapes(r22.shape, z_u.shape + (2, 2)), dtype=complex)
-    # M = I + R22 Z with Z diagonal: column k of R22 scaled by z_k
-    m[..., 0, 0] = 1.0 + r22[..., 0, 0] * z_u
-    m[..., 1, 0] = r22[..., 1, 0] * z_u
-    m[..., 0, 1] = r22[..., 0, 1] * z_psi
-    m[..., 1, 1] = 1.0 + r22[..., 1, 1] * z_psi
-    w = inv2(m)
-    w[..., 0, :] *= z_u[..., None]  # W = Z M^-1: row k scaled by z_k
-    w[..., 1, :] *= z_psi[..., None]
-    w_r21 = matmul2(w, tool.r21)
-    w_r22 = matmul2(w, r22)
-    return TwoPort(
-        r11=tool.r11 - matmul2(tool.r12, w_r21),
-        r12=tool.r12 - matmul2(tool.r12, w_r22),
-        r21=tool.r21 - matmul2(r22, w_r21),
-        r22=r22 - matmul2(r22, w_r22),
-    )
 
 
 @register_term
@@ -103,4 +73,4 @@ class TipMass(ModelTerm):
         rg = tip_radius_of_gyration(ctx.model, ctx.configurations)[ctx.line_config]  # (n_lines,)
         z_u = -m[:, None] * (ctx.omega**2)[None, :]  # (n_sets, n_lines) N/m
         z_psi = z_u * (rg**2)[None, :]
-        return subs.replace(tool=add_tip_impedance(subs.tool, z_u, z_psi))
+        return subs.add_tip(z_u, z_psi)
