@@ -27,7 +27,7 @@ from bayes_rcsa.stability import (
     spectral_radius,
     zoa_lobes,
 )
-from bayes_rcsa.stability.sdm import phi_functions
+from bayes_rcsa.stability.sdm import _apply, _apply_numpy, _discretise, _modal_batch, _steps, periodic_dde_radius, phi_functions
 
 FN, ZETA, MASS = 922.0, 0.011, 0.03993
 K1 = MASS * (2 * np.pi * FN) ** 2
@@ -107,7 +107,10 @@ def test_limit_changes_below_one_percent_when_intervals_double(immersion):
     cut = CuttingConditions(kt=790e6, kr=230e6, flutes=4, radial_immersion=immersion, feed="y")
     speeds = np.array([5000.0, 9000.0, 24000.0])
     m = default_intervals(PX, PY, cut, speeds)
-    assert list(m) == [max(30, int(np.ceil(20 * 1340.0 * 60 / (4 * s)))) for s in speeds]  # documented rule
+    # documented rule: at least max(30, 30 f_max T), rounded up to the ladder 30·2^(j/2)
+    ladder = [30, 43, 60, 85, 120, 170, 240, 340]
+    rule = [max(30, int(np.ceil(30 * 1340.0 * 60 / (4 * s)))) for s in speeds]
+    assert list(m) == [min(v for v in ladder if v >= r) for r in rule]
     f = np.linspace(500, 3000, 5001)
     guess = zoa_lobes(PX.frf(f), PY.frf(f), f, cut, speeds).depth_limit_m  # ZOA brackets the SDM limit here
     bracket = (0.75 * guess, 1.3 * guess)
@@ -170,3 +173,61 @@ def test_input_errors():
         sdm_stability_map(PX, PY, cut, np.array([1000.0]), np.array([1e-4]), intervals=1)
     with pytest.raises(SetupError):
         sdm_stability_map(None, None, cut, np.array([1000.0]), np.array([1e-4]))
+
+
+# ------------------------------------------------------------------------------------------
+# delayed Mathieu equation x'' + 0.1 x' + (3 + 0.2 cos t) x = -0.15 x(t - 2π) + sin 2t, T = τ = 2π:
+# dominant multiplier |μ| = 0.35141726095354886 (SOSD.jl benchmark reference: two independent
+# high-order runs agreeing to 1e-10).  The forcing sin 2t does not affect stability.
+MATHIEU_MU = 0.35141726095354886
+# test-only adapter: a 1-DOF oscillator with m = 1, k = 3, c = 0.1, and the interval averages of the
+# periodic stiffness (current-state coefficient -0.2 cos t) and of the delayed coefficient (+0.15)
+MATHIEU_MODE = ModalModel([np.sqrt(3.0) / (2 * np.pi)], [0.1 / (2 * np.sqrt(3.0))], [3.0])
+
+
+def mathieu_averages(t0, t1):
+    c = np.zeros((t0.size, 2, 2))
+    c[:, 0, 0] = -0.2 * (np.sin(t1) - np.sin(t0)) / (t1 - t0)
+    d = np.zeros((t0.size, 2, 2))
+    d[:, 0, 0] = 0.15
+    return c, [d]
+
+
+def test_delayed_mathieu_multiplier_default_and_fine_resolution():
+    T = 2 * np.pi
+    # default resolution (m = 60 by the rule max(30, 30 f_max T) on the ladder): |error| 5.1e-4
+    mu = periodic_dde_radius(MATHIEU_MODE, None, T, mathieu_averages, [T])
+    assert abs(mu - MATHIEU_MU) < 1e-3
+    # O(Δt^2): m = 40 is 1.2e-3 off, m = 2560 2.5e-7
+    err = [abs(periodic_dde_radius(MATHIEU_MODE, None, T, mathieu_averages, [T], intervals=m, solver="eig") - MATHIEU_MU)
+           for m in (40, 80)]
+    assert 3.5 < err[0] / err[1] < 4.5
+    fine = periodic_dde_radius(MATHIEU_MODE, None, T, mathieu_averages, [T], intervals=2560)
+    assert abs(fine - MATHIEU_MU) < 1e-6
+
+
+def test_one_dof_milling_at_k40_and_converged():
+    # Insperger-Stépán 1-DOF case, 4 teeth in a slot (exact boundary).  k = 40 intervals per tooth period
+    # gives 8.7, 14.5 and 26 intervals per vibration cycle at 3000, 5000 and 9000 rpm: errors 4.6, 1.6 and
+    # 0.5 % (first-order scheme, O(Δt^2)); k = 640 is converged (errors / 256).
+    cut = CuttingConditions(kt=6e8, kr=2e8, flutes=4, radial_immersion=1.0)
+    speeds = np.array([3000.0, 5000.0, 9000.0])
+    ref = exact_slot_boundary(speeds)
+    k40 = sdm_depth_limit(ONE_DOF, None, cut, speeds, (0.6 * ref, 1.6 * ref), intervals=40, rtol=1e-7)
+    k640 = sdm_depth_limit(ONE_DOF, None, cut, speeds, (0.6 * ref, 1.6 * ref), intervals=640, rtol=1e-7)
+    e40, e640 = np.abs(k40 / ref - 1), np.abs(k640 / ref - 1)
+    assert np.all(e40 < [0.05, 0.02, 0.007])
+    assert np.all(e640 < 2e-4) and np.all(e40 / e640 > 150)
+
+
+def test_compiled_step_equals_numpy_reference():
+    mx = ModalModel([1287.0, 2650.0], [0.02, 0.03], [1.0e6, 6.0e6])
+    vp = CuttingConditions(kt=790e6, kr=230e6, flutes=4, radial_immersion=0.7,
+                           pitch_angles=tuple(np.radians([80.0, 100.0, 80.0, 100.0])))
+    eq = CuttingConditions(kt=790e6, kr=230e6, flutes=3, radial_immersion=0.4, milling="up", feed="y")
+    for cut in (eq, vp):
+        disc, factor = _discretise(cut, 24)
+        modal = _modal_batch([(mx, PY), (None, PY)], np.array([0, 1, 0]))  # different mode counts: padding
+        st = _steps(modal, disc, factor * 60 / np.array([9000.0, 12000.0, 15000.0]), np.array([1e-4, 2e-4, 3e-4]))
+        V = np.random.default_rng(0).standard_normal((st.dim, 3, 3))
+        np.testing.assert_allclose(_apply(st, V), _apply_numpy(st, V), rtol=1e-12, atol=1e-12 * np.abs(V).max())
