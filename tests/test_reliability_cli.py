@@ -93,17 +93,7 @@ def _set_cell(name: str, row: int, column: str, value: str) -> Callable[[Path], 
 
 
 def _negate_spindle_n(d: Path) -> None:
-    p = d / "spindle_x.csv"
-    lines = p.read_text().splitlines()
-    data_idx = [i for i, ln in enumerate(lines) if not ln.startswith("#")]
-    header = lines[data_idx[0]].split(",")
-    cols = [header.index("n_real"), header.index("n_imag")]
-    for i in data_idx[1:]:
-        cells = lines[i].split(",")
-        for c in cols:
-            cells[c] = repr(-float(cells[c]))
-        lines[i] = ",".join(cells)
-    p.write_text("\n".join(lines) + "\n")
+    _flip_spindle(d, ("n_real", "n_imag"))
 
 
 def _make_file(name: str) -> Callable[[Path, Path], None]:

@@ -61,15 +61,24 @@ def parse_frequency_grid(text: str, option: str = "--freq"):
     return start + step * np.arange(n)
 
 
-def nonnegative_int(text: str) -> int:
-    """argparse type: an integer >= 0 (seeds, counts where 0 means "all")."""
+def _int_at_least(text: str, minimum: int, expected: str) -> int:
     try:
         v = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected an integer >= 0") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected an integer >= 0")
+        v = None
+    if v is None or v < minimum:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected {expected}")
     return v
+
+
+def nonnegative_int(text: str) -> int:
+    """argparse type: an integer >= 0 (seeds, counts where 0 means "all")."""
+    return _int_at_least(text, 0, "an integer >= 0")
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    return _int_at_least(text, 1, "a positive integer")
 
 
 def finite_float(text: str) -> float:
@@ -80,17 +89,6 @@ def finite_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r}: expected a number") from None
     if not math.isfinite(v):
         raise argparse.ArgumentTypeError(f"{text!r}: expected a finite number")
-    return v
-
-
-def positive_int(text: str) -> int:
-    """argparse type: an integer >= 1."""
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a positive integer") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a positive integer")
     return v
 
 
