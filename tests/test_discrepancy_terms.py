@@ -1,0 +1,286 @@
+"""The six discrepancy candidate terms: vanish at baseline, passive/reciprocal, physically right.
+
+Reference for the physics: the synthetic bench (``bayes_rcsa.synthetic``), an
+independent finite-element model of the whole assembly that carries each
+hidden effect in its truth.  The RCSA evaluation with a term below is a
+small general-path reference written here (spindle -> hooks -> coupling ->
+contact -> tool), independent of the package's ForwardModel.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bayes_rcsa.io.setup import load_setup
+from bayes_rcsa.model.assembly import Configuration
+from bayes_rcsa.model.coupling import attach, contact_compliance
+from bayes_rcsa.model.geometry import holder_segments, tool_overhang_segments
+from bayes_rcsa.model.timoshenko import free_free_receptances
+from bayes_rcsa.params.terms import Contact, Substructures, TermContext, known_terms, make_term
+from bayes_rcsa.params.terms.fluted_section import batched_free_free
+from bayes_rcsa.params.terms.nonlinear_stiffness_law import saturating_shape
+from bayes_rcsa.synthetic import default_bench_config, generate_campaign, true_contact, true_tool_point_frf, write_campaign
+
+SIX = ("contact_damping", "extra_mode", "fluted_section", "nonlinear_stiffness_law", "spindle_error",
+       "spindle_rotation_omitted")
+FREQ = np.arange(600.0, 1500.0, 2.0)  # Hz, around the dominant tool mode at 25-40 mm
+LENGTHS = (0.025, 0.030, 0.040)
+
+
+def _campaign(tmp_path_factory, name, effects):
+    cfg = default_bench_config(hidden_effects=effects)
+    camp = generate_campaign(cfg, np.random.default_rng(0))
+    path = write_campaign(camp, tmp_path_factory.mktemp(name) / "c")
+    return cfg, load_setup(path).model()
+
+
+@pytest.fixture(scope="module")
+def clean(tmp_path_factory):
+    return _campaign(tmp_path_factory, "clean", {})
+
+
+def _context(model, configurations, f=FREQ, l_a=0.025, l_b=0.040):
+    cfgs = tuple(configurations)
+    n = f.size
+    return TermContext(model=model, configurations=cfgs, frequency_hz=np.tile(f, len(cfgs)),
+                       omega=2 * np.pi * np.tile(f, len(cfgs)), line_config=np.repeat(np.arange(len(cfgs)), n),
+                       lengths=np.array([c.clamping_length for c in cfgs]), l_a=l_a, l_b=l_b)
+
+
+def _substructures(model, ctx):
+    sp, ho, to = [], [], []
+    for c in ctx.configurations:
+        w = 2 * np.pi * FREQ
+        tool = model.tool(c.tool)
+        sp.append(model.spindle_receptance(c.direction).interpolate(FREQ))
+        ho.append(free_free_receptances(holder_segments(model.holder, tool, c.clamping_length), w))
+        to.append(free_free_receptances(tool_overhang_segments(model.holder, tool, c.clamping_length), w))
+    cat = lambda parts, k: np.concatenate([getattr(p, k) for p in parts])[None]  # noqa: E731
+    from bayes_rcsa.model.timoshenko import TwoPort
+
+    return Substructures(np.concatenate(sp)[None], TwoPort(*(cat(ho, k) for k in ("r11", "r12", "r21", "r22"))),
+                         TwoPort(*(cat(to, k) for k in ("r11", "r12", "r21", "r22"))))
+
+
+def _growth_values(cfg, n):
+    """Contact values of the bench truth in the parameter model's names (linear law), each (n,)."""
+    g = cfg.growth
+    return {"k_xf": np.full(n, cfg.k_xf), "k_thetaM": np.full(n, cfg.k_thetaM), "g_xf": np.full(n, g),
+            "g_thetaM": np.full(n, g), "c_xf": np.full(n, cfg.c_xf), "c_thetaM": np.full(n, cfg.c_thetaM)}
+
+
+def reference_frf(model, cfg, configurations, term=None, values=None, n_sets=1):
+    """Tool-point FRFs (n_sets, n_cfg, n_freq) with ``term`` applied at ``values`` (general path)."""
+    ctx = _context(model, configurations)
+    v = _growth_values(cfg, n_sets)
+    v.update(values or {})
+    lengths = ctx.lengths
+    x = (lengths - 0.025) / 0.015
+    kx = v["k_xf"][:, None] * (1 + v["g_xf"][:, None] * x)
+    kt = v["k_thetaM"][:, None] * (1 + v["g_thetaM"][:, None] * x)
+    contact = Contact(kx, kt, np.broadcast_to(v["c_xf"][:, None], kx.shape), np.broadcast_to(v["c_thetaM"][:, None], kx.shape))
+    subs = _substructures(model, ctx)
+    if term is not None and term.kind == "joint":
+        contact = term.joint(v, contact, lengths, 0.025, 0.040)
+    if term is not None and term.kind == "spindle":
+        subs = subs.replace(spindle=term.spindle(v, subs.spindle, ctx))
+    if term is not None and term.kind == "substructure":
+        subs = term.substructures(v, subs, ctx)
+    tip = attach(subs.spindle, subs.holder)
+    n = FREQ.size
+    out = np.empty((n_sets, len(ctx.configurations), n), dtype=complex)
+    for j in range(len(ctx.configurations)):
+        sl = slice(j * n, (j + 1) * n)
+        comp = contact_compliance(ctx.omega[sl], *(np.asarray(a)[:, j] for a in contact))
+        two = subs.tool
+        from bayes_rcsa.model.timoshenko import TwoPort
+
+        tp = TwoPort(two.r11[:, sl], two.r12[:, sl], two.r21[:, sl], two.r22[:, sl])
+        out[:, j] = attach(tip[:, sl], tp, comp)[..., 0, 0]
+    return out
+
+
+def _truth(cfg, configurations):
+    return np.array([true_tool_point_frf(cfg, c, FREQ) for c in configurations])
+
+
+def _rel(a, b):
+    return float(np.linalg.norm(a - b) / np.linalg.norm(b))
+
+
+def _peak(h):
+    i = int(np.argmax(np.abs(h)))
+    return FREQ[i], float(np.abs(h[i]))
+
+
+def test_all_seven_canonical_effects_are_registered_terms():
+    assert set(SIX) | {"tip_mass"} <= set(known_terms())
+    for name in SIX:
+        t = make_term(name)
+        assert t.name == name and t.description and t.kind in ("spindle", "substructure", "joint")
+
+
+@pytest.mark.parametrize("name", SIX)
+def test_term_vanishes_exactly_at_baseline(clean, name):
+    cfg, model = clean
+    term = make_term(name)
+    params = term.parameters(model)
+    assert params and all(p.baseline is not None and p.unit and p.prior is not None for p in params)
+    base = {p.name: np.full(3, p.baseline) for p in params}
+    configs = [Configuration(l, "x") for l in LENGTHS]
+    h0 = reference_frf(model, cfg, configs)
+    h = reference_frf(model, cfg, configs, term, base, n_sets=3)
+    assert np.array_equal(h, np.broadcast_to(h0, h.shape))  # bit for bit
+    # and the baseline lies inside (or on the edge of) the prior's support
+    for p in params:
+        lo, hi = p.prior.bounds
+        u = float(p.prior.to_sampling(p.baseline)) if p.baseline > 0 or p.prior.kind == "uniform" else lo
+        assert lo <= u <= hi
+
+
+def test_contact_damping_matches_the_bench_and_lowers_the_peak(tmp_path_factory, clean):
+    cfg, model = _campaign(tmp_path_factory, "damp", {"contact_damping": 5.0})
+    configs = [Configuration(l, "x") for l in LENGTHS]
+    truth = _truth(cfg, configs)
+    h1 = reference_frf(model, cfg, configs, make_term("contact_damping"),
+                       {"contact_damping_factor": np.array([1.0, 5.0])}, n_sets=2)
+    # lumped FE and RCSA agree to ~1e-6 (docs/synthetic.md), so with the true factor the term reproduces the truth
+    for j in range(len(configs)):
+        assert _rel(h1[1, j], truth[j]) < 1e-3 < 0.3 < _rel(h1[0, j], truth[j])
+        assert _peak(h1[1, j])[1] < 0.5 * _peak(h1[0, j])[1]  # more damping lowers the peak
+
+
+def test_nonlinear_law_matches_the_bench_between_the_ends(tmp_path_factory):
+    cfg, model = _campaign(tmp_path_factory, "nonlin", {"nonlinear_stiffness_law": 4.0})
+    configs = [Configuration(l, "x") for l in LENGTHS]
+    truth = _truth(cfg, configs)
+    h = reference_frf(model, cfg, configs, make_term("nonlinear_stiffness_law"),
+                      {"stiffness_saturation": np.array([0.0, 4.0])}, n_sets=2)
+    assert _rel(h[1, 1], truth[1]) < 1e-3 < 0.1 < _rel(h[0, 1], truth[1])  # 30 mm: saturating law is stiffer
+    assert _peak(h[1, 1])[0] > _peak(h[0, 1])[0] + 20  # Hz; docs/synthetic.md: +52 Hz at 30 mm
+    for j in (0, 2):  # the ends of the range are unchanged
+        assert np.allclose(h[1, j], h[0, j], rtol=1e-12, atol=0)
+
+
+def test_saturating_shape_is_smooth_through_zero():
+    x = np.linspace(-0.2, 1.2, 15)[None, :]
+    s = np.array([[0.0], [1e-12], [1e-6], [-1e-6], [4.0]])
+    sh = saturating_shape(s, x)
+    assert np.array_equal(sh[0], x[0])
+    assert np.allclose(sh[1], x[0], rtol=0, atol=1e-12)
+    # first-order expansion S = x + s x (1 - x) / 2: the 1e-6 rows agree to O(s^2)
+    assert np.allclose(sh[2], x[0] + 1e-6 * x[0] * (1 - x[0]) / 2, atol=1e-11)
+    assert np.allclose(sh[3], x[0] - 1e-6 * x[0] * (1 - x[0]) / 2, atol=1e-11)
+    assert sh[4, np.argmin(abs(x[0] - 0.0))] == pytest.approx(0, abs=1e-15)
+    assert sh[4, np.argmin(abs(x[0] - 1.0))] == pytest.approx(1, abs=1e-12)
+
+
+def test_fluted_section_matches_the_bench_and_batches(tmp_path_factory):
+    cfg, model = _campaign(tmp_path_factory, "flute", {"fluted_section": 0.1})
+    configs = [Configuration(l, "x") for l in LENGTHS]
+    truth = _truth(cfg, configs)
+    term = make_term("fluted_section")
+    scales = np.array([1.0, 0.9, 0.8])
+    h = reference_frf(model, cfg, configs, term, {"flute_diameter_scale": scales}, n_sets=3)
+    for j in range(len(configs)):
+        assert _rel(h[1, j], truth[j]) < 1e-3 < 0.1 < _rel(h[0, j], truth[j])
+        assert _peak(h[1, j])[0] > _peak(h[0, j])[0] + 15  # thinner flutes raise the mode here (+37..58 Hz)
+    # batched evaluation equals one set at a time (no cross-talk between sets)
+    for i, s in enumerate(scales):
+        hi = reference_frf(model, cfg, configs, term, {"flute_diameter_scale": np.array([s])})
+        assert np.allclose(h[i], hi[0], rtol=1e-12, atol=0)
+
+
+def test_batched_timoshenko_agrees_with_the_library_beam(clean):
+    _, model = clean
+    tool = model.tool("tool")
+    segs = tool_overhang_segments(model.holder, tool, 0.03)
+    w = 2 * np.pi * np.linspace(50, 20000, 40)
+    ref = free_free_receptances(segs, w)
+    one = np.ones((1, 1))
+    got = batched_free_free([(s.length, (s.section.EI * one, s.section.kGA * one, s.section.rhoA * one,
+                                         s.section.rhoI * one)) for s in segs], w)
+    for k in ("r11", "r12", "r21", "r22"):
+        a, b = getattr(got, k)[0], getattr(ref, k)
+        assert np.max(np.abs(a - b) / np.abs(b).max(axis=(-2, -1), keepdims=True)) < 1e-9
+
+
+def _passive(block):
+    """Largest eigenvalue of the Hermitian 'imaginary part' (S - S^H) / 2i, per line (must be <= 0)."""
+    im = (block - np.conj(np.swapaxes(block, -1, -2))) / 2j
+    return np.linalg.eigvalsh(im).max(axis=-1)
+
+
+def test_extra_mode_matches_the_bench_and_is_passive_and_reciprocal(tmp_path_factory):
+    cfg, model = _campaign(tmp_path_factory, "extra", {"extra_mode": 0.2})
+    configs = [Configuration(l, "x") for l in LENGTHS]
+    truth = _truth(cfg, configs)
+    term = make_term("extra_mode")
+    v = {"extra_mode_mass_kg": np.array([0.0, 0.2]), "extra_mode_frequency_hz": np.array([1000.0, 1000.0]),
+         "extra_mode_damping_ratio": np.array([0.02, 0.02])}
+    h = reference_frf(model, cfg, configs, term, v, n_sets=2)
+    for j in range(len(configs)):
+        assert _rel(h[1, j], truth[j]) < 1e-3 < 0.02 < _rel(h[0, j], truth[j])
+    ctx = _context(model, configs)
+    s = model.spindle_receptance("x").interpolate(np.tile(FREQ, 3))[None]
+    out = term.spindle({**v, "extra_mode_mass_kg": np.array([0.0, 0.5])}, s, ctx)
+    assert np.allclose(out[1, :, 0, 1], out[1, :, 1, 0], rtol=1e-12)  # reciprocal
+    scale = np.abs(out[1]).max()
+    assert np.all(_passive(out[1]) <= 1e-12 * scale)
+
+
+def test_spindle_rotation_term_is_passive_reciprocal_and_closes_the_gap(tmp_path_factory):
+    cfg, model = _campaign(tmp_path_factory, "rot", {"spindle_rotation_omitted": 1.0})
+    configs = [Configuration(l, "x") for l in (0.025, 0.040)]
+    truth = _truth(cfg, configs)
+    term = make_term("spindle_rotation_omitted")
+    rho, lever = np.meshgrid(np.linspace(0.0, 1.0, 6), np.geomspace(0.02, 0.5, 9))
+    v = {"rotation_restored": rho.ravel(), "rotation_lever_m": lever.ravel()}
+    h = reference_frf(model, cfg, configs, term, v, n_sets=rho.size)
+    err = np.array([[_rel(h[i, j], truth[j]) for j in range(len(configs))] for i in range(rho.size)]).mean(axis=1)
+    base = err[rho.ravel() == 0][0]
+    # A translational-only file cannot be reconstructed exactly (the true p has its own anti-resonances;
+    # even the true p alone, with l still missing, only halves the gap).  The one-lever rocking model
+    # closes 28 % of it on this grid (measured); require a clear 20 %.
+    assert err.min() < 0.8 * base
+    ctx = _context(model, configs)
+    s = model.spindle_receptance("x").interpolate(np.tile(FREQ, 2))[None]
+    out = term.spindle({"rotation_restored": np.array([1.0, 0.3]), "rotation_lever_m": np.array([0.05, 0.2])}, s, ctx)
+    assert np.array_equal(out[..., 0, 1], out[..., 1, 0])
+    assert np.all(_passive(out) <= 1e-12 * np.abs(out).max())
+
+
+def test_spindle_error_moves_the_file_towards_the_true_spindle(tmp_path_factory):
+    from bayes_rcsa.params.terms.spindle_error import fit_flange_modal_model
+    from bayes_rcsa.synthetic import exported_spindle_receptance, true_spindle_receptance
+
+    cfg = default_bench_config(hidden_effects={"spindle_error": 0.15})
+    f = np.arange(500.0, 3501.0, 2.0)
+    exported = exported_spindle_receptance(cfg, "x", f).block
+    truth = true_spindle_receptance(cfg, "x", f).block
+    m = fit_flange_modal_model(f, exported)
+    assert m.w2.size >= 1
+    w = 2 * np.pi * f
+    corrected = exported + m.modal_part(w, np.array([[1 / 1.15]]))[0] - m.modal_part(w, 1.0)[0] + m.c0 * (1.15 - 1)
+    # the translational receptance (what dominates the tool point) gets much closer to the truth
+    assert _rel(corrected[:, 0, 0], truth[:, 0, 0]) < 0.6 * _rel(exported[:, 0, 0], truth[:, 0, 0])
+    # softer bearings lower the first spindle mode: the peak of |h| moves down
+    i0, i1 = np.argmax(np.abs(exported[:150, 0, 0])), np.argmax(np.abs(corrected[:150, 0, 0]))
+    assert f[i1] <= f[i0]
+
+
+def test_spindle_error_term_on_stacked_lines(tmp_path_factory):
+    cfg, model = _campaign(tmp_path_factory, "serr", {"spindle_error": 0.15})
+    configs = [Configuration(l, d) for l in (0.025, 0.040) for d in ("x", "y")]
+    term = make_term("spindle_error")
+    ctx = _context(model, configs)
+    s = np.concatenate([model.spindle_receptance(c.direction).interpolate(FREQ) for c in configs])[None]
+    out = term.spindle({"bearing_stiffness_scale": np.array([1.0, 0.8, 1.25])}, s, ctx)
+    assert out.shape == (3,) + s.shape[1:]
+    assert np.array_equal(out[0], s[0])
+    assert np.allclose(out[1:, :, 0, 1], out[1:, :, 1, 0], rtol=1e-9)  # reciprocal
+    # x and y lines use their own direction's modal model: the x block of set 1 equals a pure-x evaluation
+    ctx_x = _context(model, configs[:1])
+    out_x = term.spindle({"bearing_stiffness_scale": np.array([0.8])}, s[:, : FREQ.size], ctx_x)
+    assert np.allclose(out[1, : FREQ.size], out_x[0], rtol=1e-12)
