@@ -133,6 +133,11 @@ def clean_stale_temporaries(out_dir) -> list[Path]:
 
 
 def _lock_file(out_dir: Path) -> Path:
+    # Beside the directory, so that it can be locked before it exists and while it is replaced.
+    # When the parent is not writable (``--out .`` in a home directory) but the directory is,
+    # the lock lives inside it; every process decides the same way, so they meet on one file.
+    if not os.access(out_dir.parent, os.W_OK) and out_dir.is_dir() and os.access(out_dir, os.W_OK):
+        return out_dir / ".bayes-rcsa.lock"
     return out_dir.parent / f".{out_dir.name}.lock"
 
 
@@ -142,7 +147,8 @@ def directory_lock(out_dir, option: str = "--out") -> Iterator[Path]:
 
     The lock is ``fcntl.flock`` on the hidden file ``.NAME.lock`` beside
     ``out_dir`` (so the directory itself need not exist yet, and commands
-    that replace the directory atomically keep their lock).  The file holds
+    that replace the directory atomically keep their lock); inside
+    ``out_dir`` as ``.bayes-rcsa.lock`` when only the directory is writable.  The file holds
     the owner's PID for the message of a second run; it is removed on
     release.  The kernel drops the lock when its owner dies, so a killed run
     never blocks the next one.
@@ -164,7 +170,8 @@ def directory_lock(out_dir, option: str = "--out") -> Iterator[Path]:
         Another process holds the lock: ``"DIR is in use by PID n"``.
     """
     out_dir = Path(out_dir).resolve()
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    if not out_dir.parent.exists():
+        out_dir.parent.mkdir(parents=True)
     lock = _lock_file(out_dir)
     while True:
         fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
