@@ -65,36 +65,52 @@ def _check_one_line(call) -> None:
             assert message, "empty error message"
 
 
-def _write(data: bytes, name: str) -> Path:
-    d = Path(tempfile.mkdtemp(prefix="hyp"))
-    path = d / name
-    path.write_bytes(data)
-    return path
+def _read(data: bytes, name: str, reader) -> None:
+    """Write ``data`` to a fresh temporary file ``name`` and check ``reader(path)``."""
+    with tempfile.TemporaryDirectory(prefix="hyp") as d:
+        path = Path(d) / name
+        path.write_bytes(data)
+        _check_one_line(lambda: reader(path))
 
 
 @COMMON
 @given(st.one_of(st.binary(max_size=300), mutated(FRF_TEXT)))
 def test_frf_csv_reader_never_crashes(data):
-    path = _write(data, "tip.csv")
-    _check_one_line(lambda: read_frf(path))
+    _read(data, "tip.csv", read_frf)
 
 
 @COMMON
 @given(st.one_of(st.binary(max_size=300), mutated(SPINDLE_TEXT)))
 def test_spindle_csv_reader_never_crashes(data):
-    path = _write(data, "spindle.csv")
-    _check_one_line(lambda: read_spindle_csv(path))
+    _read(data, "spindle.csv", read_spindle_csv)
 
 
 @COMMON
 @given(st.one_of(st.binary(max_size=300), mutated(SETUP_TEXT)))
 def test_setup_reader_never_crashes(data):
     # Setup-level validation only (load_data=False): the data files' readers are covered above.
-    path = _write(data, "setup.toml")
-    _check_one_line(lambda: load_setup(path, load_data=False))
+    _read(data, "setup.toml", lambda p: load_setup(p, load_data=False))
 
 
 @pytest.mark.parametrize("data", [b"\x00" * 10, b"name = 1\n" * 3, b"[materials]\nsteel = 5\n", b"a = [" * 2000])
 def test_known_nasty_setups(data):
-    path = _write(data, "setup.toml")
-    _check_one_line(lambda: load_setup(path, load_data=False))
+    _read(data, "setup.toml", lambda p: load_setup(p, load_data=False))
+
+
+@pytest.fixture(scope="module")
+def example_copy(tmp_path_factory):
+    import shutil
+
+    d = tmp_path_factory.mktemp("example") / "ex"
+    shutil.copytree(EXAMPLE, d)
+    return d
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                 HealthCheck.function_scoped_fixture])
+@given(data=mutated(SETUP_TEXT))
+def test_setup_with_data_never_crashes(example_copy, data):
+    # Mutated setups beside the real data files: exercises the data readers and the campaign checks.
+    path = example_copy / "mutated.toml"
+    path.write_bytes(data)
+    _check_one_line(lambda: load_setup(path))
