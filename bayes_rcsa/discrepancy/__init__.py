@@ -1,0 +1,18 @@
+"""Model discrepancy: find where model and measurements disagree, name the missing effect, add it.
+
+The loop (docs/discrepancy.md):
+
+* :mod:`.detect` -- standardised residuals, resonance diagnosis, trends, adequacy test;
+* :mod:`.screen` -- score test of every candidate model term at the baseline fit;
+* :mod:`.fit` -- MAP + Laplace fits of model variants on the tempered likelihood;
+* :mod:`.select` -- refits, the evidence criterion, winner / runner-up / confounded;
+* :mod:`.statistical` -- the statistical discrepancy term used when nothing is named;
+* :mod:`.workflow` -- the whole loop and its files; :mod:`.plots` -- its figures.
+
+Candidates are the registered model terms (:mod:`bayes_rcsa.params.terms`):
+adding a candidate is adding a model term (one file, one registration).
+"""
+
+from .workflow import DiscrepancyOptions, DiscrepancyResult, run_discrepancy, write_discrepancy
+
+__all__ = ["DiscrepancyOptions", "DiscrepancyResult", "run_discrepancy", "write_discrepancy"]

@@ -1,0 +1,103 @@
+"""PNG plots of the discrepancy workflow: the gap before and after, on the same axes."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..io.figures import new_figure, save_png
+
+__all__ = ["write_plots"]
+
+
+def _grid(n: int):
+    cols = min(4, n)
+    rows = int(math.ceil(n / cols))
+    return rows, cols
+
+
+def _panels(res, path: Path, label_after: str, height: float, draw, ylabel: str) -> None:
+    """One panel per measurement: ``draw(ax, j, f, measured, before, after)``; shared layout and labels."""
+    b, a = res.evaluation["before"], res.evaluation["after"]
+    n = len(b["measurements"])
+    rows, cols = _grid(n)
+    fig = new_figure(3.6 * cols, height * rows)
+    for j, m in enumerate(b["measurements"]):
+        ax = fig.add_subplot(rows, cols, j + 1)
+        draw(ax, b["frf"]["frequency_hz"][j], b["frf"]["measured"][j], b["frf"]["predicted"][j], a["frf"]["predicted"][j])
+        ax.set_title(f"{m['direction']} {m['clamping_length'] * 1e3:g} mm" + ("" if m["fitted"] else " (held out)"),
+                     fontsize=8)
+        ax.set_xlabel("frequency [Hz]", fontsize=7)
+        ax.set_ylabel(ylabel, fontsize=7)
+        ax.tick_params(labelsize=6)
+        if j == 0:
+            ax.legend(fontsize=6)
+    fig.tight_layout()
+    save_png(fig, path)
+
+
+def _frf_plot(res, path: Path, label_after: str) -> None:
+    def draw(ax, f, meas, before, after):
+        ax.semilogy(f, np.abs(meas), "k.", ms=2, label="measured")
+        ax.semilogy(f, np.abs(before), "C3-", lw=1, label="baseline")
+        ax.semilogy(f, np.abs(after), "C0-", lw=1, label=label_after)
+
+    _panels(res, path, label_after, 2.8, draw, "|H| [m/N]")
+
+
+def _residual_plot(res, path: Path, label_after: str) -> None:
+    def draw(ax, f, meas, before, after):
+        scale = np.abs(meas).max()
+        ax.plot(f, np.abs(before - meas) / scale, "C3-", lw=1, label="baseline")
+        ax.plot(f, np.abs(after - meas) / scale, "C0-", lw=1, label=label_after)
+
+    _panels(res, path, label_after, 2.4, draw, "|H_model - H_meas| / max|H_meas|")
+
+
+def _frequency_plot(res, path: Path, label_after: str) -> None:
+    fig = new_figure(5.0, 3.4)
+    ax = fig.add_subplot(1, 1, 1)
+    for key, colour, lab in (("before", "C3", "baseline"), ("after", "C0", label_after)):
+        ms = res.evaluation[key]["measurements"]
+        for m in ms:
+            ax.plot(m["clamping_length"] * 1e3, m["error_pct"], "o" if m["fitted"] else "s", color=colour,
+                    mfc=colour if m["fitted"] else "none")
+        ax.plot([], [], "o", color=colour, label=lab)
+    ax.plot([], [], "ks", mfc="none", label="held out")
+    ax.axhline(0, color="k", lw=0.5)
+    ax.set_xlabel("clamping length [mm]")
+    ax.set_ylabel("natural-frequency error [%]\n(model - measured)")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    save_png(fig, path)
+
+
+def _stiffness_plot(res, path: Path, label_after: str) -> None:
+    fig = new_figure(8.0, 3.2)
+    for i, name in enumerate(("k_xf", "k_thetaM")):
+        ax = fig.add_subplot(1, 2, i + 1)
+        for k, (key, colour, lab) in enumerate((("before", "C3", "baseline"), ("after", "C0", label_after))):
+            st = res.evaluation[key]["stiffness"][name]
+            x = np.array([float(l) for l in st]) + (k - 0.5) * 0.3
+            q = np.array([[v["q05"], v["q50"], v["q95"]] for v in st.values()])
+            ax.errorbar(x, q[:, 1], yerr=[q[:, 1] - q[:, 0], q[:, 2] - q[:, 1]], fmt="o", color=colour, label=lab,
+                        capsize=3)
+        ax.set_yscale("log")
+        ax.set_xlabel("clamping length [mm]")
+        ax.set_ylabel(f"{name} [{'N/m' if name == 'k_xf' else 'N m/rad'}] (90 % interval)")
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    save_png(fig, path)
+
+
+def write_plots(res, out_dir: Path) -> list[str]:
+    """Write the four plots into ``out_dir``; returns the file names."""
+    label = res.final_label if res.final_label != "baseline" else "baseline (unchanged)"
+    out = []
+    for name, fn in (("frf_before_after.png", _frf_plot), ("residuals_before_after.png", _residual_plot),
+                     ("frequency_errors.png", _frequency_plot), ("stiffness_before_after.png", _stiffness_plot)):
+        fn(res, Path(out_dir) / name, label)
+        out.append(name)
+    return out

@@ -1,0 +1,465 @@
+"""The discrepancy workflow: detect -> screen -> refit -> criterion -> add and show.
+
+:func:`run_discrepancy` does the computation and returns a
+:class:`DiscrepancyResult` (nothing is written); :func:`write_discrepancy`
+writes ``discrepancy.json``, ``summary.md``, the PNG plots and
+``setup.amended.toml`` into a directory atomically.  See docs/discrepancy.md.
+
+Steps
+-----
+1. **Baseline fit** (MAP + Laplace, :mod:`.fit`) of the user's model (the
+   setup with its ``[model]`` terms) and its residual correlation length,
+   which fixes the tempering ``beta`` for every comparison.
+2. **Detect** (:mod:`.detect`): standardised residuals, bands, resonance
+   diagnosis per measurement, trend with clamping length, leave-one-length-
+   out transfer (three or more lengths), and the adequacy test.
+3. **Screen** (:mod:`.screen`): the score statistic of every candidate term.
+4. **Refit** the best ``n_refit`` candidates and **decide** (:mod:`.select`).
+5. **Add and show**: the named model's gap, natural-frequency errors at every
+   measured and held-out clamping length and contact stiffness, against the
+   baseline's.  Nothing named: the statistical discrepancy term
+   (:mod:`.statistical`) is fitted instead and its (wider) intervals are reported.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from ..errors import DataError, SetupError
+from ..inference.band import band_mask
+from ..inference.problem import IdentificationOptions, Problem, build_problem_from_setup
+from ..model.assembly import ConfigurationStack
+from ..model.natural_frequencies import natural_frequency
+from ..params.forward import ForwardModel
+from ..params.terms import get_term, known_terms
+from . import statistical  # noqa: F401  (registers the statistical discrepancy term)
+from .detect import Detection, detect_from_fit
+from .fit import ModelFit, fit_baseline, fit_variant, laplace_draws
+from .screen import ScoreResult, embed_baseline, score_test
+from .select import Refit, decide, gap, refit_candidate, separating_test
+
+__all__ = ["DiscrepancyOptions", "DiscrepancyResult", "run_discrepancy", "write_discrepancy", "validate",
+           "default_candidates", "GAP_METRIC", "MIN_LINES_PER_PARAMETER"]
+
+GAP_METRIC = ("rms_relative_complex_residual: sqrt(sum |H_model - H_measured|^2 / sum |H_measured|^2) over the "
+              "analysis band lines of all measurements of the setup (fitted and held out), at the MAP fit")
+#: The criterion needs at least this many fitted lines per physical parameter of the largest candidate model.
+MIN_LINES_PER_PARAMETER = 10
+
+
+@dataclass(frozen=True)
+class DiscrepancyOptions:
+    """Choices of the workflow.
+
+    Attributes
+    ----------
+    lengths : tuple of float or None
+        m; fit only measurements at these clamping lengths (the others are held out and predicted).
+    candidates : tuple of str or None
+        Candidate term names; default every registered physical term not already in the setup's ``[model]``.
+    seed : int
+    n_refit : int
+        Candidates refitted after screening.
+    leave_one_out : bool
+        Leave-one-length-out transfer check with three or more fitted lengths.
+    """
+
+    lengths: tuple | None = None
+    candidates: tuple | None = None
+    seed: int = 0
+    n_refit: int = 3
+    leave_one_out: bool = True
+
+
+@dataclass
+class DiscrepancyResult:
+    """Everything the workflow found (see :meth:`report` for discrepancy.json)."""
+
+    setup: object
+    options: DiscrepancyOptions
+    baseline: ModelFit
+    detection: Detection
+    scores: list
+    refits: list
+    decision: dict
+    final: ModelFit
+    final_label: str
+    evaluation: dict
+    timing: dict
+    report: dict = field(default_factory=dict)
+
+
+def default_candidates(existing: Sequence[str] = ()) -> tuple[str, ...]:
+    """Every registered physical term (role ``term``) not in ``existing``."""
+    return tuple(n for n in known_terms() if get_term(n).role == "term" and n not in existing)
+
+
+def _existing_terms(setup) -> list[str]:
+    table = getattr(setup, "model_table", None) or setup.extra.get("model") or {}
+    return list(table.get("terms", []) or [])
+
+
+def _options(setup, lengths) -> IdentificationOptions:
+    return IdentificationOptions.from_setup(setup.extra, lengths=lengths)
+
+
+def _problem(setup, base: IdentificationOptions, extra_terms: Sequence[str]) -> Problem:
+    table = dict(getattr(setup, "model_table", None) or setup.extra.get("model") or {})
+    table["terms"] = list(table.get("terms", []) or []) + list(extra_terms)
+    return build_problem_from_setup(setup, replace(base, model=table))
+
+
+def validate(setup, options: DiscrepancyOptions) -> tuple[tuple[str, ...], IdentificationOptions, Problem]:
+    """Check everything that can be checked before any fitting.
+
+    Returns
+    -------
+    candidates, identification options, baseline problem
+
+    Raises
+    ------
+    SetupError
+        An unknown candidate (the message lists the known ones), a candidate already in the
+        setup's ``[model]`` terms, a statistical term given as a candidate.
+    DataError
+        Too few fitted lines for the criterion.
+    """
+    existing = _existing_terms(setup)
+    if options.candidates is None:
+        cands = default_candidates(existing)
+    else:
+        cands = tuple(options.candidates)
+        for c in cands:
+            cls = get_term(c, "--candidates")  # unknown names: SetupError listing the known ones
+            if cls.role != "term":
+                raise SetupError(f"--candidates: {c!r} is a statistical term, not a physical candidate")
+            if c in existing:
+                raise SetupError(f"--candidates: {c!r} is already in the setup's [model] terms {existing}; "
+                                 f"the discrepancy workflow looks for effects the model does not have yet")
+        if len(set(cands)) != len(cands):
+            raise SetupError(f"--candidates: {list(cands)} lists a candidate twice")
+    if not cands:
+        raise SetupError("no candidate terms left to test (all registered terms are in the setup's [model] already)")
+    base_opts = _options(setup, options.lengths)
+    problem = _problem(setup, base_opts, [])
+    n_phys = len(problem.parameters.physical_names)
+    largest = max(len([p for p in get_term(c)().parameters(problem.model) if p.role == "term"]) for c in cands)
+    need = MIN_LINES_PER_PARAMETER * (n_phys + largest)
+    if problem.likelihood.n_lines < need:
+        raise DataError(
+            f"{setup.path}: the fitted measurements have {problem.likelihood.n_lines} band lines; the model "
+            f"comparison needs at least {need} ({MIN_LINES_PER_PARAMETER} per parameter of the largest candidate "
+            f"model, {n_phys + largest} parameters): add measurements or widen the band")
+    return cands, base_opts, problem
+
+
+# -- evaluation at every measurement (fitted and held out) --------------------
+
+
+def _all_stack(problem: Problem):
+    caches, measured, freqs = [], [], []
+    for cfg, frf in problem.all_measurements:
+        mask = band_mask(frf, problem.band_of(frf))
+        f = frf.frequency_hz[mask]
+        caches.append(problem.model.precompute(cfg, f))
+        measured.append(frf.values[mask])
+        freqs.append(f)
+    return ConfigurationStack(caches), measured, freqs
+
+
+def _length_key(length: float) -> str:
+    return f"{length * 1e3:g}"
+
+
+def _quantiles(x: np.ndarray) -> dict:
+    q = np.nanquantile(x, [0.05, 0.5, 0.95]) if np.isfinite(x).any() else [math.nan] * 3
+    return {"q05": float(q[0]), "q50": float(q[1]), "q95": float(q[2])}
+
+
+def evaluate(fit: ModelFit, rng: np.random.Generator, n_draws: int = 200) -> dict:
+    """Gap, natural-frequency errors and stiffness of a fit at every measurement of the setup."""
+    prob = fit.problem
+    stack, measured, freqs = _all_stack(prob)
+    fwd = ForwardModel(prob.parameters, stack, prob.model)
+    pm = prob.parameters
+    draws = laplace_draws(fit, rng, n_draws)
+    h_map = fwd.frf(pm.values(fit.theta[None]))[0]
+    h_draws = np.concatenate([fwd.frf(pm.values(draws[a : a + 64])) for a in range(0, draws.shape[0], 64)])
+    parts = stack.split(h_map)
+    dparts = stack.split(h_draws)
+    meas_all = np.concatenate(measured)
+    per = []
+    by_len: dict[str, list] = {}
+    used = {(o.configuration, o.source) for o in prob.observations}
+    for j, ((cfg, frf), f, hm, hp, hd) in enumerate(zip(prob.all_measurements, freqs, measured, parts, dparts)):
+        f_meas = float(natural_frequency(f, hm))
+        f_map = float(natural_frequency(f, hp))
+        f_draws = natural_frequency(f, hd)
+        err = 100.0 * (f_map - f_meas) / f_meas
+        per.append({"source": frf.source, "clamping_length": cfg.clamping_length, "direction": cfg.direction,
+                    "fitted": (cfg, frf.source) in used, "measured_hz": f_meas, "predicted_hz": f_map,
+                    "predicted_hz_interval": _quantiles(f_draws), "error_pct": err,
+                    "covered_90": bool(np.nanquantile(f_draws, 0.05) <= f_meas <= np.nanquantile(f_draws, 0.95))
+                    if np.isfinite(f_draws).any() else False,
+                    "gap": gap(hm, hp)})
+        by_len.setdefault(_length_key(cfg.clamping_length), []).append(err)
+    lengths = sorted({round(c.clamping_length, 12) for c, _ in prob.all_measurements})
+    vals = pm.values(draws)
+    contact = pm.contact(vals, lengths)
+    c_map = pm.contact(pm.values(fit.theta[None]), lengths)
+    stiff = {
+        "k_xf": {_length_key(l): {**_quantiles(contact.k_xf[:, i]), "map": float(c_map.k_xf[0, i])} for i, l in enumerate(lengths)},
+        "k_thetaM": {_length_key(l): {**_quantiles(contact.k_thetaM[:, i]), "map": float(c_map.k_thetaM[0, i])}
+                     for i, l in enumerate(lengths)},
+    }
+    params = {n: _quantiles(vals[n]) for n in pm.names if pm[n].role in ("term", "discrepancy")}
+    return {"gap": gap(meas_all, h_map), "frequency_error_pct": {k: float(np.mean(v)) for k, v in by_len.items()},
+            "measurements": per, "stiffness": stiff, "term_parameters": params,
+            "frf": {"frequency_hz": freqs, "measured": measured, "predicted": parts}}
+
+
+# -- the loop -----------------------------------------------------------------
+
+
+def _leave_one_length_out(setup, base_opts, problem: Problem, tempering: float) -> list[dict]:
+    lengths = sorted({round(o.configuration.clamping_length, 12) for o in problem.observations})
+    if len(lengths) < 3:
+        return []
+    out = []
+    for left in lengths:
+        keep = tuple(l for l in lengths if l != left)
+        try:
+            p = _problem(setup, replace(base_opts, lengths=keep), [])
+            fit = fit_baseline(p, tempering)
+        except (SetupError, DataError) as exc:
+            out.append({"left_out_mm": left * 1e3, "error": str(exc)})
+            continue
+        stack, measured, freqs = _all_stack(p)
+        fwd = ForwardModel(p.parameters, stack, p.model)
+        h = stack.split(fwd.frf(p.parameters.values(fit.theta[None]))[0])
+        for (cfg, frf), f, hm, hp in zip(p.all_measurements, freqs, measured, h):
+            if abs(cfg.clamping_length - left) < 1e-9:
+                fm, fp = float(natural_frequency(f, hm)), float(natural_frequency(f, hp))
+                out.append({"left_out_mm": left * 1e3, "source": frf.source, "direction": cfg.direction,
+                            "measured_hz": fm, "predicted_hz": fp, "error_pct": 100 * (fp - fm) / fm})
+    return out
+
+
+def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), progress=None) -> DiscrepancyResult:
+    """Run the whole loop on a loaded setup (measurements loaded).
+
+    Parameters
+    ----------
+    setup : Setup
+    options : DiscrepancyOptions
+    progress : callable(str) or None
+        Receives one line per step (the CLI prints them with --verbose, the example always).
+    """
+    say = progress or (lambda s: None)
+    rng_eval, rng_detect, rng_final = np.random.default_rng(options.seed).spawn(3)
+    cands, base_opts, problem = validate(setup, options)
+    t = {}
+    t0 = time.perf_counter()
+    baseline = fit_baseline(problem)
+    t["baseline_fit_s"] = time.perf_counter() - t0
+    say(f"baseline fit: residual correlation {baseline.correlation_length:.1f} lines, tempering beta = "
+        f"{baseline.tempering:.3g}")
+
+    t0 = time.perf_counter()
+    detection = detect_from_fit(baseline, rng_detect)
+    if options.leave_one_out:
+        detection.transfer = _leave_one_length_out(setup, base_opts, problem, baseline.tempering)
+    t["detect_s"] = time.perf_counter() - t0
+    say("detect: " + ("baseline adequate" if detection.adequate else "baseline inadequate: " + "; ".join(detection.reasons)))
+
+    t0 = time.perf_counter()
+    problems = {c: _problem(setup, base_opts, [c]) for c in cands}
+    scores = sorted((score_test(baseline, problems[c], c) for c in cands), key=lambda s: -s.statistic)
+    t["screening_s"] = time.perf_counter() - t0
+    say("screen: " + ", ".join(f"{s.effect} {s.statistic:.3g}" for s in scores))
+
+    t0 = time.perf_counter()
+    refits = [refit_candidate(baseline, problems[s.effect], s) for s in scores[: options.n_refit]]
+    t["refits_s"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    gap_fit = gap(problem.likelihood.data, baseline.model_frf())
+    decision = decide(refits, gap_fit) if not detection.adequate else {
+        **decide(refits, gap_fit), "named": None, "confounded_with": []}
+    t["criterion_s"] = time.perf_counter() - t0
+    named = decision["named"]
+    say("criterion: " + ", ".join(f"{r.effect} {r.criterion:+.1f}" for r in decision["ranked"])
+        + f" -> named: {named}")
+
+    t0 = time.perf_counter()
+    if named is not None:
+        final = next(r.fit for r in refits if r.effect == named)
+        label = named
+    elif not detection.adequate:
+        p = _problem(setup, base_opts, ["statistical_discrepancy"])
+        final = fit_variant("statistical_discrepancy", p, embed_baseline(baseline, p)[None], baseline.tempering, 1)
+        label = "statistical_discrepancy"
+    else:
+        final, label = baseline, "baseline"
+    before = evaluate(baseline, rng_eval)
+    after = evaluate(final, rng_final)
+    t["add_and_show_s"] = time.perf_counter() - t0
+    res = DiscrepancyResult(setup, options, baseline, detection, scores, refits, decision, final, label,
+                            {"before": before, "after": after}, t)
+    res.report = build_report(res)
+    return res
+
+
+def build_report(res: DiscrepancyResult) -> dict:
+    """The content of discrepancy.json (keys of issue #11 first, details after)."""
+    dec = res.decision
+    by_effect = {r.effect: r for r in res.refits}
+    cands = []
+    for r in dec["ranked"]:
+        pm = r.fit.problem.parameters
+        vals = pm.values(laplace_draws(r.fit, np.random.default_rng(res.options.seed), 400))
+        cands.append({"effect": r.effect, "score": r.score.statistic, "criterion": r.criterion,
+                      "parameters": {n: _quantiles(vals[n]) for n in pm.names if pm[n].term == r.effect},
+                      "gap_fitted_lines": r.gap, "score_p_value": r.score.p_value, "description": get_term(r.effect).description})
+    for s in res.scores:  # screened but not refitted: score only
+        if s.effect not in by_effect:
+            cands.append({"effect": s.effect, "score": s.statistic, "criterion": None, "parameters": {},
+                          "score_p_value": s.p_value, "description": get_term(s.effect).description})
+    named = dec["named"]
+    b, a = res.evaluation["before"], res.evaluation["after"]
+    out = {
+        "adequate": bool(res.detection.adequate),
+        "named_effect": named,
+        "confounded_with": list(dec["confounded_with"]),
+        "candidates": cands,
+        "gap_metric": GAP_METRIC,
+        "gap_before": b["gap"],
+        "gap_after": a["gap"],
+        "frequency_error_pct_before": b["frequency_error_pct"],
+        "frequency_error_pct_after": a["frequency_error_pct"],
+        "stiffness_before": b["stiffness"],
+        "stiffness_after": a["stiffness"],
+        # details
+        "final_model": res.final_label,
+        "runner_up": dec["runner_up"],
+        "margin": dec["margin"],
+        "separating_test": {c: separating_test(named, c) for c in dec["confounded_with"]} if named else {},
+        "detection": res.detection.as_dict(),
+        "tempering": res.baseline.tempering,
+        "criterion": "Laplace log evidence of the tempered posterior minus the baseline's (beta = 1/tau_r of the "
+                     "baseline); named when > ln 100 and the fitted-line gap drops by >= 20 %",
+        "measurements_before": b["measurements"],
+        "measurements_after": a["measurements"],
+        "final_parameters": a["term_parameters"],
+        "timing_s": res.timing,
+        "seed": res.options.seed,
+    }
+    return out
+
+
+# -- files ----------------------------------------------------------------------
+
+
+def amended_setup_document(setup, out_dir: Path, term: str) -> dict:
+    """The user's setup document with ``term`` added to ``[model] terms`` and file names relative to ``out_dir``."""
+    from ..io.tables import load_document
+
+    doc = load_document(setup.path)
+    here = Path(setup.path).parent
+
+    def rel(name: str) -> str:
+        return os.path.relpath(os.path.abspath(here / name), out_dir).replace(os.sep, "/")
+
+    if isinstance(doc.get("spindle"), dict):
+        doc["spindle"] = {k: rel(v) if isinstance(v, str) else v for k, v in doc["spindle"].items()}
+    for m in doc.get("measurement", []) or []:
+        if isinstance(m, dict) and isinstance(m.get("file"), str):
+            m["file"] = rel(m["file"])
+    model = dict(doc.get("model", {}) or {})
+    terms = list(model.get("terms", []) or [])
+    if term in terms:
+        raise SetupError(f"{setup.path}: [model] terms already contains {term!r}")
+    model["terms"] = terms + [term]
+    doc["model"] = model
+    return doc
+
+
+def summary_markdown(report: dict) -> str:
+    """A short summary a machinist can read."""
+    lines = ["# Model check: does the model explain the measurements?", ""]
+    named = report["named_effect"]
+    if report["adequate"]:
+        lines.append("The model explains the measurements: no systematic disagreement was found, so no effect was added.")
+    elif named:
+        desc = next((c["description"] for c in report["candidates"] if c["effect"] == named), "")
+        lines.append(f"**Missing effect found: `{named}`** — {desc}.")
+        params = next((c["parameters"] for c in report["candidates"] if c["effect"] == named), {})
+        for n, q in params.items():
+            lines.append(f"- {n}: {q['q50']:.4g} (90 % interval {q['q05']:.4g} to {q['q95']:.4g})")
+        if report["confounded_with"]:
+            lines.append("")
+            lines.append(f"The data explain this equally well by: {', '.join(report['confounded_with'])}. "
+                         "To tell them apart: " + "; ".join(report["separating_test"].values()) + ".")
+        elif report["runner_up"]:
+            lines.append(f"Next best explanation: `{report['runner_up']}` (behind by {report['margin']:.1f} log units).")
+        lines.append("")
+        lines.append("`setup.amended.toml` adds it to the model; use it for the next `bayes-rcsa identify`.")
+    else:
+        lines.append("The model disagrees with the measurements, and none of the known effects explains it. "
+                     "A statistical discrepancy term was added so that the stiffness and frequency intervals "
+                     "are wider and stay honest. Reasons:")
+        lines += [f"- {r}" for r in report["detection"]["reasons"]]
+    lines += ["", f"Mismatch (gap) before: {100 * report['gap_before']:.1f} %, after: {100 * report['gap_after']:.1f} %", "",
+              "| clamping length (mm) | frequency error before (%) | after (%) |", "|---|---|---|"]
+    for k in report["frequency_error_pct_before"]:
+        lines.append(f"| {k} | {report['frequency_error_pct_before'][k]:+.2f} | {report['frequency_error_pct_after'].get(k, math.nan):+.2f} |")
+    lines += ["", "| clamping length (mm) | k_xf before (N/m) | k_xf after (N/m) |", "|---|---|---|"]
+    for k, q in report["stiffness_before"]["k_xf"].items():
+        qa = report["stiffness_after"]["k_xf"][k]
+        lines.append(f"| {k} | {q['q50']:.3g} [{q['q05']:.3g}, {q['q95']:.3g}] | {qa['q50']:.3g} [{qa['q05']:.3g}, {qa['q95']:.3g}] |")
+    return "\n".join(lines) + "\n"
+
+
+def write_discrepancy(result: DiscrepancyResult, out_dir, plots: bool = True, overwrite: bool = False) -> list[Path]:
+    """Write discrepancy.json, summary.md, plots and (when an effect is named) setup.amended.toml, atomically.
+
+    Everything goes to a temporary sibling directory that is renamed onto ``out_dir`` at the end,
+    so a failure leaves nothing half-written.
+    """
+    import shutil
+
+    from ..io.atomic import begin_directory
+    from ..io.jsonable import dumps_strict
+    from ..io.toml_writer import dump_toml
+
+    out_dir = Path(out_dir)
+    final_dir, tmp = begin_directory(out_dir, overwrite=overwrite)
+    try:
+        names = []
+        if result.decision["named"]:
+            doc = amended_setup_document(result.setup, final_dir, result.decision["named"])
+            (tmp / "setup.amended.toml").write_text(
+                "# The setup with the effect named by `bayes-rcsa discrepancy` added to [model].\n" + dump_toml(doc),
+                encoding="utf-8")
+            names.append("setup.amended.toml")
+        (tmp / "discrepancy.json").write_text(dumps_strict(result.report, indent=2) + "\n", encoding="utf-8")
+        (tmp / "summary.md").write_text(summary_markdown(result.report), encoding="utf-8")
+        names += ["discrepancy.json", "summary.md"]
+        if plots:
+            from .plots import write_plots
+
+            names += write_plots(result, tmp)
+        if final_dir.exists():
+            shutil.rmtree(final_dir)
+        os.replace(tmp, final_dir)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return [final_dir / n for n in names]

@@ -1,0 +1,157 @@
+"""The discrepancy workflow on synthetic-bench campaigns: detect, name, add, show; and its command line.
+
+Data come from the synthetic bench (an independent finite-element model) with
+the hidden effect in the truth and absent from the user's setup.  Every run
+fits two clamping lengths (25, 40 mm) and predicts the other two, with all
+seven built-in candidate effects (reduced version of benchmarks/discrepancy.py,
+whose full naming-rate table is in docs/discrepancy.md).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bayes_rcsa.cli import main as cli_main
+from bayes_rcsa.discrepancy import DiscrepancyOptions, run_discrepancy, write_discrepancy
+from bayes_rcsa.discrepancy.detect import compare_peaks, length_trend, standardised_residuals, systematic_bands
+from bayes_rcsa.io.setup import load_setup
+from bayes_rcsa.synthetic import default_bench_config, generate_campaign, write_campaign
+
+FIT = (0.025, 0.040)
+REQUIRED_KEYS = {"adequate", "named_effect", "confounded_with", "candidates", "gap_metric", "gap_before", "gap_after",
+                 "frequency_error_pct_before", "frequency_error_pct_after", "stiffness_before", "stiffness_after"}
+
+
+def _campaign(tmp_path_factory, effects, seed=0):
+    cfg = default_bench_config(hidden_effects=effects)
+    camp = generate_campaign(cfg, np.random.default_rng(seed))
+    name = "_".join(effects) or "clean"
+    return Path(write_campaign(camp, tmp_path_factory.mktemp(f"{name}{seed}") / "c")), cfg
+
+
+def _register(monkeypatch):
+    """Make sure ``discrepancy`` is a sub-command (until cli/main.py lists it)."""
+    if "discrepancy" not in cli_main.COMMANDS:
+        monkeypatch.setattr(cli_main, "COMMANDS", cli_main.COMMANDS + ("discrepancy",))
+
+
+def _run(path, seed=0, **kw):
+    return run_discrepancy(load_setup(path), DiscrepancyOptions(lengths=FIT, seed=seed, **kw)).report
+
+
+@pytest.mark.parametrize("effect", ["contact_damping", "fluted_section"])
+def test_hidden_effect_is_named_and_the_gap_halves(tmp_path_factory, effect):
+    path, _ = _campaign(tmp_path_factory, {effect: True})
+    r = _run(path)
+    assert r["adequate"] is False
+    assert r["named_effect"] == effect or effect in r["confounded_with"]
+    assert r["gap_after"] <= 0.5 * r["gap_before"]
+    assert r["candidates"][0]["effect"] == r["named_effect"]
+    assert r["candidates"][0]["criterion"] > np.log(100)
+    # the held-out lengths (30, 35 mm) are reported too
+    assert set(r["frequency_error_pct_after"]) == {"25", "30", "35", "40"}
+
+
+def test_tip_mass_named_by_the_cli_with_amended_setup(tmp_path_factory, tmp_path, monkeypatch, capsys):
+    path, cfg = _campaign(tmp_path_factory, {"tip_mass": True})
+    _register(monkeypatch)
+    out = tmp_path / "disc"
+    code = cli_main.main(["discrepancy", str(path), "--out", str(out), "--lengths", "0.025,0.040", "--seed", "0"])
+    assert code == 0
+    assert capsys.readouterr().out.strip().startswith("named tip_mass")
+    r = json.loads((out / "discrepancy.json").read_text())
+    assert REQUIRED_KEYS <= set(r)
+    assert r["named_effect"] == "tip_mass" and r["gap_after"] <= 0.5 * r["gap_before"]
+    tm = r["candidates"][0]["parameters"]["tip_mass_kg"]
+    assert tm["q05"] <= 0.002 <= tm["q95"]  # the true 2 g
+    # the contact stiffness moves back towards the truth (1.8e6 N/m at 25 mm): the baseline bent it to absorb the mass
+    before, after = r["stiffness_before"]["k_xf"]["25"]["q50"], r["stiffness_after"]["k_xf"]["25"]["q50"]
+    assert abs(after - cfg.k_xf) < 0.5 * abs(before - cfg.k_xf)
+    for name in ("summary.md", "frf_before_after.png", "frequency_errors.png", "stiffness_before_after.png"):
+        assert (out / name).stat().st_size > 0
+    amended = load_setup(out / "setup.amended.toml")
+    assert amended.model_table["terms"] == ["tip_mass"]
+    assert len(amended.measurements) == 8 and all(m.frf is not None for m in amended.measurements)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_clean_data_names_nothing(tmp_path_factory, seed):
+    path, _ = _campaign(tmp_path_factory, {}, seed)
+    r = _run(path, seed)
+    assert r["adequate"] is True
+    assert r["named_effect"] is None and r["confounded_with"] == []
+    assert all(c["criterion"] is None or c["criterion"] < np.log(100) for c in r["candidates"])
+
+
+def _cli(argv, monkeypatch, capsys):
+    _register(monkeypatch)
+    code = cli_main.main(["discrepancy", *argv])
+    err = capsys.readouterr().err.strip().splitlines()
+    return code, err
+
+
+def test_cli_bad_input_one_line_exit_2_nothing_written(tmp_path_factory, tmp_path, monkeypatch, capsys):
+    path, _ = _campaign(tmp_path_factory, {}, 5)
+    out = tmp_path / "o"
+    code, err = _cli([str(path), "--out", str(out), "--candidates", "tip_mass,flying_saucer"], monkeypatch, capsys)
+    assert code == 2 and len(err) == 1 and "flying_saucer" in err[0] and "tip_mass" in err[0]
+    assert not out.exists()
+    # a setup whose [model] already has the candidate
+    text = path.read_text()
+    with_term = path.with_name("with_term.toml")
+    with_term.write_text(text + '\n[model]\nterms = ["tip_mass"]\n')
+    code, err = _cli([str(with_term), "--out", str(out), "--candidates", "tip_mass"], monkeypatch, capsys)
+    assert code == 2 and len(err) == 1 and "already" in err[0] and not out.exists()
+    # too few lines for the criterion: one length, a 12 Hz band
+    narrow = path.with_name("narrow.toml")
+    narrow.write_text(text + "\n[likelihood]\nband = [850.0, 862.0]\n")
+    code, err = _cli([str(narrow), "--out", str(out), "--lengths", "0.025"], monkeypatch, capsys)
+    assert code == 2 and len(err) == 1 and "lines" in err[0] and not out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == []  # no temporary or lock files left either
+
+
+# -- pure detection functions ---------------------------------------------------
+
+
+def test_standardised_residuals_have_unit_variance_under_an_adequate_model():
+    rng = np.random.default_rng(3)
+    n = 4000
+    truth = np.exp(1j * np.linspace(0, 3, n))
+    sd = np.full(n, 0.02)
+    meas = truth + sd / np.sqrt(2) * (rng.standard_normal(n) + 1j * rng.standard_normal(n))
+    draws = truth + 0.01 / np.sqrt(2) * (rng.standard_normal((200, n)) + 1j * rng.standard_normal((200, n)))
+    z = standardised_residuals(meas, draws, sd)
+    # E|z|^2 = sd^2 / (sd^2 + var_draws) ~ 0.8 since the draw spread is not in the data; check the formula, 5 % tolerance
+    assert np.mean(np.abs(z) ** 2) == pytest.approx(0.02**2 / (0.02**2 + 0.01**2), rel=0.05)
+
+
+def _sdof(f, fn, zeta, k=1e6):
+    w, wn = 2 * np.pi * f, 2 * np.pi * fn
+    return 1 / (k * (1 - (w / wn) ** 2 + 2j * zeta * w / wn))
+
+
+def test_compare_peaks_classifies_shift_height_and_width():
+    f = np.arange(800.0, 1200.0, 1.0)
+    meas = _sdof(f, 1000.0, 0.01)
+    r = compare_peaks(f, meas, _sdof(f, 1020.0, 0.01))
+    assert r["significant_shift"] and r["frequency_error_pct"] == pytest.approx(2.0, abs=0.05)
+    assert any("too high by" in s for s in r["findings"])
+    r = compare_peaks(f, meas, _sdof(f, 1000.0, 0.02))
+    assert not r["significant_shift"]
+    assert any("too wide" in s for s in r["findings"]) and any("peak too low" in s for s in r["findings"])
+    assert compare_peaks(f, meas, meas)["findings"] == []
+
+
+def test_systematic_bands_and_length_trend():
+    f = np.arange(100.0)
+    z = np.full(100, 0.5 + 0j)
+    z[40:50] = 4.0  # |z|^2 = 16 over ten lines: systematic
+    z[80] = 10.0  # a single outlier line is not a band (moving average of 5 lines is 20.05 > 4 ... only 1-3 lines)
+    bands = systematic_bands(f, z)
+    assert any(lo <= 41 and hi >= 48 for lo, hi, _ in bands)
+    assert length_trend([0.025, 0.03, 0.04], [1.0, 2.0, 4.0])["slope_pct_per_mm"] == pytest.approx(0.2)
+    assert length_trend([0.025, 0.025], [1.0, 2.0]) is None
