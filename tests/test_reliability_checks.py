@@ -174,8 +174,26 @@ def test_swapped_clamping_lengths_warn(tmp_path):
     with pytest.warns(DataWarning) as record:
         load_setup(p)
     messages = [str(w.message) for w in record]
-    assert any("direction x" in m and "falls" in m and "swapped or mislabelled" in m for m in messages), messages
-    assert not any("direction y" in m for m in messages), messages
+    assert len(messages) == 1, messages  # one warning per direction and tool, naming every fall
+    assert messages[0].startswith("direction x, tool tool: the dominant natural frequency falls from 1202.0 Hz "
+                                  "(tip_x_40mm.csv, 25 mm) to 962.0 Hz (tip_x_30mm.csv, 30 mm); from 1076.0 Hz "
+                                  "(tip_x_35mm.csv, 35 mm) to 860.0 Hz (tip_x_25mm.csv, 40 mm)"), messages
+    assert "swapped or mislabelled" in messages[0]
+
+
+def test_cli_prints_a_warning_as_one_line(tmp_path, capsys):
+    from bayes_rcsa.cli.main import main
+
+    d = _copy_example(tmp_path)
+    rec = read_spindle_csv(d / "spindle_x.csv")
+    b = rec.block.copy()
+    b[:, 1, 0] *= 1.25
+    write_spindle_csv(d / "spindle_x.csv", PointReceptance(rec.frequency_hz, b))
+    rc = main(["simulate", str(d / "setup.toml"), "--clamping-length", "0.03", "--kx", "1e7", "--ktheta", "1e5",
+               "--freq", "600,800,50", "--out", str(tmp_path / "h.csv")])
+    err = capsys.readouterr().err
+    assert rc == 0
+    assert err.count("\n") == 1 and err.startswith("bayes-rcsa simulate: warning: ") and "spindle_x.csv" in err, err
 
 
 def test_identical_data_refused_or_flagged():

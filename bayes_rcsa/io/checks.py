@@ -339,14 +339,17 @@ def check_campaign(entries: Sequence[tuple[str, float, str, str, np.ndarray, np.
             continue
         peaks = sorted((cl, name, dominant_frequency(f, v, lo, hi), float(np.median(np.diff(f))) if f.size > 1 else 0.0)
                        for cl, name, f, v in items)
+        falls = []
         for (cl1, n1, f1, d1), (cl2, n2, f2, d2) in zip(peaks, peaks[1:]):
             # Tolerance: a couple of lines (peak picking on noisy data) and 1 % (a mode switch between close peaks).
             tol = max(2.0 * max(d1, d2), 0.01 * f1)
             if cl2 > cl1 and f2 < f1 - tol:
-                out.append(
-                    f"direction {direction}, tool {tool}: the dominant natural frequency falls from {f1:.1f} Hz "
-                    f"({n1}, {1e3 * cl1:g} mm) to {f2:.1f} Hz ({n2}, {1e3 * cl2:g} mm) although a longer clamping "
-                    "length (shorter overhang) raises it: clamping lengths swapped or mislabelled?")
+                falls.append(f"{f1:.1f} Hz ({n1}, {1e3 * cl1:g} mm) to {f2:.1f} Hz ({n2}, {1e3 * cl2:g} mm)")
+        if falls:
+            out.append(
+                f"direction {direction}, tool {tool}: the dominant natural frequency falls from {'; from '.join(falls)} "
+                "although a longer clamping length (shorter overhang) raises it: clamping lengths swapped or "
+                "mislabelled?")
     return out
 
 
