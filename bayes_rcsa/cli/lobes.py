@@ -1,79 +1,94 @@
-"""``bayes-rcsa lobes``: stability lobes from measured FRFs or from posterior draws.
+"""``bayes-rcsa lobes``: stability lobes and a robust operating point from measured FRFs or posterior draws.
 
-Outputs (in ``--out``):
-
-- ``lobes.json``: ``spindle_speed_rpm``, ``depth_limit_m`` {q05, q50, q95}
-  (``null`` where no limit lies inside the analysed range: for ZOA no chatter
-  frequency of the FRF band maps to the speed, for SDM the cut is stable up
-  to the top of the depth grid),
-  ``recommended`` {spindle_speed_rpm, depth_m, p_stable, mrr_index} or
-  ``null``, the cutting conditions, the method and, with ``--tests``, the
-  predicted outcome of each test and the test error (paper's Table 8).
-- ``p_stable.npz``: ``spindle_speed_rpm`` (n_speed,), ``depth_m``
-  (n_depth,), ``p_stable`` (n_speed, n_depth).
-- ``lobes.png``: probability map, its 5/50/95 % contours, the lobe band and
-  the cutting tests (circles stable, crosses chatter).
-
-Cutting-test file (``--tests``): CSV with a header naming the columns
-``spindle_speed_rpm,depth_m,outcome`` (any order, case-insensitive, ``#``
-comments allowed); ``outcome`` is ``stable`` or ``chatter``.  Depths in metres.
+Parsing and printing only; the job lives in :mod:`bayes_rcsa.stability`
+(:func:`~bayes_rcsa.stability.probabilistic.lobes_from_frf_draws`, the FRF
+inputs in :mod:`~bayes_rcsa.stability.posterior_frf`, the files in
+:mod:`~bayes_rcsa.stability.outputs`).  See docs/stability.md.
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
-import io as _io
-import json
-import math
-from pathlib import Path
+import re
+import sys
 
 import numpy as np
 
-from ..errors import DataError, SetupError
+from ..errors import SetupError
 from ._common import parse_float, parse_float_list
 
-__all__ = ["register", "run", "read_cutting_tests", "parse_speeds", "common_frequency_grid"]
+__all__ = ["register", "run", "parse_speeds", "parse_fraction", "parse_coefficient"]
 
 DEFAULT_SPEED_POINTS = 400
+DEFAULT_BUDGET_S = 120.0
+# argparse treats "-790e6" as an option unless told that such strings are numbers
+_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?([±]|\+-)?.*$")
 
 
 def register(subparsers) -> None:
+    from ..stability.methods import STABILITY_METHODS, method_names
+
+    names = method_names()
     p = subparsers.add_parser(
         "lobes",
-        help="milling stability lobes (ZOA or SDM), deterministic or probabilistic",
+        help="milling stability lobes (ZOA or SDM) and a robust operating point",
         description="Compute milling stability lobes from measured tool-point FRFs in X and Y "
         "(--measured-x/--measured-y, deterministic) or from posterior draws of the contact parameters "
-        "(SETUP --posterior, probabilistic).  Writes OUT/lobes.json, OUT/p_stable.npz and OUT/lobes.png.  "
+        "(SETUP --posterior, probabilistic), and recommend the operating point with the largest removal rate "
+        "whose neighbourhood (spindle-speed tolerance, depth margin, cutting-coefficient tolerance) is stable "
+        "with probability >= --level.  Writes OUT/lobes.json, OUT/p_stable.npz and OUT/lobes.png.  "
         "Axis convention: X right, Y up seen from the spindle towards the tool tip, cutter turning clockwise "
-        "in that view; --feed names the machine axis along which the tool advances.",
+        "in that view; --feed names the machine axis along which the tool advances.  Methods: "
+        + "; ".join(f"{n}: {STABILITY_METHODS.get(n).summary}" for n in names) + ".",
     )
+    p._negative_number_matcher = _NUMBER  # accept "--kt -790e6" as a value (then refused with a reason)
     src = p.add_argument_group("dynamics (one of the two modes)")
     src.add_argument("setup", nargs="?", metavar="SETUP", help="setup TOML (posterior mode)")
     src.add_argument("--posterior", metavar="FILE", help="posterior.nc of 'bayes-rcsa identify' (posterior mode)")
     src.add_argument("--clamping-length", metavar="M", help="clamping length in m (posterior mode)")
     src.add_argument("--draws", type=int, default=500, metavar="N", help="posterior draws used (default 500)")
     src.add_argument("--seed", type=int, default=0, help="seed for choosing posterior draws (default 0)")
-    src.add_argument("--measured-x", metavar="FX", help="measured tool-point FRF in X (CSV frequency_hz,real,imag)")
-    src.add_argument("--measured-y", metavar="FY", help="measured tool-point FRF in Y (CSV frequency_hz,real,imag)")
+    src.add_argument("--measured-x", metavar="FX", help="measured tool-point FRF in X (CSV frequency_hz,real,imag or UFF58)")
+    src.add_argument("--measured-y", metavar="FY", help="measured tool-point FRF in Y (CSV frequency_hz,real,imag or UFF58)")
     cut = p.add_argument_group("cutting conditions")
     cut.add_argument("--flutes", type=int, required=True, metavar="N", help="number of teeth")
-    cut.add_argument("--kt", required=True, metavar="PA", help="tangential cutting-force coefficient in Pa (e.g. 790e6)")
+    cut.add_argument("--kt", required=True, metavar="PA[±TOL]",
+                     help="tangential cutting-force coefficient in Pa (e.g. 790e6); an optional tolerance of the "
+                     "cutting-force level, 790e6±5%% (or +-5%%, or ±40e6), scales Kt and Kr together and is part of "
+                     "the recommendation's neighbourhood")
     cut.add_argument("--kr", required=True, metavar="PA", help="radial cutting-force coefficient in Pa (e.g. 230e6)")
+    cut.add_argument("--allow-unusual", action="store_true",
+                     help="proceed (with a warning) when Kt is outside 1e8-1e10 Pa or Kr/Kt outside 0.05-2, "
+                     "the ranges for metals that otherwise stop the run as a likely unit slip")
     cut.add_argument("--immersion", metavar="R", help="radial depth / tool diameter in (0, 1], 1 = slotting")
     cut.add_argument("--angles", metavar="ENTRY,EXIT", help="entry and exit angles in degrees instead of --immersion")
     cut.add_argument("--milling", choices=("down", "up"), default="down", help="down (climb) or up milling (default down)")
     cut.add_argument("--feed", choices=("x", "y"), default="x", help="feed direction (default x; the paper feeds in y)")
     cut.add_argument("--pitch", metavar="DEG,...", help="variable pitch: angle (deg) from each tooth to the one ahead")
-    grid = p.add_argument_group("grid and method")
-    grid.add_argument("--speeds", required=True, metavar="START:STOP[:COUNT]", help=f"spindle speeds in rpm (default COUNT {DEFAULT_SPEED_POINTS})")
-    grid.add_argument("--max-depth", metavar="M", help="largest axial depth in m (map and recommendation limit; default from the lobes)")
+    grid = p.add_argument_group("grid, method and recommendation")
+    grid.add_argument("--speeds", required=True, metavar="START:STOP[:COUNT]",
+                      help=f"spindle speeds in rpm (default COUNT {DEFAULT_SPEED_POINTS}); the recommended speed "
+                      "and its tolerance window stay inside this range")
+    grid.add_argument("--max-depth", metavar="M", help="largest axial depth in m the recommendation may use (machine, "
+                      "tool or power limit; reported as binding_limit when it sets the depth)")
+    grid.add_argument("--flute-length", metavar="M", help="flute length in m (depth limit; posterior mode: "
+                      "default from the setup's fluted tool segments)")
+    grid.add_argument("--speed-tolerance", default="2%", metavar="FRAC",
+                      help="± spindle-speed tolerance of the recommendation, e.g. 2%% or 0.02 (default 2%%)")
+    grid.add_argument("--depth-margin", default="10%", metavar="FRAC",
+                      help="depth margin of the recommendation: P(stable) >= level up to depth x (1 + margin), "
+                      "e.g. 10%% (default)")
     grid.add_argument("--depth-points", type=int, default=200, metavar="N", help="depth levels of the map (default 200)")
-    grid.add_argument("--method", choices=("zoa", "sdm"), default="zoa", help="zero-order approximation or semi-discretisation (default zoa)")
-    grid.add_argument("--intervals", type=int, metavar="M", help="SDM intervals per tooth period (default: 20 per cycle of the highest mode, >= 30)")
+    grid.add_argument("--method", choices=names, default="zoa", help="stability method (default zoa)")
+    grid.add_argument("--intervals", type=int, metavar="M",
+                      help="SDM intervals per tooth period (default: 30 per cycle of the highest mode, >= 30)")
     grid.add_argument("--max-modes", type=int, default=4, metavar="N", help="largest mode count of the SDM modal fit (default 4)")
-    grid.add_argument("--level", default="0.95", metavar="P", help="P(stable) required for the recommended point (default 0.95)")
+    grid.add_argument("--level", default="0.95", metavar="P", help="P(stable) required over the neighbourhood (default 0.95)")
+    grid.add_argument("--budget", default=str(DEFAULT_BUDGET_S), metavar="S",
+                      help=f"run time in s above which the estimate printed before the job comes with advice on "
+                      f"cutting it (default {DEFAULT_BUDGET_S:g})")
     p.add_argument("--tests", metavar="CSV", help="cutting tests: spindle_speed_rpm,depth_m,outcome (stable|chatter)")
+    p.add_argument("--quiet", action="store_true", help="no run-time estimate or progress bar on stderr")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
     p.set_defaults(func=run)
 
@@ -98,11 +113,41 @@ def parse_speeds(text: str, option: str = "--speeds") -> np.ndarray:
     return np.linspace(start, stop, count)
 
 
+def parse_fraction(text: str, option: str, lo: float, hi: float) -> float:
+    """``'2%'`` or ``'0.02'`` -> 0.02, required in [lo, hi]."""
+    t = text.strip()
+    value = parse_float(t[:-1], option) / 100 if t.endswith("%") else parse_float(t, option)
+    if not (lo <= value <= hi):
+        raise SetupError(f"{option} {text!r}: expected a fraction in [{lo:g}, {hi:g}] (e.g. 2% or 0.02)")
+    return value
+
+
+def parse_coefficient(text: str, option: str) -> tuple[float, float]:
+    """``'790e6'``, ``'790e6±5%'``, ``'790e6+-5%'`` or ``'790e6±40e6'`` -> (value Pa, relative tolerance)."""
+    t = text.strip().replace("+-", "±")
+    if "±" not in t:
+        return parse_float(t, option), 0.0
+    base, tol = t.split("±", 1)
+    value = parse_float(base, option)
+    if tol.strip().endswith("%"):
+        rel = parse_float(tol.strip()[:-1], option) / 100
+    else:
+        rel = parse_float(tol, option) / abs(value) if value else float("inf")
+    if not (0 <= rel < 0.5):
+        raise SetupError(f"{option} {text!r}: expected a tolerance below ±50 % (e.g. 790e6±5%)")
+    return value, rel
+
+
 def _cutting(args):
     from ..stability import CuttingConditions
+    from ..stability.plausibility import check_cutting_coefficients
 
-    kt = parse_float(args.kt, "--kt", positive=True)
-    kr = parse_float(args.kr, "--kr")
+    kt, kt_tol = parse_coefficient(args.kt, "--kt")
+    kr, kr_tol = parse_coefficient(args.kr, "--kr")
+    if kr_tol:
+        raise SetupError(f"--kr {args.kr!r}: give the tolerance on --kt; it scales the cutting-force level (Kt and "
+                         "Kr together, Kr/Kt fixed)")
+    warnings = check_cutting_coefficients(kt, kr, allow_unusual=args.allow_unusual)
     if (args.immersion is None) == (args.angles is None):
         raise SetupError("give exactly one of --immersion (radial depth / diameter) and --angles ENTRY,EXIT (deg)")
     kw = {}
@@ -112,84 +157,17 @@ def _cutting(args):
         ang = parse_float_list(args.angles, "--angles")
         if len(ang) != 2:
             raise SetupError(f"--angles {args.angles!r}: expected ENTRY,EXIT in degrees")
-        kw["entry_angle"], kw["exit_angle"] = (math.radians(a) for a in ang)
+        kw["entry_angle"], kw["exit_angle"] = (np.radians(a) for a in ang)
     if args.pitch is not None:
-        kw["pitch_angles"] = tuple(math.radians(a) for a in parse_float_list(args.pitch, "--pitch", positive=True))
-    return CuttingConditions(kt=kt, kr=kr, flutes=args.flutes, milling=args.milling, feed=args.feed, **kw)
+        kw["pitch_angles"] = tuple(float(np.radians(a)) for a in parse_float_list(args.pitch, "--pitch", positive=True))
+    cutting = CuttingConditions(kt=kt, kr=kr, flutes=args.flutes, milling=args.milling, feed=args.feed, **kw)
+    return cutting, kt_tol, warnings
 
 
-def common_frequency_grid(frf_x, frf_y):
-    """Both FRFs on one grid: X's lines inside the overlap, Y interpolated (complex, linear) when grids differ.
-
-    Returns
-    -------
-    frequency_hz (n,), gx (n,), gy (n,)
-    """
-    fx, fy = frf_x.frequency_hz, frf_y.frequency_hz
-    if fx.shape == fy.shape and np.allclose(fx, fy, rtol=1e-12, atol=0):
-        return fx, frf_x.values, frf_y.values
-    lo, hi = max(fx[0], fy[0]), min(fx[-1], fy[-1])
-    keep = (fx >= lo) & (fx <= hi)
-    if keep.sum() < 2:
-        raise DataError(
-            f"{frf_x.source} ({fx[0]:g}-{fx[-1]:g} Hz) and {frf_y.source} ({fy[0]:g}-{fy[-1]:g} Hz) do not share a frequency band"
-        )
-    f = fx[keep]
-    gy = np.interp(f, fy, frf_y.values.real) + 1j * np.interp(f, fy, frf_y.values.imag)
-    return f, frf_x.values[keep], gy
-
-
-def read_cutting_tests(path):
-    """Read a cutting-test CSV.
-
-    Returns
-    -------
-    speed_rpm (n,), depth_m (n,), stable (n,) bool
-    """
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise DataError(f"{path}: not a UTF-8 text file") from None
-    rows = [(i + 1, line) for i, line in enumerate(text.splitlines()) if line.strip() and not line.lstrip().startswith("#")]
-    if not rows:
-        raise DataError(f"{path}: no header row (expected spindle_speed_rpm,depth_m,outcome)")
-    header = [h.strip().lower() for h in next(csv.reader(_io.StringIO(rows[0][1])))]
-    need = ("spindle_speed_rpm", "depth_m", "outcome")
-    missing = [c for c in need if c not in header]
-    if missing:
-        raise DataError(f"{path}: missing column(s) {', '.join(missing)} (header: {','.join(header)})")
-    col = {c: header.index(c) for c in need}
-    speed, depth, stable = [], [], []
-    for lineno, line in rows[1:]:
-        cells = next(csv.reader(_io.StringIO(line)))
-        if len(cells) != len(header):
-            raise DataError(f"{path}:{lineno}: {len(cells)} fields, expected {len(header)}")
-        try:
-            s = float(cells[col["spindle_speed_rpm"]])
-            d = float(cells[col["depth_m"]])
-        except ValueError:
-            raise DataError(f"{path}:{lineno}: spindle_speed_rpm and depth_m must be numbers") from None
-        if not (math.isfinite(s) and s > 0 and math.isfinite(d) and d > 0):
-            raise DataError(f"{path}:{lineno}: expected speed > 0 rpm and depth > 0 m, got {s!r}, {d!r}")
-        o = cells[col["outcome"]].strip().lower()
-        if o not in ("stable", "chatter"):
-            raise DataError(f"{path}:{lineno}: outcome {cells[col['outcome']]!r}, expected 'stable' or 'chatter'")
-        speed.append(s)
-        depth.append(d)
-        stable.append(o == "stable")
-    if not speed:
-        raise DataError(f"{path}: no cutting tests after the header")
-    return np.array(speed), np.array(depth), np.array(stable, dtype=bool)
-
-
-def _finite_list(a):
-    return [float(v) if np.isfinite(v) else None for v in np.asarray(a, dtype=float)]
-
-
-# ------------------------------------------------------------------------------------------
 def _dynamics(args):
-    """FRF draws (n_draws, n_freq) in X and Y, frequency grid, description."""
+    """FRF draws in X and Y (FRFInput)."""
+    from ..stability.posterior_frf import measured_frf_pair, posterior_frf_draws
+
     measured = args.measured_x is not None or args.measured_y is not None
     posterior = args.setup is not None or args.posterior is not None or args.clamping_length is not None
     if measured and posterior:
@@ -197,12 +175,7 @@ def _dynamics(args):
     if measured:
         if args.measured_x is None or args.measured_y is None:
             raise SetupError("measured mode needs both --measured-x and --measured-y")
-        from ..io.frf import read_frf
-
-        fx = read_frf(args.measured_x)
-        fy = read_frf(args.measured_y)
-        f, gx, gy = common_frequency_grid(fx, fy)
-        return f, gx[None], gy[None], {"mode": "measured", "measured_x": str(args.measured_x), "measured_y": str(args.measured_y)}
+        return measured_frf_pair(args.measured_x, args.measured_y)
     if args.setup is None or args.posterior is None or args.clamping_length is None:
         raise SetupError(
             "give --measured-x FX --measured-y FY, or SETUP --posterior FILE --clamping-length M for posterior draws"
@@ -214,201 +187,75 @@ def _dynamics(args):
                                tool=getattr(args, "tool", None))
 
 
-def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_draws: int, rng, tool=None):
-    """Posterior-predictive tool-point FRFs in X and Y at one clamping length.
+def _estimate(impl, frf, speeds, method, budget, quiet: bool) -> None:
+    from ..stability.progress import format_seconds
 
-    The contact parameters are shared by both directions; the spindle
-    receptance is per direction.  The frequency lines are those of the X
-    spindle file inside the range both spindle files cover.
-
-    Returns
-    -------
-    frequency_hz : (n_freq,) Hz
-    hx, hy : (n_draws, n_freq) complex m/N
-    source : dict
-    """
-    from ..io import load_setup
-    from ..model import Configuration
-    from ..posterior.draws import load_posterior
-    from ..posterior.predict import predictive_frf
-    from ..posterior.prediction_outputs import check_prediction_lengths
-
-    setup = load_setup(setup_path, load_data=False, load_spindle=True)
-    for d in ("x", "y"):
-        if d not in setup.spindle:
-            raise SetupError(f"{setup_path}: [spindle] {d} is needed for lobes (both directions are coupled)")
-    if tool is None:
-        if len(setup.tools) != 1:
-            raise SetupError(f"{setup_path}: several tools {sorted(setup.tools)}; the posterior mode needs one")
-        tool = next(iter(setup.tools))
-    draws = load_posterior(posterior_path, setup).subset(n_draws, rng)
-    check_prediction_lengths(draws, setup, [clamping_length])
-    sx, sy = setup.spindle["x"].frequency_hz, setup.spindle["y"].frequency_hz
-    lo, hi = max(sx[0], sy[0]), min(sx[-1], sy[-1])
-    f = sx[(sx >= lo) & (sx <= hi)]
-    model = setup.model()
-    hx = predictive_frf(draws, model, Configuration(clamping_length, "x", tool), f)
-    hy = predictive_frf(draws, model, Configuration(clamping_length, "y", tool), f)
-    source = {
-        "mode": "posterior",
-        "setup": str(setup_path),
-        "posterior": str(posterior_path),
-        "clamping_length_m": clamping_length,
-        "n_draws": int(draws.n_draws),
-        "method": draws.method,
-    }
-    return f, hx, hy, source
-
-
-def _plot(path, res, q, tests, deterministic: bool, title: str) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from ..io.atomic import atomic_path
-
-    n = res.speed_rpm
-    a_mm = res.depth_m * 1e3
-    fig, ax = plt.subplots(figsize=(9, 5.5))
-    mesh = ax.pcolormesh(n, a_mm, res.p_stable.T, shading="nearest", cmap="RdYlGn", vmin=0, vmax=1, alpha=0.75)
-    fig.colorbar(mesh, ax=ax, label="P(stable)")
-    top = a_mm[-1]
-    levels = [v for v in (0.05, 0.5, 0.95) if res.p_stable.min() < v < res.p_stable.max()]
-    if not deterministic and levels:
-        cs = ax.contour(n, a_mm, res.p_stable.T, levels=levels, colors="k", linewidths=0.8)
-        ax.clabel(cs, fmt={v: f"P={v:g}" for v in levels}, fontsize=7)
-    for key, style in ((0.5, "-"), (0.05, "--"), (0.95, ":")):
-        y = np.where(np.isfinite(q[key]), q[key] * 1e3, np.nan)
-        ax.plot(n, np.minimum(y, top * 1.05), style, color="navy", lw=1.2, label=("lobe" if deterministic else f"a_lim q{int(key * 100):02d}"))
-        if deterministic:
-            break
-    if not deterministic:
-        lo = np.where(np.isfinite(q[0.05]), q[0.05] * 1e3, np.nan)
-        hi = np.where(np.isfinite(q[0.95]), q[0.95] * 1e3, np.nan)
-        ax.fill_between(n, np.minimum(lo, top), np.minimum(hi, top), color="navy", alpha=0.15, label="5-95 % band")
-    if res.recommended is not None:
-        ax.plot(res.recommended.spindle_speed_rpm, res.recommended.depth_m * 1e3, "*", ms=14, color="gold", mec="k", label="recommended")
-    if tests is not None:
-        s, d, st = tests
-        ax.plot(s[st], d[st] * 1e3, "o", mfc="none", mec="darkgreen", ms=7, label="test: stable")
-        ax.plot(s[~st], d[~st] * 1e3, "x", color="darkred", ms=7, label="test: chatter")
-    ax.set_xlim(n[0], n[-1])
-    ax.set_ylim(0, top)
-    ax.set_xlabel("spindle speed (rpm)")
-    ax.set_ylabel("axial depth of cut (mm)")
-    ax.set_title(title)
-    ax.legend(loc="upper left", fontsize=8)
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=120)
-    plt.close(fig)
+    est = impl.estimate_seconds(frf.n_draws, speeds.size, frf.frequency_hz.size)
+    if quiet:
+        return
+    print(f"lobes: {method}, {frf.n_draws} draw(s) x {speeds.size} speeds: estimated {format_seconds(est)}",
+          file=sys.stderr)
+    if est > budget:
+        print(f"lobes: that is more than --budget {budget:g} s; to cut it use fewer draws (--draws "
+              f"{max(1, frf.n_draws // 4)} is about 4x faster), a coarser speed grid (START:STOP:{max(2, speeds.size // 2)} "
+              f"halves it)" + ("" if method == "zoa" else ", or --method zoa (seconds; accurate at moderate to "
+                               "full radial immersion, SDM is needed below about 0.3)"), file=sys.stderr)
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..io.atomic import atomic_path, atomic_write_text
-    from ..stability import lobes_from_frf_draws
-    from ..stability.compare import stable_at, test_error
+    from ..stability import Tolerances, lobes_from_frf_draws
+    from ..stability.methods import STABILITY_METHODS, MethodOptions
+    from ..stability.outputs import lobes_document, write_lobes_outputs
+    from ..stability.progress import ProgressBar
+    from ..stability.tests_io import read_cutting_tests
 
-    cutting = _cutting(args)
+    cutting, kt_tol, warnings = _cutting(args)
     speeds = parse_speeds(args.speeds)
     level = parse_float(args.level, "--level", positive=True)
     if level > 1:
         raise SetupError(f"--level {args.level}: expected a probability in (0, 1]")
     max_depth = parse_float(args.max_depth, "--max-depth", positive=True) if args.max_depth is not None else None
+    flute = parse_float(args.flute_length, "--flute-length", positive=True) if args.flute_length is not None else None
+    tol = Tolerances(parse_fraction(args.speed_tolerance, "--speed-tolerance", 0.0, 0.2),
+                     parse_fraction(args.depth_margin, "--depth-margin", 1e-3, 1.0), kt_tol)
+    budget = parse_float(args.budget, "--budget", positive=True)
     if args.depth_points < 2:
         raise SetupError(f"--depth-points {args.depth_points}: expected >= 2")
-    if args.intervals is not None and args.intervals < 2:
-        raise SetupError(f"--intervals {args.intervals}: expected >= 2")
+    if args.max_modes < 1:
+        raise SetupError(f"--max-modes {args.max_modes}: expected >= 1 (the modal fit needs at least one mode)")
+    impl = STABILITY_METHODS.get(args.method, "--method")
+    impl.check(MethodOptions(intervals=args.intervals, max_modes=args.max_modes))
     tests = read_cutting_tests(args.tests) if args.tests is not None else None
-    f, gx, gy, source = _dynamics(args)  # validates before any output is written
+    frf = _dynamics(args)  # validates before any output is written
+    flute = flute if flute is not None else frf.flute_length_m
+    for w in warnings:
+        print(f"bayes-rcsa lobes: warning: {w}", file=sys.stderr)
 
-    res = lobes_from_frf_draws(
-        gx,
-        gy,
-        f,
-        cutting,
-        speeds,
-        method=args.method,
-        level=level,
-        max_depth=max_depth,
-        depth_points=args.depth_points,
-        intervals=args.intervals,
-        max_modes=args.max_modes,
-    )
-    q = res.quantiles
-    deterministic = res.depth_limit_m.shape[0] == 1
-    phi_in, phi_out = cutting.angles
-    out = {
-        "spindle_speed_rpm": [float(v) for v in res.speed_rpm],
-        "depth_limit_m": {"q05": _finite_list(q[0.05]), "q50": _finite_list(q[0.5]), "q95": _finite_list(q[0.95])},
-        "recommended": None
-        if res.recommended is None
-        else {
-            "spindle_speed_rpm": res.recommended.spindle_speed_rpm,
-            "depth_m": res.recommended.depth_m,
-            "p_stable": res.recommended.p_stable,
-            "mrr_index": res.recommended.mrr_index,
-        },
-        "level": level,
-        "method": res.method,
-        "n_draws": int(res.depth_limit_m.shape[0]),
-        "deterministic": deterministic,
-        "depth_grid_m": {"min": float(res.depth_m[0]), "max": float(res.depth_m[-1]), "count": int(res.depth_m.size)},
-        "cutting": {
-            "kt_pa": cutting.kt,
-            "kr_pa": cutting.kr,
-            "flutes": cutting.flutes,
-            "radial_immersion": cutting.radial_immersion,
-            "milling": cutting.milling,
-            "entry_angle_deg": math.degrees(phi_in),
-            "exit_angle_deg": math.degrees(phi_out),
-            "feed": cutting.feed,
-            "pitch_deg": [math.degrees(v) for v in cutting.pitches],
-        },
-        "source": source,
-        "notes": "depth_limit_m quantiles are over draws: q05 is the depth 95 % of the draws consider stable; "
-        "null = no limit inside the analysed range (zoa: no chatter frequency of the FRF band maps to that speed; "
-        "sdm: stable up to the top of the depth grid). mrr_index = depth_m * spindle_speed_rpm.",
-    }
-    if res.recommended is None:
-        out["recommended_note"] = f"no grid point reaches P(stable) >= {level}"
-    if res.modal_fits:
-        fx, fy = res.modal_fits[0]
-        out["modal_fit"] = {
-            d: {
-                "natural_frequency_hz": fit.model.natural_frequency_hz.tolist(),
-                "damping_ratio": fit.model.damping_ratio.tolist(),
-                "stiffness_n_per_m": fit.model.stiffness.tolist(),
-                "rms_relative": fit.rms_relative,
-            }
-            for d, fit in (("x", fx), ("y", fy))
-        }
-    if tests is not None:
-        ts, td, tst = tests
-        per_draw = np.array([stable_at(res.speed_rpm, lim, ts, td) for lim in res.depth_limit_m])
-        p_test = per_draw.mean(axis=0)
-        predicted = p_test >= 0.5
-        out["tests"] = [
-            {"spindle_speed_rpm": float(s), "depth_m": float(d), "outcome": "stable" if o else "chatter", "p_stable": float(p), "predicted": "stable" if pr else "chatter"}
-            for s, d, o, p, pr in zip(ts, td, tst, p_test, predicted)
-        ]
-        out["test_error"] = test_error(predicted, tst)
-
-    outdir = Path(args.out)
-    outdir.mkdir(parents=True, exist_ok=True)
+    _estimate(impl, frf, speeds, args.method, budget, args.quiet)
+    bar = None if args.quiet else ProgressBar(f"lobes: {args.method}")
+    try:
+        res = lobes_from_frf_draws(
+            frf.frf_x, frf.frf_y, frf.frequency_hz, cutting, speeds, method=args.method, level=level,
+            max_depth=max_depth, depth_points=args.depth_points, intervals=args.intervals, max_modes=args.max_modes,
+            tolerances=tol, flute_length=flute, progress=bar,
+        )
+    finally:
+        if bar is not None:
+            bar.close()
+    doc = lobes_document(res, cutting, frf.source, tests, warnings, max_depth=max_depth, flute_length=flute)
     title = f"{cutting.flutes} flutes, {res.method.upper()}, " + (
-        "measured FRFs" if source["mode"] == "measured" else f"{res.depth_limit_m.shape[0]} draws"
+        "measured FRFs" if frf.source["mode"] == "measured" else f"{frf.n_draws} draws"
     )
-    # each file is written atomically; the figure first, as the step most likely to fail
-    _plot(outdir / "lobes.png", res, q, tests, deterministic, title)
-    with atomic_path(outdir / "p_stable.npz") as tmp:
-        with open(tmp, "wb") as fh:
-            np.savez(fh, spindle_speed_rpm=res.speed_rpm, depth_m=res.depth_m, p_stable=res.p_stable)
-    atomic_write_text(outdir / "lobes.json", json.dumps(out, indent=1) + "\n")
+    path = write_lobes_outputs(args.out, res, doc, tests, title, max_depth=max_depth)
     rec = res.recommended
-    msg = f"wrote {outdir / 'lobes.json'}, p_stable.npz, lobes.png"
+    msg = f"wrote {path}, p_stable.npz, lobes.png"
     if rec is not None:
-        msg += f"; recommended {rec.spindle_speed_rpm:.0f} rpm, {rec.depth_m * 1e3:.3f} mm (P(stable) = {rec.p_stable:.2f})"
+        below, above = rec.margin_speed_rpm
+        msg += (f"; recommended {rec.spindle_speed_rpm:.0f} rpm, {rec.depth_m * 1e3:.3f} mm (P(stable) >= "
+                f"{rec.p_stable_neighbourhood:.2f} over ±{100 * tol.speed_rel:g} % speed and +{100 * tol.depth_margin:g} % "
+                f"depth; margins {'-' if below is None else f'{below:.0f}'}/{'-' if above is None else f'{above:.0f}'} rpm, "
+                f"{rec.margin_depth_m * 1e3:.3f} mm; limited by {rec.binding})")
+    else:
+        msg += f"; no recommendation: {res.note}"
     print(msg)
     return 0

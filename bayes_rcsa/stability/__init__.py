@@ -5,7 +5,11 @@
 - :mod:`.modal_fit`      real passive modal models and their fit to FRFs (mode count by BIC)
 - :mod:`.sdm`            first-order semi-discretisation on modal x/y models (vectorised over the grid)
 - :mod:`.timedomain`     time-domain milling simulation (independent check)
-- :mod:`.probabilistic`  P(stable) maps, depth quantiles and recommended operating point from FRF draws
+- :mod:`.methods`        the registry of stability methods (ZOA in :mod:`.zoa`, SDM in :mod:`.sdm_draws`)
+- :mod:`.probabilistic`  P(stable) maps, depth quantiles and lobes from FRF draws
+- :mod:`.recommend`      robust operating point (speed tolerance, depth margin, force tolerance), pockets
+- :mod:`.plausibility`   plausibility of cutting coefficients (unit slips)
+- :mod:`.posterior_frf`, :mod:`.tests_io`, :mod:`.outputs`, :mod:`.plots`: the ``lobes`` job's inputs and outputs
 - :mod:`.compare`        the paper's comparison metrics (Tables 8 and 9)
 
 See docs/stability.md for the theory, conventions and the verification.
@@ -14,15 +18,18 @@ See docs/stability.md for the theory, conventions and the verification.
 from .compare import disagreement, limits_disagreement, stable_at, test_error
 from .cutting import CuttingConditions, directional_matrix, interval_directional_matrices, mean_directional_matrix
 from .modal_fit import ModalFit, ModalModel, fit_modal_model
+from .methods import STABILITY_METHODS, MethodOptions, MethodResult, method_names
 from .probabilistic import (
     ProbabilisticLobes,
-    Recommendation,
+    depth_grid,
     depth_quantiles,
     lobes_from_frf_draws,
     probability_map,
     recommend_operating_point,
 )
-from .sdm import SDMResult, default_intervals, sdm_depth_limit, sdm_stability_map, spectral_radius
+from .recommend import Recommendation, Tolerances, level_limit, recommend
+from .sdm import SDMResult, default_intervals, periodic_dde_radius, sdm_depth_limit, sdm_stability_map, spectral_radius
+from . import sdm_draws as _sdm_draws  # noqa: F401  (registers the "sdm" method)
 from .timedomain import TimeDomainResult, simulate_milling
 from .zoa import ZOAResult, oriented_eigenvalues, zoa_lobes, zoa_minimum_depth
 
@@ -47,6 +54,15 @@ __all__ = [
     "simulate_milling",
     "ProbabilisticLobes",
     "Recommendation",
+    "Tolerances",
+    "recommend",
+    "level_limit",
+    "depth_grid",
+    "STABILITY_METHODS",
+    "MethodOptions",
+    "MethodResult",
+    "method_names",
+    "periodic_dde_radius",
     "lobes_from_frf_draws",
     "probability_map",
     "depth_quantiles",

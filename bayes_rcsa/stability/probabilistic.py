@@ -2,29 +2,33 @@
 
 Every draw d gives a stability limit a_lim,d(Ω) (the *lowest* depth at which
 chatter starts at speed Ω; stable islands above it are disregarded, which
-is the conservative reading of a lobe diagram).  Then
+is the conservative reading of a lobe diagram), computed per speed directly
+by the chosen method of :data:`~bayes_rcsa.stability.methods.STABILITY_METHODS`
+(no depth grid).  Then
 
     P(stable | Ω, a) = #{d : a < a_lim,d(Ω)} / N_draws,
 
 which is non-increasing in a by construction.  Its 5/50/95 % contours in
 depth are the 95/50/5 % quantiles of a_lim over the draws: ``q05`` is the
 depth that 95 % of the draws consider stable.  The recommended operating
-point maximises the material removal rate, proportional to a·n at fixed
-radial depth and feed per tooth, over the grid points with
-P(stable) >= ``level`` inside the user's speed and depth limits.
+point (:mod:`.recommend`) is robust: P(stable) >= ``level`` over a
+spindle-speed tolerance, a depth margin and optionally a cutting-force
+tolerance, computed from the limits themselves.  The depth grid of the
+P(stable) map (for plots and the ``.npz`` file) is sized from the limits
+that matter for the recommendation, so the recommended point and the lobe
+tips it sits under lie inside it.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import SetupError
 from .cutting import CuttingConditions
-from .modal_fit import fit_modal_model
-from .sdm import sdm_stability_map
-from .zoa import zoa_lobes
+from .methods import STABILITY_METHODS, MethodOptions, method_names
+from .recommend import Recommendation, Tolerances, level_limit, recommend
 
 __all__ = [
     "ProbabilisticLobes",
@@ -33,28 +37,10 @@ __all__ = [
     "depth_quantiles",
     "recommend_operating_point",
     "lobes_from_frf_draws",
-    "auto_depth_grid",
+    "depth_grid",
 ]
 
 QUANTILES = (0.05, 0.5, 0.95)
-
-
-@dataclass(frozen=True)
-class Recommendation:
-    """Operating point with the largest a·n among grid points with P(stable) >= level.
-
-    Attributes
-    ----------
-    spindle_speed_rpm : float, rpm
-    depth_m : float, m
-    p_stable : float
-    mrr_index : float, m·rpm (a_p n; MRR = a_p a_e f_z N n is proportional to it)
-    """
-
-    spindle_speed_rpm: float
-    depth_m: float
-    p_stable: float
-    mrr_index: float
 
 
 @dataclass(frozen=True)
@@ -68,10 +54,14 @@ class ProbabilisticLobes:
     p_stable : (n_speed, n_depth) probability of stability
     depth_limit_m : (n_draws, n_speed) m, per-draw limit (+inf: no chatter found)
     quantiles : dict float -> (n_speed,) m, depth-limit quantiles over the draws (0.05, 0.5, 0.95)
-    recommended : Recommendation or None (no grid point reaches the level)
+    recommended : Recommendation or None (robust; None when no admissible speed reaches the level)
     level : float
     method : str
     modal_fits : list of (ModalFit x, ModalFit y) per draw (SDM only, else empty)
+    pointwise : Recommendation or None, the optimum without tolerance or margin (for comparison)
+    alternatives : list of dict, best robust point of each of the three largest stable pockets
+    note : str, why there is no recommendation (else "")
+    method_info : dict, details reported by the method
     """
 
     speed_rpm: np.ndarray
@@ -83,6 +73,10 @@ class ProbabilisticLobes:
     level: float
     method: str
     modal_fits: list
+    pointwise: Recommendation | None = None
+    alternatives: list = field(default_factory=list)
+    note: str = ""
+    method_info: dict = field(default_factory=dict)
 
 
 def probability_map(depth_limit_m, depth_m, chunk: int = 64) -> np.ndarray:
@@ -133,7 +127,10 @@ def depth_quantiles(depth_limit_m, quantiles=QUANTILES) -> dict:
 def recommend_operating_point(
     speed_rpm, depth_m, p_stable, level: float = 0.95, speed_limits=None, max_depth=None
 ) -> Recommendation | None:
-    """Grid point maximising a·n subject to P(stable) >= level and the limits.
+    """Point-wise grid optimum: the grid point maximising a·n subject to P(stable) >= level and the limits.
+
+    No tolerance or margin (see :func:`~bayes_rcsa.stability.recommend.recommend` for the robust
+    recommendation); kept for maps computed elsewhere.
 
     Parameters
     ----------
@@ -162,25 +159,37 @@ def recommend_operating_point(
     if not np.any(ok):
         return None
     i, j = np.unravel_index(int(np.argmax(score)), score.shape)
-    return Recommendation(float(n[i]), float(a[j]), float(p[i, j]), float(n[i] * a[j]))
+    return Recommendation(float(n[i]), float(a[j]), float(p[i, j]), float(n[i] * a[j]),
+                          tolerances=Tolerances(0.0, 1.0, 0.0))
 
 
-def auto_depth_grid(depth_limit_m, points: int = 200) -> np.ndarray:
-    """Default depth grid: ``points`` levels up to 1.2 x the 90th percentile over speeds of the median limit.
+def depth_grid(depth_limit_m, level: float, points: int = 200, recommended: Recommendation | None = None,
+               max_depth: float | None = None) -> np.ndarray:
+    """Depth grid of the P(stable) map, (points,) m, from top/points to top.
 
-    The percentile keeps the isolated tall peaks of the first lobes from
-    stretching the grid while showing the lobes and their pockets.
+    ``top`` is 1.25 x the highest finite depth below which P(stable) >= level at some speed
+    (the lobe tips the recommendation is chosen under), at least 1.25 x the checked
+    neighbourhood of the recommended point, and at most 1.1 x ``max_depth``: the recommended
+    point and the tips lie strictly inside.
 
     Raises
     ------
     SetupError
-        When no finite limit exists (no chatter in the FRF band at any speed).
+        When no finite limit exists (no chatter in the analysed range at any speed) and no max_depth is given.
     """
+    a_lvl = level_limit(depth_limit_m, level)
     q50 = depth_quantiles(depth_limit_m, (0.5,))[0.5]
-    finite = q50[np.isfinite(q50)]
-    if finite.size == 0:
-        raise SetupError("no chatter limit found at any speed inside the FRF band; give the depth range explicitly")
-    top = 1.2 * float(np.quantile(finite, 0.9))
+    finite = np.concatenate([a_lvl[np.isfinite(a_lvl)], q50[np.isfinite(q50)]])
+    if finite.size == 0 and max_depth is None:
+        raise SetupError("no chatter limit found at any speed inside the analysed range; give --max-depth")
+    top = 1.25 * float(np.max(a_lvl[np.isfinite(a_lvl)], initial=0.0))
+    if recommended is not None:
+        top = max(top, 1.25 * recommended.depth_checked_m if np.isfinite(recommended.depth_checked_m)
+                  else 1.25 * recommended.depth_m)
+    if top <= 0:
+        top = 1.25 * float(np.max(finite, initial=0.0))
+    if max_depth is not None:
+        top = min(top, 1.1 * max_depth) if top > 0 else 1.1 * max_depth
     return np.linspace(top / points, top, points)
 
 
@@ -208,68 +217,69 @@ def lobes_from_frf_draws(
     depth_points: int = 200,
     intervals=None,
     max_modes: int = 4,
+    tolerances: Tolerances | None = None,
+    flute_length: float | None = None,
+    progress=None,
 ) -> ProbabilisticLobes:
-    """Probabilistic stability lobes from draws of the tool-point FRFs in X and Y.
+    """Probabilistic stability lobes and a robust recommendation from draws of the tool-point FRFs in X and Y.
 
     Parameters
     ----------
     frf_x_draws, frf_y_draws : (n_draws, n_freq) complex, m/N (one draw: (n_freq,) also accepted)
     frequency_hz : (n_freq,) Hz
     cutting : CuttingConditions
-    speeds_rpm : (n_speed,) rpm, increasing
+    speeds_rpm : (n_speed,) rpm, increasing; the analysed range (a user limit of the recommendation)
     depths_m : (n_depth,) m or None
-        Grid of the probability map; default ``depth_points`` levels up to
-        ``max_depth`` or, without it, :func:`auto_depth_grid` from the ZOA limits.
-    method : {"zoa", "sdm"}
-        "zoa": zero-order approximation directly on the FRFs (fast path).
-        "sdm": modal fit of each draw (:func:`~bayes_rcsa.stability.modal_fit.fit_modal_model`)
-        and semi-discretisation on (speeds x depths); the per-draw limit is the
-        first crossing on the depth grid.
-    level : float, P(stable) required for the recommendation
-    max_depth : float or None, m, depth limit of the recommendation (and of the default grid)
+        Grid of the probability map only; default :func:`depth_grid` (``depth_points`` levels).
+    method : a name of :data:`~bayes_rcsa.stability.methods.STABILITY_METHODS` ("zoa", "sdm")
+    level : float, P(stable) required over the recommendation's neighbourhood
+    max_depth : float or None, m, user depth limit of the recommendation
+    depth_points : int, levels of the default map grid
     intervals : SDM intervals per tooth period (default rule of :mod:`.sdm`)
     max_modes : int, largest mode count of the SDM modal fits
+    tolerances : Tolerances or None (default ±2 % speed, 10 % depth margin)
+    flute_length : float or None, m, the tool's flute length (depth limit)
+    progress : callable(fraction) or None
 
     Returns
     -------
     ProbabilisticLobes
     """
-    if method not in ("zoa", "sdm"):
-        raise SetupError(f"method={method!r}: expected 'zoa' or 'sdm'")
+    names = method_names()
+    if method not in names:
+        raise SetupError(f"method={method!r}: expected one of {', '.join(names)}")
+    impl = STABILITY_METHODS.get(method)
+    options = MethodOptions(intervals=intervals, max_modes=max_modes)
+    impl.check(options)
     gx, gy, f = _check_draws(frf_x_draws, frf_y_draws, frequency_hz)
     speeds = np.asarray(speeds_rpm, dtype=float)
-    zoa = None
-    if method == "zoa" or depths_m is None:
-        zoa = zoa_lobes(gx, gy, f, cutting, speeds).depth_limit_m
-    if depths_m is None:
-        if max_depth is not None:
-            depths = np.linspace(max_depth / depth_points, max_depth, depth_points)
-        else:
-            depths = auto_depth_grid(zoa, depth_points)
-    else:
+    if speeds.ndim != 1 or speeds.size < 2 or np.any(speeds <= 0) or np.any(np.diff(speeds) <= 0):
+        raise SetupError("speeds_rpm must be a strictly increasing 1-D array of >= 2 positive speeds")
+    if depths_m is not None:
         depths = np.asarray(depths_m, dtype=float)
         if depths.ndim != 1 or np.any(depths <= 0) or np.any(np.diff(depths) <= 0):
             raise SetupError("depths_m must be a strictly increasing 1-D array of positive depths")
-    fits = []
-    if method == "zoa":
-        limits = zoa
-    else:
-        limits = np.empty((gx.shape[0], speeds.size))
-        for d in range(gx.shape[0]):  # each draw needs its own modal fit; the SDM grid is vectorised
-            fx = fit_modal_model(f, gx[d], max_modes=max_modes, source=f"draw {d} X")
-            fy = fit_modal_model(f, gy[d], max_modes=max_modes, source=f"draw {d} Y")
-            fits.append((fx, fy))
-            limits[d] = sdm_stability_map(fx.model, fy.model, cutting, speeds, depths, intervals=intervals).depth_limit_m
+    result = impl.depth_limits(gx, gy, f, cutting, speeds, options, progress)
+    limits = np.atleast_2d(result.depth_limit_m)
+    if np.any(np.isnan(limits)):
+        raise SetupError("depth limits contain NaN; cannot form a probability of stability")
+    rec = recommend(speeds, limits, level, tolerances, max_depth=max_depth, flute_length=flute_length,
+                    limits_at=result.limits_at)
+    if depths_m is None:
+        depths = depth_grid(limits, level, depth_points, rec["recommended"], max_depth)
     p = probability_map(limits, depths)
-    rec = recommend_operating_point(speeds, depths, p, level=level, max_depth=max_depth)
     return ProbabilisticLobes(
         speed_rpm=speeds,
         depth_m=depths,
         p_stable=p,
         depth_limit_m=limits,
         quantiles=depth_quantiles(limits),
-        recommended=rec,
+        recommended=rec["recommended"],
         level=level,
         method=method,
-        modal_fits=fits,
+        modal_fits=result.modal_fits,
+        pointwise=rec["pointwise"],
+        alternatives=rec["alternatives"],
+        note=rec["note"],
+        method_info=result.info,
     )

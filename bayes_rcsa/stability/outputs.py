@@ -1,0 +1,117 @@
+"""The files of the lobes job: ``lobes.json``, ``p_stable.npz`` and ``lobes.png``.
+
+``lobes.json`` keys:
+
+- ``spindle_speed_rpm`` (n_speed,), ``depth_limit_m`` {q05, q50, q95} (``null`` where no limit lies
+  inside the analysed range: ZOA - no chatter frequency of the FRF band maps to the speed; SDM - the
+  cut is still stable far above the zero-order guess);
+- ``recommended``: the robust point (:meth:`Recommendation.as_dict`: speed, depth, P(stable) at the
+  point and over its neighbourhood, tolerances, margins in rpm and m, ``binding_limit``) or ``null``
+  with ``recommended_note``;
+- ``pointwise_optimum``: the optimum at P(stable) >= level without tolerance or margin;
+- ``alternatives``: the best robust point of each of the three largest stable pockets;
+- ``level``, ``method``, ``n_draws``, ``deterministic``, ``depth_grid_m`` {min, max, count},
+  ``cutting`` (coefficients, geometry, tolerance), ``source``, ``warnings``, ``modal_fit`` (SDM) and,
+  with cutting tests, ``tests`` and ``test_error``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .compare import stable_at, test_error
+from .plots import plot_lobes
+
+__all__ = ["lobes_document", "write_lobes_outputs"]
+
+_NOTES = ("depth_limit_m quantiles are over draws: q05 is the depth 95 % of the draws consider stable; "
+          "null = no limit inside the analysed range (zoa: no chatter frequency of the FRF band maps to that speed; "
+          "sdm: still stable far above the zero-order guess). mrr_index = depth_m * spindle_speed_rpm. "
+          "The recommended point holds P(stable) >= level over its whole neighbourhood (speed window x depths up "
+          "to depth_checked_m, and cutting-force level within its tolerance); binding_limit names what sets its depth.")
+
+
+def _finite_list(a):
+    return [float(v) if np.isfinite(v) else None for v in np.asarray(a, dtype=float)]
+
+
+def lobes_document(res, cutting, source: dict, tests=None, warnings=(), max_depth=None, flute_length=None) -> dict:
+    """The JSON-able content of ``lobes.json`` for a ProbabilisticLobes result."""
+    q = res.quantiles
+    phi_in, phi_out = cutting.angles
+    rec = res.recommended
+    out = {
+        "spindle_speed_rpm": [float(v) for v in res.speed_rpm],
+        "depth_limit_m": {"q05": _finite_list(q[0.05]), "q50": _finite_list(q[0.5]), "q95": _finite_list(q[0.95])},
+        "recommended": None if rec is None else rec.as_dict(),
+        "pointwise_optimum": None if res.pointwise is None else {
+            "spindle_speed_rpm": res.pointwise.spindle_speed_rpm, "depth_m": res.pointwise.depth_m,
+            "p_stable": res.pointwise.p_stable, "mrr_index": res.pointwise.mrr_index},
+        "alternatives": res.alternatives,
+        "level": res.level,
+        "method": res.method,
+        "n_draws": int(res.depth_limit_m.shape[0]),
+        "deterministic": bool(res.depth_limit_m.shape[0] == 1),
+        "depth_grid_m": {"min": float(res.depth_m[0]), "max": float(res.depth_m[-1]), "count": int(res.depth_m.size)},
+        "depth_limits_m": {"max_depth": max_depth, "flute_length": flute_length},
+        "cutting": {
+            "kt_pa": cutting.kt,
+            "kr_pa": cutting.kr,
+            "flutes": cutting.flutes,
+            "radial_immersion": cutting.radial_immersion,
+            "milling": cutting.milling,
+            "entry_angle_deg": math.degrees(phi_in),
+            "exit_angle_deg": math.degrees(phi_out),
+            "feed": cutting.feed,
+            "pitch_deg": [math.degrees(v) for v in cutting.pitches],
+        },
+        "source": source,
+        "warnings": list(warnings),
+        "notes": _NOTES,
+    }
+    if rec is None:
+        out["recommended_note"] = res.note
+    if res.method_info:
+        out["method_info"] = res.method_info
+    if res.modal_fits:
+        fx, fy = res.modal_fits[0]
+        out["modal_fit"] = {
+            d: {
+                "natural_frequency_hz": fit.model.natural_frequency_hz.tolist(),
+                "damping_ratio": fit.model.damping_ratio.tolist(),
+                "stiffness_n_per_m": fit.model.stiffness.tolist(),
+                "rms_relative": fit.rms_relative,
+            }
+            for d, fit in (("x", fx), ("y", fy))
+        }
+    if tests is not None:
+        ts, td, tst = tests
+        per_draw = np.array([stable_at(res.speed_rpm, lim, ts, td) for lim in res.depth_limit_m])
+        p_test = per_draw.mean(axis=0)
+        predicted = p_test >= 0.5
+        out["tests"] = [
+            {"spindle_speed_rpm": float(s), "depth_m": float(d), "outcome": "stable" if o else "chatter",
+             "p_stable": float(p), "predicted": "stable" if pr else "chatter"}
+            for s, d, o, p, pr in zip(ts, td, tst, p_test, predicted)
+        ]
+        out["test_error"] = test_error(predicted, tst)
+    return out
+
+
+def write_lobes_outputs(outdir, res, document: dict, tests=None, title: str = "", max_depth=None) -> Path:
+    """Write lobes.png, p_stable.npz and lobes.json into ``outdir`` (each atomically; the figure first, as the
+    step most likely to fail).  Returns the path of lobes.json."""
+    from ..io.atomic import atomic_path, atomic_write_text
+
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    plot_lobes(outdir / "lobes.png", res, tests, title, max_depth=max_depth)
+    with atomic_path(outdir / "p_stable.npz") as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, spindle_speed_rpm=res.speed_rpm, depth_m=res.depth_m, p_stable=res.p_stable)
+    atomic_write_text(outdir / "lobes.json", json.dumps(document, indent=1) + "\n")
+    return outdir / "lobes.json"

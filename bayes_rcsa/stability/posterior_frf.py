@@ -1,0 +1,156 @@
+"""Tool-point FRFs for the lobes job: posterior-predictive draws, or a measured X/Y pair.
+
+Posterior mode uses the public API of :mod:`bayes_rcsa.posterior`
+(``load_posterior``, ``predictive_frf``); measured files are read through
+:func:`bayes_rcsa.io.frf.read_frf`, so every check of the readers (format,
+units, passivity) applies to ``lobes --measured-x/--measured-y`` as well.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import DataError, SetupError
+
+__all__ = ["FRFInput", "posterior_frf_draws", "measured_frf_pair", "common_frequency_grid", "flute_length"]
+
+
+class FRFInput:
+    """FRF draws in X and Y on one grid and where they came from.
+
+    Attributes
+    ----------
+    frequency_hz : (n_freq,) Hz
+    frf_x, frf_y : (n_draws, n_freq) complex, m/N
+    source : dict, JSON-able description
+    flute_length_m : float or None, the tool's flute length when known (posterior mode)
+    """
+
+    def __init__(self, frequency_hz, frf_x, frf_y, source: dict, flute_length_m: float | None = None):
+        self.frequency_hz = np.asarray(frequency_hz, dtype=float)
+        self.frf_x = np.atleast_2d(frf_x)
+        self.frf_y = np.atleast_2d(frf_y)
+        self.source = source
+        self.flute_length_m = flute_length_m
+
+    @property
+    def n_draws(self) -> int:
+        return int(self.frf_x.shape[0])
+
+
+def common_frequency_grid(frf_x, frf_y):
+    """Both FRFs on one grid: X's lines inside the overlap, Y interpolated (complex, linear) when grids differ.
+
+    Parameters
+    ----------
+    frf_x, frf_y : FRF (``frequency_hz``, ``values``, ``source``)
+
+    Returns
+    -------
+    frequency_hz (n,), gx (n,), gy (n,)
+    """
+    fx, fy = frf_x.frequency_hz, frf_y.frequency_hz
+    if fx.shape == fy.shape and np.allclose(fx, fy, rtol=1e-12, atol=0):
+        return fx, frf_x.values, frf_y.values
+    lo, hi = max(fx[0], fy[0]), min(fx[-1], fy[-1])
+    keep = (fx >= lo) & (fx <= hi)
+    if keep.sum() < 2:
+        raise DataError(
+            f"{frf_x.source} ({fx[0]:g}-{fx[-1]:g} Hz) and {frf_y.source} ({fy[0]:g}-{fy[-1]:g} Hz) do not share a frequency band"
+        )
+    f = fx[keep]
+    gy = np.interp(f, fy, frf_y.values.real) + 1j * np.interp(f, fy, frf_y.values.imag)
+    return f, frf_x.values[keep], gy
+
+
+def _check_passive(g: np.ndarray, source: str) -> None:
+    """A direct receptance of a passive structure has Im h <= 0 (x = Re{X e^{+iωt}}).
+
+    The readers of :mod:`bayes_rcsa.io` check this too; the lobes job repeats the test because a sign
+    slip turns every lobe upside down and the recommendation into nonsense.  Noise can push single lines
+    near anti-resonances slightly positive, so the test is on the band's dominant part: more than a
+    quarter of the lines, or the largest |Im h|, positive.
+    """
+    im = np.imag(g)
+    worst = int(np.argmax(np.abs(im)))
+    if np.mean(im > 0) > 0.25 or im[worst] > 0:
+        raise DataError(
+            f"{source}: Im h > 0 on {100 * np.mean(im > 0):.0f} % of the lines (largest |Im h| positive: "
+            f"{im[worst] > 0}); a passive direct receptance has Im h <= 0 with x = Re{{X e^(+iwt)}} - the file "
+            "probably uses the other sign convention (imaginary part negated, e^(-iwt)); conjugate it"
+        )
+
+
+def measured_frf_pair(path_x, path_y) -> FRFInput:
+    """Measured tool-point FRFs in X and Y on a common grid (one "draw")."""
+    from ..io.frf import read_frf
+
+    fx = read_frf(path_x)
+    fy = read_frf(path_y)
+    _check_passive(fx.values, str(path_x))
+    _check_passive(fy.values, str(path_y))
+    f, gx, gy = common_frequency_grid(fx, fy)
+    return FRFInput(f, gx[None], gy[None], {"mode": "measured", "measured_x": str(path_x), "measured_y": str(path_y)})
+
+
+def flute_length(tool) -> float | None:
+    """Length (m) of the fluted tip section of a :class:`~bayes_rcsa.model.geometry.Tool`: the leading
+    segments with ``diameter_ratio < 1``; None when the tool has no fluted segment."""
+    total = 0.0
+    for seg in tool.segments:
+        if seg.diameter_ratio >= 1.0:
+            break
+        total += seg.length
+    return total if total > 0 else None
+
+
+def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_draws: int, rng, tool=None) -> FRFInput:
+    """Posterior-predictive tool-point FRFs in X and Y at one clamping length.
+
+    The contact parameters are shared by both directions; the spindle
+    receptance is per direction.  The frequency lines are those of the X
+    spindle file inside the range both spindle files cover.
+
+    Parameters
+    ----------
+    setup_path : path of the setup TOML
+    posterior_path : path of ``posterior.nc``
+    clamping_length : float, m
+    n_draws : int, draws used (a random subset chosen with ``rng``)
+    rng : numpy.random.Generator
+    tool : str or None, tool name (default: the setup's only tool)
+
+    Returns
+    -------
+    FRFInput with (n_draws, n_freq) draws
+    """
+    from ..io import load_setup
+    from ..model import Configuration
+    from ..posterior import load_posterior, predictive_frf
+    from ..posterior.prediction_outputs import check_prediction_lengths
+
+    setup = load_setup(setup_path, load_data=False, load_spindle=True)
+    for d in ("x", "y"):
+        if d not in setup.spindle:
+            raise SetupError(f"{setup_path}: [spindle] {d} is needed for lobes (both directions are coupled)")
+    if tool is None:
+        if len(setup.tools) != 1:
+            raise SetupError(f"{setup_path}: several tools {sorted(setup.tools)}; the posterior mode needs one")
+        tool = next(iter(setup.tools))
+    draws = load_posterior(posterior_path, setup).subset(n_draws, rng)
+    check_prediction_lengths(draws, setup, [clamping_length])
+    sx, sy = setup.spindle["x"].frequency_hz, setup.spindle["y"].frequency_hz
+    lo, hi = max(sx[0], sy[0]), min(sx[-1], sy[-1])
+    f = sx[(sx >= lo) & (sx <= hi)]
+    model = setup.model()
+    hx = predictive_frf(draws, model, Configuration(clamping_length, "x", tool), f)
+    hy = predictive_frf(draws, model, Configuration(clamping_length, "y", tool), f)
+    source = {
+        "mode": "posterior",
+        "setup": str(setup_path),
+        "posterior": str(posterior_path),
+        "clamping_length_m": clamping_length,
+        "n_draws": int(draws.n_draws),
+        "method": draws.method,
+    }
+    return FRFInput(f, hx, hy, source, flute_length(setup.tools[tool]))
