@@ -27,7 +27,7 @@ import numpy as np
 from ..errors import DataError, SetupError
 from ..model.receptance import FRF
 
-__all__ = ["Band", "default_band", "resolve_band", "band_mask", "MIN_LINES"]
+__all__ = ["Band", "default_band", "resolve_band", "band_mask", "band_peak_warning", "MIN_LINES", "PEAK_WINDOW"]
 
 MIN_LINES = 3
 
@@ -117,3 +117,46 @@ def band_mask(frf: FRF, band: Band) -> np.ndarray:
             f"(file covers {f[0]:g}-{f[-1]:g} Hz; at least {MIN_LINES} lines are needed)"
         )
     return mask
+
+
+#: Half-width of the window around the model's predicted tool mode in which the measured peak is sought (relative).
+PEAK_WINDOW = 0.2
+
+
+def band_peak_warning(frf: FRF, band: Band, model_peak_hz: float | None = None) -> str | None:
+    """A warning when the band leaves out the peak that carries the contact information, else ``None``.
+
+    Rule: warn when the band does not contain (a) the largest peak of the
+    measurement (the line of largest ``|H|`` in the file), or (b) the largest
+    measured peak within ``+-PEAK_WINDOW`` (20 %) of ``model_peak_hz``, the
+    model's predicted tool mode at the optimum.  A fit to a band without
+    the tool mode reports a natural frequency and stiffness that describe
+    some other part of the spectrum.
+
+    Parameters
+    ----------
+    frf : FRF
+        The whole measurement.
+    band : Band
+    model_peak_hz : float, optional
+        Frequency of the model's largest ``|H|`` on the measured lines.
+    """
+    f = frf.frequency_hz
+    mag = np.abs(frf.values)
+    inside = lambda x: band.lo_hz <= x <= band.hi_hz  # noqa: E731
+    problems = []
+    top = float(f[int(np.argmax(mag))])
+    if not inside(top):
+        problems.append(f"the measurement's largest peak at {top:.6g} Hz")
+    if model_peak_hz is not None and np.isfinite(model_peak_hz):
+        near = (f >= model_peak_hz * (1 - PEAK_WINDOW)) & (f <= model_peak_hz * (1 + PEAK_WINDOW))
+        if np.any(near):
+            peak = float(f[near][int(np.argmax(mag[near]))])
+            if not inside(peak) and abs(peak - top) > 1e-9 * top:
+                problems.append(f"the measured peak at {peak:.6g} Hz next to the model's tool mode "
+                                f"({model_peak_hz:.6g} Hz at the optimum)")
+    if not problems:
+        return None
+    return (f"{frf.source}: the likelihood band {band.lo_hz:.6g}-{band.hi_hz:.6g} Hz ({band.rule}) leaves out "
+            f"{' and '.join(problems)}; the fit then describes another part of the spectrum, not the tool mode "
+            f"(check --band / [likelihood] band)")

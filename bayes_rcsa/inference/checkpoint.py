@@ -173,8 +173,8 @@ class Checkpoint:
             return None
         return CheckpointState(chain, log_prob, accepted, rs, meta)
 
-    def open(self) -> CheckpointState:
-        """Read the most complete readable copy and repair the other one.
+    def read(self) -> CheckpointState:
+        """The most complete readable copy, without writing anything.
 
         Raises
         ------
@@ -185,14 +185,24 @@ class Checkpoint:
         good = {p: s for p, s in states.items() if s is not None}
         if not good:
             raise SetupError(f"no readable checkpoint at {self.path} (nothing to resume)")
-        best_path = max(good, key=lambda p: good[p].iteration)
-        best = good[best_path]
-        for p in (self.path, self.mirror):
-            s = states.get(p)
-            if p != best_path and (s is None or s.iteration != best.iteration):
+        return good[max(good, key=lambda p: good[p].iteration)]
+
+    def repair(self, best: CheckpointState) -> None:
+        """Make both copies hold ``best`` (call only once the run is known to continue)."""
+        states = {p: self._read(p) if p.exists() else None for p in (self.path, self.mirror)}
+        source = next((p for p, s in states.items() if s is not None and s.iteration == best.iteration), None)
+        if source is None:
+            raise SetupError(f"checkpoint {self.path}: the state to continue from is no longer on disk")
+        for p, s in states.items():
+            if p != source and (s is None or s.iteration != best.iteration):
                 tmp = p.with_name("." + p.name + ".tmp")
-                shutil.copyfile(best_path, tmp)
+                shutil.copyfile(source, tmp)
                 os.replace(tmp, p)
+
+    def open(self) -> CheckpointState:
+        """:meth:`read` the most complete copy and :meth:`repair` the other one."""
+        best = self.read()
+        self.repair(best)
         return best
 
     def finish(self) -> None:

@@ -29,7 +29,7 @@ from ..model.natural_frequencies import NATURAL_FREQUENCY_RULE, natural_frequenc
 from ..params.forward import ForwardModel
 from ..params.model import PARAMETER_MODEL_ATTR, ParameterModel
 from . import results as R
-from .band import band_mask
+from .band import band_mask, band_peak_warning
 from .checkpoint import Checkpoint
 from .deterministic import DeterministicFit, fit_deterministic
 from .likelihood import residual_correlation_length
@@ -162,22 +162,154 @@ def predict_frf(result: IdentificationResult, configuration: Configuration, freq
 # -- the workflow ------------------------------------------------------------
 
 
-def _fingerprint(problem: Problem, seed: int, settings: SamplerSettings, n_walkers: int) -> dict:
+def _sha(*arrays) -> str:
     h = hashlib.sha256()
-    for o in problem.observations:
-        h.update(np.ascontiguousarray(o.frequency_hz).tobytes())
-        h.update(np.ascontiguousarray(o.values).tobytes())
+    for a in arrays:
+        a = np.ascontiguousarray(a if a is not None else np.empty(0))
+        h.update(str(a.dtype).encode() + str(a.shape).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def run_fingerprint(problem: Problem, seed: int, settings: SamplerSettings, n_walkers: int) -> dict:
+    """Everything that changes the log posterior or the chain, for refusing a resume of a different run.
+
+    Keys (each compared separately, so a refusal names what changed):
+    ``method``, ``seed``, ``n_walkers``, ``check_every``; ``geometry`` and
+    ``materials`` of holder and tools; ``spindle`` (the flange receptance
+    data of every direction); ``data`` (frequency, values and coherence of
+    every measurement used); ``band`` (each measurement's band);
+    ``likelihood`` (noise floor, coherence threshold, tempering option);
+    ``parameter_model`` (:meth:`ParameterModel.to_dict`: priors, fixed
+    values, growth law, model terms); ``forward_model`` (a hash of the cached
+    forward-model coefficients on the band lines, which catches any other
+    change of the model).
+    """
+    model = problem.model
+    holder = model.holder
+    tools = sorted(model.tools.items())
+    geometry = repr([[(s.length, s.outer_diameter, s.inner_diameter) for s in holder.segments]]
+                    + [[name, t.total_length, [(s.length, s.diameter, s.diameter_ratio) for s in t.segments]]
+                       for name, t in tools])
+    materials = repr([holder.material] + [t.material for _, t in tools])
+    spindle = {d: _sha(r.frequency_hz, r.block) for d, r in sorted(model.spindle.items())}
+    obs = problem.observations
+    stack = problem.likelihood.stack
+    lik = problem.likelihood
     return {
         "method": problem.method,
-        "names": list(problem.parameters.names),
         "seed": int(seed),
         "n_walkers": int(n_walkers),
         "check_every": int(settings.check_every),
-        "data_sha256": h.hexdigest(),
-        "lengths": [o.configuration.clamping_length for o in problem.observations],
-        "priors": problem.priors.describe(),
-        "fixed": dict(problem.parameters.fixed),
+        "geometry": hashlib.sha256(geometry.encode()).hexdigest(),
+        "materials": hashlib.sha256(materials.encode()).hexdigest(),
+        "spindle": spindle,
+        "data": [_sha(o.frequency_hz, o.values, o.coherence) for o in obs],
+        "lengths": [o.configuration.clamping_length for o in obs],
+        "band": [[o.band.lo_hz, o.band.hi_hz] for o in obs],
+        "likelihood": {"noise_floor": lik.noise.floor, "min_coherence": lik.noise.min_coherence,
+                       "tempering": problem.options.tempering},
+        "parameter_model": problem.parameters.to_dict(),
+        "forward_model": stack.cache_digest(),
     }
+
+
+_FINGERPRINT_LABELS = {
+    "method": "the method", "seed": "--seed", "n_walkers": "the number of walkers", "check_every": "check_every",
+    "geometry": "the holder/tool geometry", "materials": "the materials", "spindle": "the spindle data",
+    "data": "a measurement file's content", "lengths": "the clamping lengths", "band": "the likelihood band",
+    "likelihood": "the [likelihood] options", "parameter_model": "the priors, fixed values or [model] terms",
+    "forward_model": "the forward model",
+}
+
+
+@dataclass(frozen=True)
+class _Startup:
+    """Results of the start-up stage: optimum, walker centre and tempering."""
+
+    optimum: Optimum
+    x0: np.ndarray
+    beta: float
+    tau_r: float
+
+
+def _resume_state(ckpt: Checkpoint | None, checkpoint_path, fingerprint: dict):
+    """Step 1: the checkpoint to continue, after checking that it belongs to this run.
+
+    Reads without writing anything (a refused resume leaves the directory as
+    it was), then restores a damaged copy from the good one.
+    """
+    if ckpt is None or not ckpt.exists():
+        raise SetupError(f"--resume: no checkpoint found at {checkpoint_path}")
+    state = ckpt.read()
+    stored = state.meta.get("fingerprint", {})
+    if stored != fingerprint:
+        changed = [k for k in fingerprint if stored.get(k) != fingerprint[k]]
+        what = ", ".join(_FINGERPRINT_LABELS.get(k, k) for k in changed) or "its format"
+        raise SetupError(f"--resume: the checkpoint {checkpoint_path} belongs to a different run: {what} changed since "
+                         f"it was written (start a new run without --resume, or use another --out)")
+    ckpt.repair(state)
+    return state
+
+
+def _startup(problem: Problem, lp_full: LogPosterior, state) -> _Startup:
+    """Step 2: global optimum, walker centre and tempering (or the stored ones when resuming)."""
+    start = _check_start(problem)
+    if state is not None:
+        meta = state.meta
+        optimum = Optimum(np.array(meta["optimum"]), float(meta["optimum_log_posterior"]), 0, True, "from checkpoint")
+        beta, tau_r = float(meta["tempering"]), float(meta["residual_correlation"])
+    else:
+        optimum = find_optimum(lp_full)
+        z = problem.likelihood.normalised_residuals(optimum.x)
+        tau_r = residual_correlation_length(z, problem.likelihood.stack.slices)
+        t = problem.options.tempering
+        beta = 1.0 / tau_r if t == "auto" else float(t)
+    x0 = optimum.x.copy()
+    for j, value in start.items():
+        x0[j] = value
+    return _Startup(optimum, x0, beta, tau_r)
+
+
+def _sample(problem: Problem, lp: LogPosterior, startup: _Startup, settings: SamplerSettings, n_walkers: int,
+            fingerprint: dict, ckpt: Checkpoint | None, state, rng_init, rng_mcmc) -> ChainResult:
+    """Step 3: the emcee run, new or continued.
+
+    A checkpoint with no stored step (killed right after the start-up) is
+    continued as a new run from its stored start-up results, which gives the
+    same chain as an uninterrupted run.
+    """
+    from .diagnostics import chain_diagnostics
+
+    initial = None
+    if state is None or state.iteration == 0:
+        initial = initial_ensemble(lp, startup.x0, rng_init, n_walkers)
+        if ckpt is not None and state is None:
+            ckpt.create(n_walkers, problem.parameters.ndim, {
+                "fingerprint": fingerprint, "tempering": startup.beta, "residual_correlation": startup.tau_r,
+                "optimum": startup.optimum.x.tolist(), "optimum_log_posterior": startup.optimum.log_posterior,
+            })
+        state = None
+    chain = run_ensemble(lp, settings, initial=initial, rng=rng_mcmc, checkpoint=ckpt, resume_state=state,
+                         diagnose=chain_diagnostics)
+    if ckpt is not None:
+        ckpt.finish()
+    return chain
+
+
+def _thin(chain: ChainResult, max_draws: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """Step 4: burn-in, tau-based thinning and a further even thinning to at most ``max_draws``.
+
+    Returns
+    -------
+    theta : (n_walkers, n_draws, ndim), log_prob : (n_walkers, n_draws), extra : int (the further thinning)
+    """
+    kept = chain.chain[chain.burn :: chain.thin]  # (n_keep, n_walkers, ndim)
+    kept_lp = chain.log_prob[chain.burn :: chain.thin]
+    extra = max(1, math.ceil(kept.shape[0] * kept.shape[1] / max_draws))
+    theta = np.ascontiguousarray(kept[::extra].transpose(1, 0, 2))
+    log_prob = np.ascontiguousarray(kept_lp[::extra].T)
+    return theta, log_prob, extra
 
 
 def _evaluation_stack(problem: Problem):
@@ -226,6 +358,51 @@ def _predicted_natural_frequencies(problem: Problem, stack: ConfigurationStack, 
         for j, (part, cache) in enumerate(zip(stack.split(h), stack.caches)):
             out[a : a + batch, j] = natural_frequency(cache.frequency_hz, part)
     return out
+
+
+def _model_on_measurements(problem: Problem, theta: np.ndarray) -> list[tuple]:
+    """(frf, lines, model FRF (n_lines,)) of every used measurement at one parameter vector, on its own lines.
+
+    The lines are the measurement's inside the spindle data (where the model exists).
+    """
+    pm = problem.parameters
+    values = pm.values(np.atleast_2d(theta)[:1])
+    out = []
+    for cfg, frf in problem.measurements:
+        sf = problem.model.spindle_receptance(cfg.direction).frequency_hz
+        keep = (frf.frequency_hz >= sf[0]) & (frf.frequency_hz <= sf[-1])
+        f = frf.frequency_hz[keep]
+        if f.size < 3:
+            continue
+        stack = ConfigurationStack([problem.model.precompute(cfg, f)])
+        out.append((frf, keep, ForwardModel(pm, stack, problem.model).frf(values)[0]))
+    return out
+
+
+def _fit_checks(problem: Problem, theta: np.ndarray) -> tuple[list[str], dict[int, str]]:
+    """Band-peak warnings and likely causes of a gross misfit (units, sign) at the optimum ``theta``.
+
+    Returns
+    -------
+    warnings : list of str
+        :func:`.band.band_peak_warning` of every used measurement.
+    causes : dict measurement index -> str
+        :func:`bayes_rcsa.io.checks.likely_cause` of the measurement against the model at ``theta``.
+    """
+    from ..io.checks import likely_cause
+
+    warnings, causes = [], {}
+    index = {id(frf): j for j, (_, frf) in enumerate(problem.measurements)}
+    for frf, keep, h in _model_on_measurements(problem, theta):
+        j = index[id(frf)]
+        peak = float(frf.frequency_hz[keep][int(np.argmax(np.abs(h)))])
+        w = band_peak_warning(frf, problem.observations[j].band, peak)
+        if w:
+            warnings.append(w)
+        cause = likely_cause(frf.values[keep], h)
+        if cause:
+            causes[j] = cause
+    return warnings, causes
 
 
 def _common_summary(problem: Problem, seed: int) -> dict:
@@ -300,6 +477,11 @@ def identify(
 ) -> IdentificationResult:
     """Run the identification.
 
+    Steps (each a function of this module): resume check and fingerprint
+    (:func:`run_fingerprint`, ``_resume_state``), start-up optimum and
+    tempering (``_startup``), sampling (``_sample``), thinning (``_thin``),
+    summary (``_summarise``).
+
     Parameters
     ----------
     problem : Problem
@@ -319,8 +501,8 @@ def identify(
     Raises
     ------
     SetupError
-        Resuming without a checkpoint or with one from a different run; a
-        walker start outside the prior.
+        Resuming without a checkpoint or with one from a different run (the
+        message names what changed); a walker start outside the prior.
     """
     t_start = time.perf_counter()
     # a fourth child leaves the first three streams (and so earlier results) unchanged
@@ -330,66 +512,36 @@ def identify(
 
     lp_full = LogPosterior(problem.priors, problem.likelihood)
     n_walkers = settings.walkers(problem.parameters.ndim)
-    fingerprint = _fingerprint(problem, seed, settings, n_walkers)
+    fingerprint = run_fingerprint(problem, seed, settings, n_walkers)
     ckpt = Checkpoint(checkpoint_path) if checkpoint_path is not None else None
-    warnings: list[str] = []
-    optimum = None
-    resume_state = None
-    initial = None
-    if resume:
-        if ckpt is None or not ckpt.exists():
-            raise SetupError(f"--resume: no checkpoint found at {checkpoint_path}")
-        resume_state = ckpt.open()
-        meta = resume_state.meta
-        if meta.get("fingerprint") != fingerprint:
-            diff = sorted(k for k in fingerprint if meta.get("fingerprint", {}).get(k) != fingerprint[k])
-            raise SetupError(f"--resume: the checkpoint {checkpoint_path} belongs to a different run (differs in {diff})")
-        beta, tau_r = float(meta["tempering"]), float(meta["residual_correlation"])
-        optimum = Optimum(np.array(meta["optimum"]), float(meta["optimum_log_posterior"]), 0, True, "from checkpoint")
-    else:
-        start = _check_start(problem)
-        optimum = find_optimum(lp_full)
-        x0 = optimum.x.copy()
-        for j, value in start.items():
-            x0[j] = value
-        z = problem.likelihood.normalised_residuals(optimum.x)
-        tau_r = residual_correlation_length(z, problem.likelihood.stack.slices)
-        t = problem.options.tempering
-        beta = 1.0 / tau_r if t == "auto" else float(t)
-    lp = lp_full.with_likelihood(problem.likelihood.with_tempering(beta))
-    if not resume:
-        initial = initial_ensemble(lp, x0, rng_init, n_walkers)
-        if ckpt is not None:
-            ckpt.create(n_walkers, problem.parameters.ndim, {
-                "fingerprint": fingerprint, "tempering": beta, "residual_correlation": tau_r,
-                "optimum": optimum.x.tolist(), "optimum_log_posterior": optimum.log_posterior,
-            })
-    from .diagnostics import chain_diagnostics
+    state = _resume_state(ckpt, checkpoint_path, fingerprint) if resume else None
+    startup = _startup(problem, lp_full, state)
+    lp = lp_full.with_likelihood(problem.likelihood.with_tempering(startup.beta))
+    chain = _sample(problem, lp, startup, settings, n_walkers, fingerprint, ckpt, state, rng_init, rng_mcmc)
+    theta, log_prob, extra = _thin(chain, max_draws)
+    return _summarise(problem, seed, settings, spindle_samples, rng_spindle, t_start, lp_full, lp, startup, chain,
+                      theta, log_prob, extra, n_walkers)
 
-    chain = run_ensemble(lp, settings, initial=initial, rng=rng_mcmc, checkpoint=ckpt, resume_state=resume_state,
-                         diagnose=chain_diagnostics)
-    if ckpt is not None:
-        ckpt.finish()
 
-    kept = chain.chain[chain.burn :: chain.thin]  # (n_keep, n_walkers, ndim)
-    kept_lp = chain.log_prob[chain.burn :: chain.thin]
-    extra = max(1, math.ceil(kept.shape[0] * kept.shape[1] / max_draws))
-    theta = np.ascontiguousarray(kept[::extra].transpose(1, 0, 2))
-    log_prob = np.ascontiguousarray(kept_lp[::extra].T)
+def _summarise(problem: Problem, seed: int, settings: SamplerSettings, spindle_samples, rng_spindle, t_start: float,
+               lp_full: LogPosterior, lp: LogPosterior, startup: _Startup, chain: ChainResult, theta: np.ndarray,
+               log_prob: np.ndarray, extra: int, n_walkers: int) -> IdentificationResult:
+    """Step 5: parameter, stiffness and natural-frequency summaries, warnings, timing."""
     flat = theta.reshape(-1, theta.shape[-1])
-
+    beta, tau_r, optimum = startup.beta, startup.tau_r, startup.optimum
     stack, measured_nat, _ = _evaluation_stack(problem)
     nat = _predicted_natural_frequencies(problem, stack, flat, spindle_samples=spindle_samples, rng=rng_spindle)
-    values = problem.parameters.values(flat)
-    names = problem.parameters.names
+    pm = problem.parameters
+    values = pm.values(flat)
+    names = pm.names
     diag = chain.diagnostics or {}
     params = {}
     for j, n in enumerate(names):
         get = lambda key: float(diag[key][j]) if key in diag else None  # noqa: E731
-        params[n] = R.parameter_summary(values[n], get("rhat"), get("ess_bulk"), get("ess_tail"),
-                                        problem.parameters.unit(n))
+        params[n] = R.parameter_summary(values[n], get("rhat"), get("ess_bulk"), get("ess_tail"), pm.unit(n))
     stiffness, freqs = _stiffness_and_frequencies(problem, flat, nat, measured_nat)
 
+    warnings: list[str] = []
     if not chain.converged:
         warnings.append(f"not converged: {chain.reason}")
     if diag:
@@ -399,8 +551,13 @@ def identify(
             if not diag["ess_bulk"][j] >= settings.ess_min:
                 warnings.append(f"{n}: bulk ESS = {diag['ess_bulk'][j]:.0f} < {settings.ess_min:g}")
     # only sampled growth factors can pile up; a fixed g = 0 (one clamping length) is not a conflict
-    warnings += R.growth_bound_warnings({n: values[n] for n in names}, problem.growth.growth_bound)
-    warnings += R.noise_scale_warnings(values, problem.observations)
+    growth_warnings = R.growth_bound_warnings({n: values[n] for n in names}, problem.growth.growth_bound)
+    warnings += growth_warnings
+    warnings += R.prior_bound_warnings(flat, pm, skip=[n for n in ("g_xf", "g_thetaM")
+                                                      if any(w.startswith(n + ":") for w in growth_warnings)])
+    band_warnings, causes = _fit_checks(problem, optimum.x)
+    warnings += R.noise_scale_warnings(values, problem.observations, causes)
+    warnings += band_warnings
     for e in freqs:
         if e["nan_fraction"] > 0:
             warnings.append(
@@ -441,7 +598,7 @@ def identify(
             "noise_floor": problem.likelihood.noise.floor,
             "min_coherence": problem.likelihood.noise.min_coherence,
         },
-        "optimum": {n: float(v[0]) for n, v in problem.parameters.values(optimum.x[None, :]).items() if n in names},
+        "optimum": {n: float(v[0]) for n, v in pm.values(optimum.x[None, :]).items() if n in names},
         "timing": {
             "wall_time_s": wall,
             "sampling_time_s": chain.wall_time,
@@ -453,9 +610,10 @@ def identify(
         "warnings": [w for w in warnings if w],
     })
     return IdentificationResult(
-        problem=problem, summary=summary, theta=theta, log_prob=log_prob, natural_frequency=nat.reshape(theta.shape[0], theta.shape[1], -1),
-        chain=chain, deterministic=None, optimum=optimum, tempering=beta, residual_correlation=tau_r, seed=int(seed),
-        evaluations=evals, wall_time=wall, warnings=tuple(w for w in warnings if w),
+        problem=problem, summary=summary, theta=theta, log_prob=log_prob,
+        natural_frequency=nat.reshape(theta.shape[0], theta.shape[1], -1), chain=chain, deterministic=None,
+        optimum=optimum, tempering=beta, residual_correlation=tau_r, seed=int(seed), evaluations=evals, wall_time=wall,
+        warnings=tuple(w for w in warnings if w),
     )
 
 
@@ -473,10 +631,20 @@ def _identify_deterministic(problem: Problem, seed: int, rng: np.random.Generato
     if not fit.success:
         warnings.append(f"optimiser: {fit.message}")
     q = problem.growth.growth_bound
+    on_growth_bound = []
     for n in ("g_xf", "g_thetaM"):
         if n in fit.values and q > 0 and fit.values[n] > 0.99 * q:
+            on_growth_bound.append(n)
             warnings.append(f"{n} = {fit.values[n]:.4g} sits on the growth bound Q = {q:g}: the fit wants more growth "
                             f"than Q allows (prior-data conflict) or {n} is poorly determined by the data")
+    warnings += R.prior_bound_warnings(fit.theta[None, :], problem.parameters,
+                                       skip=on_growth_bound + list(problem.parameters.noise_names))
+    band_warnings, causes = _fit_checks(problem, fit.theta)
+    warnings += band_warnings
+    # the deterministic objective has no noise scale to absorb a gross misfit: name the likely cause directly
+    for j, cause in sorted(causes.items()):
+        warnings.append(f"{problem.observations[j].source}: the fitted model does not match the measurement "
+                        f"(objective {fit.objective:.3g} %); likely cause: {cause}")
     wall = time.perf_counter() - t_start
     summary = _common_summary(problem, seed)
     summary.update({

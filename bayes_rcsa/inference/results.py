@@ -15,11 +15,14 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..io.atomic import atomic_write_text
+from ..io.jsonable import to_jsonable
 
 __all__ = [
     "parameter_summary",
     "quantiles",
     "growth_bound_warnings",
+    "prior_bound_warnings",
+    "noise_scale_warnings",
     "write_summary",
     "to_jsonable",
     "PILE_UP_FRACTION",
@@ -97,42 +100,81 @@ def growth_bound_warnings(draws: Mapping[str, np.ndarray], growth_bound: float) 
 NOISE_WARNING = 0.3  # relative noise scale beyond which a measurement is effectively not fitted
 
 
-def noise_scale_warnings(draws: Mapping[str, np.ndarray], observations) -> list[str]:
+def noise_scale_warnings(draws: Mapping[str, np.ndarray], observations, causes: Mapping[int, str] | None = None) -> list[str]:
     """Warn when a measurement's inferred relative noise is so large that the model does not fit it.
 
     With one noise scale per measurement, a model that cannot fit all
     measurements at once (e.g. a prior-data conflict on the growth) may
     "give up" one of them by inflating its noise scale instead of
-    compromising; a median above 30 % of |H| signals that.
+    compromising; a median above 30 % of |H| signals that.  ``causes``
+    maps a measurement index to a likely cause found by comparing the
+    measurement with the model (units, sign convention; see
+    :func:`bayes_rcsa.io.checks.likely_cause`), which is then named.
     """
     out = []
+    causes = causes or {}
     for j, obs in enumerate(observations):
         name = f"sigma_{j}"
         if name in draws:
             med = float(np.median(draws[name]))
             if med > NOISE_WARNING:
-                out.append(
-                    f"{name} ({obs.source}): inferred noise is {100 * med:.0f} % of |H|; the model does not fit this "
-                    f"measurement together with the others (check the setup, the band and the growth bound)"
-                )
+                cause = causes.get(j)
+                why = (f"likely cause: {cause}" if cause else
+                       "the model does not fit this measurement together with the others (check the setup, the band "
+                       "and the growth bound)")
+                out.append(f"{name} ({obs.source}): inferred noise is {100 * med:.0f} % of |H|; {why}")
     return out
 
 
-def to_jsonable(obj: Any) -> Any:
-    """Convert numpy types, NaN and inf to plain JSON values (NaN/inf -> null)."""
-    if isinstance(obj, Mapping):
-        return {str(k): to_jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [to_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return [to_jsonable(v) for v in obj.tolist()]
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return _f(obj)
-    return obj
+# Share of draws within BOUND_WINDOW of a finite prior bound (in the sampling coordinate, as a fraction of the
+# prior's range) above which a posterior is said to pile up against the bound.  A flat posterior keeps 1 % there;
+# one that merely leans towards the bound keeps a few per cent; one pressed against it by the data most of its mass.
+BOUND_WINDOW = 0.01
+BOUND_FRACTION = 0.10
+
+
+def prior_bound_warnings(theta: np.ndarray, parameters, skip: Sequence[str] = ()) -> list[str]:
+    """Warn for every sampled parameter whose posterior piles up against a finite prior bound.
+
+    Rule: more than :data:`BOUND_FRACTION` (10 %) of the draws lie within
+    :data:`BOUND_WINDOW` (1 %) of the prior's range (sampling coordinate,
+    e.g. log10 k; the optimiser's range for unbounded priors) from a finite
+    bound.  The result is then set by the prior, not the data: widen the
+    prior, or check the data and the model (a non-reciprocal spindle file,
+    for instance, sends k_thetaM to a bound).
+
+    Parameters
+    ----------
+    theta : (n, ndim) sampling coordinates of the draws
+    parameters : ParameterModel
+    skip : names already warned about (e.g. growth factors by :func:`growth_bound_warnings`)
+    """
+    theta = np.atleast_2d(theta)
+    out = []
+    for j, name in enumerate(parameters.names):
+        if name in skip:
+            continue
+        prior = parameters.priors[name]
+        lo, hi = prior.bounds
+        o_lo, o_hi = prior.optimisation_bounds()
+        width = o_hi - o_lo
+        if not (np.isfinite(width) and width > 0):
+            continue
+        u = theta[:, j]
+        for side, bound, near in (("lower", lo, u < lo + BOUND_WINDOW * width), ("upper", hi, u > hi - BOUND_WINDOW * width)):
+            if not np.isfinite(bound):
+                continue
+            frac = float(np.mean(near))
+            if frac > BOUND_FRACTION:
+                value = float(prior.to_physical(bound))
+                unit = parameters.unit(name)
+                out.append(
+                    f"{name}: {100 * frac:.0f} % of the posterior lies within 1 % of the prior range from its {side} bound "
+                    f"{value:.4g}{'' if unit == '1' else ' ' + unit} (warning above {100 * BOUND_FRACTION:.0f} %): the "
+                    f"bound, not the data, limits it; widen the prior or check the data (e.g. a non-reciprocal spindle "
+                    f"file, the units of the measurement)"
+                )
+    return out
 
 
 def write_summary(path, summary: Mapping[str, Any]) -> None:

@@ -400,6 +400,15 @@ class ConfigurationStack:
         tool_point_kernel_tip(kx, kt, cx, ct, self._starts, self.omega, *self._tip_blocks, z, out)
         return out
 
+    def cache_digest(self) -> str:
+        """SHA-256 of the cached lines and coefficients (changes with any geometry, material or spindle change)."""
+        import hashlib
+
+        h = hashlib.sha256()
+        for a in (self.omega, self._packed, self._starts):
+            h.update(np.ascontiguousarray(a).tobytes())
+        return h.hexdigest()
+
     def split(self, values: np.ndarray) -> list[np.ndarray]:
         """Split ``(..., n_lines)`` into one array per configuration."""
         return [values[..., s] for s in self.slices]
