@@ -31,6 +31,8 @@ COMMANDS = (
     "predict",
     "identifiability",
     "lobes",
+    "discrepancy",
+    "design",
 )
 
 
