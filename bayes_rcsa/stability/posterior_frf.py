@@ -63,32 +63,12 @@ def common_frequency_grid(frf_x, frf_y):
     return f, frf_x.values[keep], gy
 
 
-def _check_passive(g: np.ndarray, source: str) -> None:
-    """A direct receptance of a passive structure has Im h <= 0 (x = Re{X e^{+iωt}}).
-
-    The readers of :mod:`bayes_rcsa.io` check this too; the lobes job repeats the test because a sign
-    slip turns every lobe upside down and the recommendation into nonsense.  Noise can push single lines
-    near anti-resonances slightly positive, so the test is on the band's dominant part: more than a
-    quarter of the lines, or the largest |Im h|, positive.
-    """
-    im = np.imag(g)
-    worst = int(np.argmax(np.abs(im)))
-    if np.mean(im > 0) > 0.25 or im[worst] > 0:
-        raise DataError(
-            f"{source}: Im h > 0 on {100 * np.mean(im > 0):.0f} % of the lines (largest |Im h| positive: "
-            f"{im[worst] > 0}); a passive direct receptance has Im h <= 0 with x = Re{{X e^(+iwt)}} - the file "
-            "probably uses the other sign convention (imaginary part negated, e^(-iwt)); conjugate it"
-        )
-
-
 def measured_frf_pair(path_x, path_y) -> FRFInput:
     """Measured tool-point FRFs in X and Y on a common grid (one "draw")."""
     from ..io.frf import read_frf
 
-    fx = read_frf(path_x)
+    fx = read_frf(path_x)  # the reader refuses non-passive files (sign-convention slips)
     fy = read_frf(path_y)
-    _check_passive(fx.values, str(path_x))
-    _check_passive(fy.values, str(path_y))
     f, gx, gy = common_frequency_grid(fx, fy)
     return FRFInput(f, gx[None], gy[None], {"mode": "measured", "measured_x": str(path_x), "measured_y": str(path_y)})
 

@@ -46,6 +46,8 @@ __all__ = ["Tolerances", "Recommendation", "level_limit", "recommend", "DEFAULT_
 DEFAULT_SPEED_TOLERANCE = 0.02
 DEFAULT_DEPTH_MARGIN = 0.10
 _FINE_POINTS = 41
+# the checked neighbourhood stays strictly inside the stable set (P uses a < a_lim): a relative gap of 1e-6
+_INSIDE = 1.0 + 1e-6
 _VERIFY_CANDIDATES = 12
 
 
@@ -217,7 +219,7 @@ def recommend(
     inside = (n * (1 - tol.speed_rel) >= n[0] * (1 - 1e-12)) & (n * (1 + tol.speed_rel) <= n[-1] * (1 + 1e-12))
     a_rob = _window_min(n, a_lvl / kf, tol.speed_rel)
     usable = inside & np.isfinite(a_rob) & (a_rob > 0)
-    depth = np.where(usable, np.minimum(a_rob / (1 + tol.depth_margin), cap), -np.inf)
+    depth = np.where(usable, np.minimum(a_rob / ((1 + tol.depth_margin) * _INSIDE), cap), -np.inf)
     score = n * depth
     verified = np.zeros(n.size, dtype=bool)
     best = None
@@ -235,7 +237,7 @@ def recommend(
             if not (np.isfinite(a_rob[i]) and a_rob[i] > 0):
                 score[i] = -np.inf
                 continue
-            depth[i] = min(a_rob[i] / (1 + tol.depth_margin), cap)
+            depth[i] = min(a_rob[i] / ((1 + tol.depth_margin) * _INSIDE), cap)
             score[i] = n[i] * depth[i]
         verified[i] = True
     else:
@@ -288,7 +290,7 @@ def _describe(n, lim, a_lvl, kf, i, a, a_rob_i, tol, level, cap, caps) -> Recomm
     win = (n >= lo - 1e-9 * lo) & (n <= hi + 1e-9 * hi)
     top = a * (1 + tol.depth_margin)
     p_neigh = min(_p_stable(lim[:, j] / kf, top) for j in np.nonzero(win)[0])
-    binding = "stability" if a_rob_i / (1 + tol.depth_margin) <= cap else _cap_name(caps, cap)
+    binding = "stability" if a_rob_i / ((1 + tol.depth_margin) * _INSIDE) <= cap else _cap_name(caps, cap)
     if abs(lo - n[0]) <= 0.51 * (n[1] - n[0]) or abs(hi - n[-1]) <= 0.51 * (n[-1] - n[-2]):
         binding += "+speed_range"
     # nearest speed, below and above, where depth a is no longer stable at the level
