@@ -8,7 +8,6 @@ the bundled example and ten seeds of the synthetic bench (readers only).
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import os
 import shutil
@@ -21,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bayes_rcsa.errors import DataError, DataWarning, SetupError
+from bayes_rcsa.errors import DataError, DataWarning
 from bayes_rcsa.io import load_setup, read_frf, read_spindle_csv, write_frf_csv, write_spindle_csv
 from bayes_rcsa.io import checks
 from bayes_rcsa.io.atomic import begin_directory, clean_stale_temporaries, directory_lock

@@ -7,7 +7,6 @@ import json
 import sys
 from pathlib import Path
 
-from ..errors import SetupError
 from ._common import nonnegative_int, parse_float_list, positive_int, sampler_int
 
 __all__ = ["register", "run"]

@@ -22,7 +22,6 @@ from . import checks
 from .frf import FRF_SUFFIXES, read_frf
 from .receptance_csv import read_spindle_csv
 from .setup import ContactSpec, MeasurementSpec, Setup
-from .tables import REQUIRED as _REQUIRED
 from .tables import TableContext as _Ctx
 from .tables import bounds as _bounds
 from .tables import check_keys as _check_keys
