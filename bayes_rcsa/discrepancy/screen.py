@@ -20,9 +20,9 @@ likelihood would rise if ``phi`` left its baseline, without refitting:
 
 Parameters that have no effect at the baseline (the frequency of a
 resonator of zero mass, the lever of a zero rotation) cannot be tested
-there (Davies' problem): they are set on a small grid of prior quantiles
-and the largest statistic over the grid is used (``S_max``; its reference
-distribution is wider than chi-square, which only matters for ranking
+there (Davies' problem): they are set on a grid over their prior (fine
+in the first such parameter, coarse in the others) and the largest
+statistic over the grid is used (``S_max``; its reference distribution is wider than chi-square, which only matters for ranking
 when the statistics are close).  A term whose single active parameter has
 its baseline on a prior bound is tested one-sided: a step out of the
 support scores zero.
@@ -40,8 +40,9 @@ from .fit import ModelFit, whitened_residuals
 
 __all__ = ["ScoreResult", "embed_baseline", "score_test"]
 
-_GRID_Q = (0.1, 0.3, 0.5, 0.7, 0.9)
-_MAX_GRID = 25
+_FINE = 48  # grid points of the first inactive parameter
+_COARSE_Q = (0.15, 0.5, 0.85)  # prior quantiles of the others
+_N_STARTS = 3  # best grid points handed to the refit as starting points
 
 
 @dataclass(frozen=True)
@@ -60,6 +61,8 @@ class ScoreResult:
     start : (ndim,) sampling coordinates
         One Gauss-Newton step from the baseline in the term's direction: a
         starting point for the refit.
+    starts : tuple of (ndim,)
+        The same from the best few grid points of the inactive parameters, best first.
     """
 
     effect: str
@@ -67,6 +70,7 @@ class ScoreResult:
     dof: int
     p_value: float
     start: np.ndarray
+    starts: tuple = ()
 
 
 def embed_baseline(baseline: ModelFit, problem: Problem) -> np.ndarray:
@@ -126,10 +130,11 @@ def score_test(baseline: ModelFit, problem: Problem, effect: str) -> ScoreResult
     inactive = [c for c in term_cols if c not in active]
     grid = [()]
     if inactive:
-        per = max(2, int(round(_MAX_GRID ** (1.0 / len(inactive)))))
-        qs = np.quantile(_GRID_Q, np.linspace(0, 1, min(per, len(_GRID_Q))))
-        grid = list(itertools.product(*[[bounds[c, 0] + q * width[c] for q in qs] for c in inactive]))
-    best = (-np.inf, theta0, 0)
+        # the first inactive parameter (e.g. a resonator's frequency) on a fine grid, since the
+        # statistic is sharply peaked in it; the others on a coarse one
+        axes = [(np.arange(_FINE) + 0.5) / _FINE] + [np.array(_COARSE_Q)] * (len(inactive) - 1)
+        grid = list(itertools.product(*[bounds[c, 0] + q * width[c] for c, q in zip(inactive, axes)]))
+    found = []
     for g in grid:
         theta = theta0.copy()
         for c, u in zip(inactive, g):
@@ -157,8 +162,11 @@ def score_test(baseline: ModelFit, problem: Problem, effect: str) -> ScoreResult
             on_hi = theta[c] >= bounds[c, 1] - 1e-12 * width[c]
             if (on_lo and step[0] < 0) or (on_hi and step[0] > 0):
                 stat = 0.0  # one-sided: the data want the term on the wrong side of its physical bound
-        if stat > best[0]:
-            best = (stat, start, len(act))
-    stat, start, dof = best
+        found.append((stat if np.isfinite(stat) else -np.inf, start, len(act)))
+    found.sort(key=lambda t: -t[0])
+    if not found:
+        found = [(0.0, theta0, 1)]
+    stat, start, dof = found[0]
     stat = max(stat, 0.0) if np.isfinite(stat) else 0.0
-    return ScoreResult(effect, stat, max(dof, 1), float(chi2.sf(stat, max(dof, 1))), start)
+    starts = tuple(t[1] for t in found[:_N_STARTS])
+    return ScoreResult(effect, stat, max(dof, 1), float(chi2.sf(stat, max(dof, 1))), start, starts)

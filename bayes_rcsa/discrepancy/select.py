@@ -83,8 +83,8 @@ def _quantile_starts(problem, theta0: np.ndarray, effect: str, qs=(0.2, 0.5, 0.8
 def refit_candidate(baseline: ModelFit, problem, score: ScoreResult) -> Refit:
     """MAP + Laplace of baseline + ``score.effect`` from the score-test step, the baseline and prior quantiles."""
     theta0 = embed_baseline(baseline, problem)
-    starts = [score.start, theta0] + _quantile_starts(problem, theta0, score.effect)
-    fit = fit_variant(score.effect, problem, np.array(starts), baseline.tempering)
+    starts = [score.start, *score.starts, theta0] + _quantile_starts(problem, theta0, score.effect)
+    fit = fit_variant(score.effect, problem, np.array(starts), baseline.tempering, n_polish=3)
     crit = fit.log_evidence - baseline.log_evidence
     lik = problem.likelihood
     return Refit(score.effect, score, fit, float(crit), gap(lik.data, fit.model_frf()))
