@@ -1,0 +1,110 @@
+"""The room map: import layers of the packages, no cycles, no private names across packages (docs/architecture.md)."""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGE = ROOT / "bayes_rcsa"
+
+#: Layer of every top-level part of the package; a module may import from its own or a lower layer only.
+LAYERS = {
+    "errors": 0, "registry": 0,
+    "model": 1,
+    "io": 2, "synthetic": 2, "spindle": 2,
+    "params": 3,
+    "inference": 4,
+    "posterior": 5, "stability": 5, "discrepancy": 5, "design": 5,
+    "report": 6,
+    "cli": 7, "__main__": 8,
+}
+
+
+def _part(parts: tuple[str, ...]) -> str:
+    """Top-level part (subpackage or module) of ``bayes_rcsa.<part>...``."""
+    return parts[1] if len(parts) > 1 else "<root>"
+
+
+def _imports():
+    """(importing part, imported part, imported module, names, file) for every import of the package's modules."""
+    out = []
+    for f in sorted(PACKAGE.rglob("*.py")):
+        rel = f.relative_to(ROOT).with_suffix("").parts
+        is_init = rel[-1] == "__init__"
+        mod = rel[:-1] if is_init else rel
+        me = _part(mod) if len(mod) > 1 else "<root>"
+        for node in ast.walk(ast.parse(f.read_text(), str(f))):
+            if isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = list(mod if is_init else mod[:-1])
+                    base = base[: len(base) - (node.level - 1)]
+                    target = tuple(base + (node.module.split(".") if node.module else []))
+                else:
+                    target = tuple((node.module or "").split("."))
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.Import):
+                for a in node.names:
+                    t = tuple(a.name.split("."))
+                    if t[0] == "bayes_rcsa":
+                        out.append((me, _part(t), t, [], f))
+                continue
+            else:
+                continue
+            if target and target[0] == "bayes_rcsa":
+                out.append((me, _part(target), target, names, f))
+    return out
+
+
+def test_inference_does_not_import_posterior_in_a_fresh_interpreter():
+    code = ("import sys, bayes_rcsa.inference; assert 'bayes_rcsa.posterior' not in sys.modules, 'posterior'; "
+            "import bayes_rcsa.posterior; assert 'bayes_rcsa.stability' not in sys.modules, 'stability'")
+    res = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr[-2000:]
+
+
+def test_no_import_cycle_between_packages_and_layers_respected():
+    edges = defaultdict(set)
+    wrong = []
+    for me, other, target, _, f in _imports():
+        if other == me or me == "<root>" or other == "<root>":
+            continue
+        edges[me].add(other)
+        if other == "data":
+            continue
+        if me in LAYERS and other in LAYERS and LAYERS[other] > LAYERS[me]:
+            wrong.append(f"{f.relative_to(ROOT)} ({me}) imports {'.'.join(target)} ({other}, a higher layer)")
+    assert not wrong, "\n".join(wrong)
+    # no cycle of any length between parts (depth-first search)
+    state: dict[str, int] = {}
+
+    def visit(node, path):
+        state[node] = 1
+        for nxt in sorted(edges.get(node, ())):
+            if state.get(nxt) == 1:
+                pytest.fail(f"import cycle: {' -> '.join(path[path.index(nxt):] + [nxt])}")
+            if nxt not in state:
+                visit(nxt, path + [nxt])
+        state[node] = 2
+
+    for node in sorted(edges):
+        if node not in state:
+            visit(node, [node])
+    assert set(edges) - set(LAYERS) <= {"<root>"}, f"parts without a layer: {set(edges) - set(LAYERS)}"
+
+
+def test_no_private_names_imported_from_another_package():
+    bad = []
+    for me, other, target, names, f in _imports():
+        if other == me or other in ("<root>",):
+            continue
+        private_module = [p for p in target[2:] if p.startswith("_") and p != "__init__"]
+        private_names = [n for n in names if n.startswith("_")]
+        if private_module or private_names:
+            bad.append(f"{f.relative_to(ROOT)} imports {'.'.join(target)} {private_names or ''}")
+    assert not bad, "\n".join(bad)
