@@ -8,6 +8,7 @@ import glob
 import os
 import shutil
 import tempfile
+import time
 from pathlib import Path
 from typing import Iterator
 
@@ -178,7 +179,15 @@ def directory_lock(out_dir, option: str = "--out") -> Iterator[Path]:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            owner = os.read(fd, 32).decode("ascii", "replace").strip() or "unknown"
+            # The holder writes its PID right after locking; give it a moment if we came in between.
+            owner = ""
+            for _ in range(20):
+                os.lseek(fd, 0, os.SEEK_SET)
+                owner = os.read(fd, 32).decode("ascii", "replace").strip()
+                if owner:
+                    break
+                time.sleep(0.01)
+            owner = owner or "unknown"
             os.close(fd)
             raise SetupError(f"{option} {out_dir} is in use by PID {owner} (another bayes-rcsa run writes there; "
                              "wait for it or choose another directory)") from None
