@@ -28,7 +28,7 @@ _SP_LINES = (EXAMPLE / "spindle_x.csv").read_bytes().splitlines(keepends=True)
 SPINDLE_TEXT = b"".join(_SP_LINES[:40])
 
 # Bounded so that the three properties together add a few seconds to the suite.
-COMMON = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+COMMON = settings(max_examples=60, deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow])
 
 TOKENS = [b",", b"\n", b"#", b"nan", b"inf", b"-", b"1e300", b"0", b"\xff", b"\"", b"[", b"]", b"=", b"{", b"}",
           b"real", b"imag", b"frequency_hz", b"x", b"  ", b"\r\n", b"1_0", b"-1e-7", b"[[measurement]]"]
@@ -106,7 +106,7 @@ def example_copy(tmp_path_factory):
     return d
 
 
-@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+@settings(max_examples=25, deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow,
                                                                  HealthCheck.function_scoped_fixture])
 @given(data=mutated(SETUP_TEXT))
 def test_setup_with_data_never_crashes(example_copy, data):
