@@ -12,6 +12,7 @@ import numpy as np
 
 from _bench_setup import example_model, median_time
 from bayes_rcsa.model import Configuration, ConfigurationStack
+from bayes_rcsa.params import ForwardModel, GrowthLaw, LogUniform, ParameterModel, Uniform
 
 N_SETS, N_FREQ, LENGTHS = 64, 800, (0.025, 0.040)
 
@@ -60,6 +61,24 @@ def main() -> None:
     print(f"{'naive loop (set x line, np.linalg.inv)':<44}{t_naive * 1e3:>11.1f} ms{1:>11.0f}x")
     print(f"max relative difference kernel vs naive: {err:.1e}")
     print(f"target: <= 2 ms for the batched evaluation -> {'met' if t_kernel <= 2e-3 else 'NOT met'}")
+
+    # the parameter model's forward evaluation: no terms, and the tip-mass term
+    growth = GrowthLaw(LENGTHS[0], LENGTHS[1], 0.5)
+    priors = {"k_xf": LogUniform(1e5, 1e9), "k_thetaM": LogUniform(1e4, 1e8), "g_xf": Uniform(0, 0.5),
+              "g_thetaM": Uniform(0, 0.5)}
+    fixed = {"c_xf": cx, "c_thetaM": ct}
+    values = {"k_xf": kx[:, 0], "k_thetaM": kt[:, 0], "g_xf": rng.uniform(0, 0.5, N_SETS),
+              "g_thetaM": rng.uniform(0, 0.5, N_SETS), "c_xf": np.full(N_SETS, cx), "c_thetaM": np.full(N_SETS, ct)}
+    base = ForwardModel(ParameterModel.from_priors(growth, priors, fixed), stack, model)
+    tip = ForwardModel(ParameterModel.from_priors(growth, priors, fixed, terms=["tip_mass"]), stack, model)
+    v_tip = {**values, "tip_mass_kg": rng.uniform(0.001, 0.01, N_SETS)}
+    base.frf(values), tip.frf(v_tip)  # warm up
+    t_base = median_time(lambda: base.frf(values), repeats=15, number=20)
+    t_tip = median_time(lambda: tip.frf(v_tip), repeats=15, number=10)
+    print()
+    print(f"{'ForwardModel.frf, no terms':<44}{t_base * 1e3:>11.3f} ms{t_base / t_kernel:>11.2f}x of the kernel")
+    print(f"{'ForwardModel.frf, tip_mass term':<44}{t_tip * 1e3:>11.3f} ms{t_tip / t_base:>11.2f}x of no terms")
+    print(f"target: tip mass within 3x of no terms -> {'met' if t_tip <= 3 * t_base else 'NOT met'}")
 
 
 if __name__ == "__main__":

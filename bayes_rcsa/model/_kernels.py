@@ -17,7 +17,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["pack_coefficients", "tool_point_kernel", "tool_point_kernel_batched", "tool_point_kernel_tip"]
+__all__ = ["pack_coefficients", "tool_point_kernel", "tool_point_kernel_batched", "tool_point_kernel_tip",
+           "tip_coefficients"]
 
 _ORDER = ("t22", "e00", "e11", "g", "p", "q", "r")
 
@@ -93,30 +94,31 @@ def tool_point_kernel_batched(kx, kt, cx, ct, starts, omega, CB, out):  # pragma
         _fill_set(kx, kt, cx, ct, starts, omega, CB[s if nb > 1 else 0], out, s)
 
 
-@njit(cache=True, fastmath=False, nogil=True, inline="always")
-def _recip(z):  # pragma: no cover - compiled
-    """1 / z by one real division (numba's complex division guards against overflow with branches)."""
-    d = 1.0 / (z.real * z.real + z.imag * z.imag)
-    return complex(z.real * d, -z.imag * d)
-
-
 @njit(cache=True, fastmath=False, nogil=True)
-def tool_point_kernel_tip(kx, kt, cx, ct, starts, omega, E, T12, T21, T22, Z, out):  # pragma: no cover - compiled
+def tool_point_kernel_tip(kx, kt, cx, ct, starts, omega, C, Z, out):  # pragma: no cover - compiled
     """Tool-point receptance with a diagonal dynamic stiffness attached at the tool tip.
 
-    Per set and line, with ``D = E + diag(1/Kx, 1/Kt)`` the full tool-point
-    block without the attachment is ``H = T22 - T21 D^-1 T12``, and with the
-    tip dynamic stiffness ``Z = diag(z_u, z_psi)`` it is
-    ``H' = (H^-1 + Z)^-1 = H (I + Z H)^-1``, of which ``h' = H'[0, 0]``.
+    With ``D = E + diag(1/Kx, 1/Kt)`` the full tool-point block without the
+    attachment is ``H = T22 - T21 D^-1 T12`` and with the tip dynamic
+    stiffness ``Z = diag(z_u, z_psi)`` it is ``H' = (H^-1 + Z)^-1 =
+    H (I + Z H)^-1``.  Multiplying through by ``det(D) Kx Kt`` (as the
+    fast path does) leaves one division per line::
+
+        d = det(E) Kx Kt + E11 Kt + E00 Kx + 1
+        G_ij = T22_ij d - N_ij Kx Kt - U_ij Kx - V_ij Kt
+        h' = (G00 (d + z_psi G11) - z_psi G01 G10) / ((d + z_u G00)(d + z_psi G11) - z_u z_psi G01 G10)
+
+    with the per-line constants ``N = T21 adj(E) T12``,
+    ``U_ij = T21_i0 T12_0j``, ``V_ij = T21_i1 T12_1j``
+    (:func:`tip_coefficients`).
 
     Parameters
     ----------
     kx, kt, cx, ct : (n_sets, n_configs) float64
     starts : (n_configs + 1,) int64
     omega : (n_lines,) rad/s
-    E : (n_lines, 2, 2) complex, holder-tip receptance plus the tool's T11
-    T12, T21, T22 : (n_lines, 2, 2) complex, tool-overhang blocks
-    Z : (B, n_lines, 2) complex, B = 1 or n_sets
+    C : (n_lines, 19) complex, from :func:`tip_coefficients`
+    Z : (B, n_lines, 2) float or complex, B = 1 or n_sets
     out : (n_sets, n_lines) complex128
     """
     n_sets, n_cfg = kx.shape
@@ -125,26 +127,40 @@ def tool_point_kernel_tip(kx, kt, cx, ct, starts, omega, E, T12, T21, T22, Z, ou
         b = s if nb > 1 else 0
         for c in range(n_cfg):
             for j in range(starts[c], starts[c + 1]):
-                kxc = complex(kx[s, c], omega[j] * cx[s, c])
-                ktc = complex(kt[s, c], omega[j] * ct[s, c])
-                d00 = E[j, 0, 0] + _recip(kxc)
-                d11 = E[j, 1, 1] + _recip(ktc)
-                d01 = E[j, 0, 1]
-                d10 = E[j, 1, 0]
-                idet = _recip(d00 * d11 - d01 * d10)
-                # X = D^-1 T12
-                x00 = (d11 * T12[j, 0, 0] - d01 * T12[j, 1, 0]) * idet
-                x01 = (d11 * T12[j, 0, 1] - d01 * T12[j, 1, 1]) * idet
-                x10 = (d00 * T12[j, 1, 0] - d10 * T12[j, 0, 0]) * idet
-                x11 = (d00 * T12[j, 1, 1] - d10 * T12[j, 0, 1]) * idet
-                h00 = T22[j, 0, 0] - (T21[j, 0, 0] * x00 + T21[j, 0, 1] * x10)
-                h01 = T22[j, 0, 1] - (T21[j, 0, 0] * x01 + T21[j, 0, 1] * x11)
-                h10 = T22[j, 1, 0] - (T21[j, 1, 0] * x00 + T21[j, 1, 1] * x10)
-                h11 = T22[j, 1, 1] - (T21[j, 1, 0] * x01 + T21[j, 1, 1] * x11)
+                Kx = complex(kx[s, c], omega[j] * cx[s, c])
+                Kt = complex(kt[s, c], omega[j] * ct[s, c])
+                KK = Kx * Kt
+                d = C[j, 0] * KK + C[j, 1] * Kt + C[j, 2] * Kx + 1.0
+                g00 = C[j, 3] * d - C[j, 7] * KK - C[j, 11] * Kx - C[j, 15] * Kt
+                g01 = C[j, 4] * d - C[j, 8] * KK - C[j, 12] * Kx - C[j, 16] * Kt
+                g10 = C[j, 5] * d - C[j, 9] * KK - C[j, 13] * Kx - C[j, 17] * Kt
+                g11 = C[j, 6] * d - C[j, 10] * KK - C[j, 14] * Kx - C[j, 18] * Kt
                 zu = Z[b, j, 0]
                 zp = Z[b, j, 1]
-                m00 = 1.0 + zu * h00
-                m01 = zu * h01
-                m10 = zp * h10
-                m11 = 1.0 + zp * h11
-                out[s, j] = (h00 * m11 - h01 * m10) * _recip(m00 * m11 - m01 * m10)
+                a11 = d + zp * g11
+                cross = g01 * g10
+                num = g00 * a11 - zp * cross
+                den = (d + zu * g00) * a11 - (zu * zp) * cross
+                inv = 1.0 / (den.real * den.real + den.imag * den.imag)
+                out[s, j] = complex((num.real * den.real + num.imag * den.imag) * inv,
+                                    (num.imag * den.real - num.real * den.imag) * inv)
+
+
+def tip_coefficients(E, T12, T21, T22) -> np.ndarray:
+    """Per-line constants of :func:`tool_point_kernel_tip`, (n_lines, 19) complex.
+
+    Columns: ``det E``, ``E11``, ``E00``, ``T22`` (00, 01, 10, 11), ``N``, ``U``, ``V`` (same order).
+
+    Parameters
+    ----------
+    E : (n_lines, 2, 2) complex, holder-tip receptance plus the tool's T11
+    T12, T21, T22 : (n_lines, 2, 2) complex, tool-overhang blocks
+    """
+    e00, e01, e10, e11 = E[:, 0, 0], E[:, 0, 1], E[:, 1, 0], E[:, 1, 1]
+    adj = np.empty_like(E)
+    adj[:, 0, 0], adj[:, 0, 1], adj[:, 1, 0], adj[:, 1, 1] = e11, -e01, -e10, e00
+    n = np.einsum("nij,njk,nkl->nil", T21, adj, T12)
+    u = T21[:, :, 0, None] * T12[:, None, 0, :]
+    v = T21[:, :, 1, None] * T12[:, None, 1, :]
+    cols = [e00 * e11 - e01 * e10, e11, e00] + [m[:, i, k] for m in (T22, n, u, v) for i in (0, 1) for k in (0, 1)]
+    return np.ascontiguousarray(np.column_stack(cols))

@@ -28,7 +28,8 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..errors import SetupError
-from ._kernels import pack_coefficients, tool_point_kernel, tool_point_kernel_batched, tool_point_kernel_tip
+from ._kernels import (pack_coefficients, tip_coefficients, tool_point_kernel, tool_point_kernel_batched,
+                       tool_point_kernel_tip)
 from .coupling import attach, contact_compliance
 from .geometry import Holder, Tool, holder_segments, tool_overhang_segments
 from .receptance import PointReceptance
@@ -276,7 +277,7 @@ class ConfigurationStack:
         self.frequency_hz = cat("frequency_hz")
         self.omega = self._arrays[0]
         self._parts = None  # substructures of all lines, built on first use by a model term
-        self._tip_blocks = None  # (E, T12, T21, T22) of all lines for frf_tip, built on first use
+        self._tip_blocks = None  # per-line constants of frf_tip (tip_coefficients), built on first use
 
     @property
     def configurations(self) -> list[Configuration]:
@@ -380,8 +381,9 @@ class ConfigurationStack:
 
         Parameters
         ----------
-        tip : (B, n_lines, 2) complex
-            ``(z_u, z_psi)`` per line (N/m, N m/rad), ``B`` 1 or ``n_sets``.
+        tip : (B, n_lines, 2) float or complex
+            ``(z_u, z_psi)`` per line (N/m, N m/rad), ``B`` 1 or ``n_sets``
+            (real for an undamped attachment such as a mass).
         k_xf, k_thetaM, c_xf, c_thetaM : (n_sets, n_configs)
 
         Returns
@@ -390,14 +392,16 @@ class ConfigurationStack:
         """
         if self._tip_blocks is None:
             cat = lambda get: np.ascontiguousarray(np.concatenate([get(c) for c in self.caches]))  # noqa: E731
-            self._tip_blocks = (cat(lambda c: c.holder_tip + c.tool.r11), cat(lambda c: c.tool.r12),
-                                cat(lambda c: c.tool.r21), cat(lambda c: c.tool.r22))
+            self._tip_blocks = tip_coefficients(cat(lambda c: c.holder_tip + c.tool.r11), cat(lambda c: c.tool.r12),
+                                                cat(lambda c: c.tool.r21), cat(lambda c: c.tool.r22))
         kx, kt, cx, ct = (np.ascontiguousarray(v, dtype=float) for v in (k_xf, k_thetaM, c_xf, c_thetaM))
-        z = np.ascontiguousarray(tip, dtype=complex)
+        z = np.ascontiguousarray(tip)
+        if z.dtype not in (np.float64, np.complex128):
+            z = z.astype(complex)
         if z.shape[0] not in (1, kx.shape[0]) or z.shape[1:] != (self.n_lines, 2):
             raise SetupError(f"tip impedance of shape {z.shape}: expected (1 or {kx.shape[0]}, {self.n_lines}, 2)")
         out = np.empty((kx.shape[0], self.n_lines), dtype=complex)
-        tool_point_kernel_tip(kx, kt, cx, ct, self._starts, self.omega, *self._tip_blocks, z, out)
+        tool_point_kernel_tip(kx, kt, cx, ct, self._starts, self.omega, self._tip_blocks, z, out)
         return out
 
     def cache_digest(self) -> str:

@@ -67,7 +67,7 @@ class Substructures:
         Free-free holder with the clamped shank; end 1 the flange, end 2 the holder tip.
     tool : TwoPort, blocks (B, n_lines, 2, 2)
         Free-free tool overhang; end 1 its base (at the holder tip), end 2 the tool tip.
-    tip : (B, n_lines, 2) complex or None
+    tip : (B, n_lines, 2) float or complex, or None
         Diagonal dynamic stiffness (N/m, N m/rad) attached at the tool tip's
         (u, psi), e.g. ``-omega^2 (m, m r_g^2)`` of a tip mass; ``None`` if
         nothing is attached.  Kept apart from ``tool`` so that the forward
@@ -86,7 +86,9 @@ class Substructures:
     def add_tip(self, z_u: np.ndarray, z_psi: np.ndarray) -> "Substructures":
         """A copy with ``diag(z_u, z_psi)`` (each (B, n_lines)) added to the tip's dynamic stiffness."""
         z_u, z_psi = np.asarray(z_u), np.asarray(z_psi)
-        z = np.empty(np.broadcast_shapes(z_u.shape, z_psi.shape) + (2,), dtype=complex)
+        # real (undamped) attachments stay real: the compiled kernel is cheaper for them
+        dtype = np.result_type(z_u, z_psi, np.float64) if self.tip is None else complex
+        z = np.empty(np.broadcast_shapes(z_u.shape, z_psi.shape) + (2,), dtype=dtype)
         z[..., 0] = z_u
         z[..., 1] = z_psi
         return replace(self, tip=z if self.tip is None else self.tip + z)
