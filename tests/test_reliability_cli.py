@@ -178,6 +178,13 @@ CASES = [
     Case("band-nan", ["identify", S, "--out", OUT, "--band", "1000,nan"], ["--band", "1000,nan"]),
     Case("simulate-kx-nan", ["simulate", S, "--clamping-length", "0.03", "--kx", "nan", "--ktheta", "1e5",
                              "--out", "{run}/x.csv"], ["--kx", "finite"]),
+    # item 12: negative numbers in scientific notation reach the option's own check (not "expected one argument")
+    Case("lobes-kt-negative", ["lobes", "--measured-x", "{data}/tip_x_30mm.csv", "--measured-y", "{data}/tip_y_30mm.csv",
+                               "--flutes", "4", "--kt", "-790e6", "--kr", "230e6", "--immersion", "0.95",
+                               "--speeds", "5000:30000:20", "--out", OUT], ["--kt -790e6", "> 0"],
+         absent=["expected one argument"]),
+    Case("simulate-kx-negative", ["simulate", S, "--clamping-length", "0.03", "--kx", "-1e7", "--ktheta", "1e5",
+                                  "--out", "{run}/x.csv"], ["--kx '-1e7'", "> 0"]),
     # item 13: early identify failures leave no --out
     Case("walkers-odd", ["identify", S, "--out", OUT, "--walkers", "5"], ["n_walkers = 5"]),
     Case("resume-without-checkpoint", ["identify", S, "--out", OUT, "--resume"], ["--resume", "no checkpoint"]),

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
+import re
 import sys
 import warnings
 
@@ -37,7 +38,17 @@ COMMANDS = (
 
 
 class _OneLineParser(argparse.ArgumentParser):
-    """argparse that reports usage errors on one line (exit status 2)."""
+    """argparse that reports usage errors on one line (exit status 2).
+
+    Negative numbers in scientific notation (``--kt -790e6``) are taken as
+    values, not as unknown options: argparse's own pattern only knows
+    ``-790`` and ``-7.9``, and answered "expected one argument".  Whether a
+    negative value is meaningful is then said by the option's own check.
+    """
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
     def error(self, message: str):  # noqa: D401 - argparse API
         self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
