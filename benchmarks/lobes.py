@@ -1,11 +1,23 @@
-"""Benchmark of the stability-lobe solvers (run: ``python benchmarks/lobes.py``).
+"""Benchmark of the stability-lobe solvers (run: ``python benchmarks/lobes.py [--posterior P] [--skip-old]``).
 
 Cases (acceptance budgets in brackets):
 
 1. ZOA probabilistic lobes: 500 FRF draws x 400 spindle speeds, 1200
    frequency lines, 4 flutes, 70 % immersion (<= 10 s);
 2. SDM stability map of one 2-mode x/y system (one mode per direction) on a
-   200 x 100 speed-depth grid, 5000-30000 rpm, default discretisation (<= 20 s).
+   200 x 100 speed-depth grid, 5000-30000 rpm, default discretisation (<= 20 s);
+3. measured-FRF SDM on the bundled example (tip_x/y_30mm.csv, the demo's
+   cutting case b: 4 flutes, 95 % immersion, feed y), 200 speeds (<= 20 s);
+4. probabilistic SDM on the bundled example: 100 posterior-predictive draws
+   at 30 mm x 200 speeds (<= 60 s).  The posterior comes from ``--posterior``
+   or from a fresh ``bayes-rcsa identify`` of the example (timed separately).
+
+Cases 3 and 4 are also run with the implementation before issue 13 (commit
+``OLD_COMMIT``: full depth grid per draw, exact matrix exponentials per
+depth, no compiled kernel), exported with ``git archive`` into a temporary
+directory and run in a subprocess; the old probabilistic run is timed on
+``--old-draws`` draws and scaled linearly (its per-draw loop is linear).
+``--skip-old`` leaves them out (the old measured case alone takes minutes).
 
 Each vectorised solver is timed over ``--runs`` runs (median).  The naive
 per-point references implement the same methods with a Python loop per point:
@@ -20,8 +32,13 @@ references also check the vectorised results (last column).
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 from scipy.linalg import expm
@@ -36,6 +53,10 @@ from bayes_rcsa.stability import (
 )
 from bayes_rcsa.stability.cutting import interval_directional_matrices
 
+OLD_COMMIT = "0b81963"
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLE = ROOT / "bayes_rcsa" / "data" / "example"
+CASE_B = dict(kt=790e6, kr=230e6, flutes=4, radial_immersion=0.95, milling="down", feed="y")
 F = np.linspace(400.0, 3400.0, 1200)
 CUT = CuttingConditions(kt=790e6, kr=230e6, flutes=4, radial_immersion=0.7, milling="down", feed="y")
 MX = ModalModel([1287.0], [0.02], [1.0e6])
@@ -131,11 +152,92 @@ def timed(fn, runs):
     return statistics.median(times), result
 
 
+# ---------------------------------------------------------------------------------------- example cases
+_OLD_SCRIPT = """
+import sys, time, numpy as np
+from bayes_rcsa.stability import CuttingConditions, lobes_from_frf_draws
+d = np.load(sys.argv[1])
+cut = CuttingConditions(kt=790e6, kr=230e6, flutes=4, radial_immersion=0.95, milling="down", feed="y")
+t0 = time.perf_counter()
+res = lobes_from_frf_draws(d["gx"], d["gy"], d["f"], cut, d["speeds"], method="sdm")
+print(time.perf_counter() - t0)
+np.save(sys.argv[2], res.depth_limit_m)
+"""
+
+
+def run_old(gx, gy, f, speeds, tmp: Path):
+    """Time the pre-issue-13 probabilistic SDM on these draws in a subprocess; returns (seconds, limits)."""
+    tree = tmp / "old"
+    if not tree.exists():
+        tree.mkdir()
+        archive = subprocess.run(["git", "-C", str(ROOT), "archive", OLD_COMMIT, "bayes_rcsa"], check=True,
+                                 capture_output=True).stdout
+        subprocess.run(["tar", "-x", "-C", str(tree)], input=archive, check=True)
+    data = tmp / "draws.npz"
+    np.savez(data, gx=gx, gy=gy, f=f, speeds=speeds)
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    out = subprocess.run([sys.executable, "-c", _OLD_SCRIPT, str(data), str(tmp / "old_limits.npy")], cwd=tmp,
+                         env=env, check=True, capture_output=True, text=True)
+    return float(out.stdout.strip().splitlines()[-1]), np.load(tmp / "old_limits.npy")
+
+
+def example_posterior(path, tmp: Path):
+    """posterior.nc of the bundled example: ``path`` or a fresh identify run (returns path, seconds)."""
+    if path is not None:
+        return path, 0.0
+    from bayes_rcsa.cli.main import main as cli
+
+    t0 = time.perf_counter()
+    status = cli(["identify", str(EXAMPLE / "setup.toml"), "--out", str(tmp / "identify"),
+                  "--lengths", "0.025,0.040", "--seed", "0"])
+    if status != 0:
+        raise SystemExit("identify failed; pass --posterior")
+    return str(tmp / "identify" / "posterior.nc"), time.perf_counter() - t0
+
+
+def example_cases(args, rows):
+    from bayes_rcsa.io.frf import read_frf
+    from bayes_rcsa.stability.posterior_frf import common_frequency_grid, posterior_frf_draws
+
+    cut = CuttingConditions(**CASE_B)
+    speeds = np.linspace(5000, 30000, 200)
+    with tempfile.TemporaryDirectory() as tmpdir:
+        tmp = Path(tmpdir)
+        f, gx, gy = common_frequency_grid(read_frf(EXAMPLE / "tip_x_30mm.csv"), read_frf(EXAMPLE / "tip_y_30mm.csv"))
+        lobes_from_frf_draws(gx, gy, f, cut, speeds[:4], method="sdm")  # load the compiled kernel once
+        t_new, res = timed(lambda: lobes_from_frf_draws(gx, gy, f, cut, speeds, method="sdm"), args.runs)
+        if args.skip_old:
+            t_old, check = float("nan"), "old implementation skipped"
+        else:
+            t_old, old = run_old(gx[None], gy[None], f, speeds, tmp)
+            ok = np.isfinite(old[0])
+            check = f"median |new/old - 1| {np.median(np.abs(res.depth_limit_m[0][ok] / old[0][ok] - 1)):.1e}"
+        rows.append(("SDM measured FRFs, 200 speeds", t_new, t_old, "old: full run", 20.0, check))
+
+        post, t_id = example_posterior(args.posterior, tmp)
+        frf = posterior_frf_draws(EXAMPLE / "setup.toml", post, 0.030, 100, np.random.default_rng(0))
+        t_new, res = timed(lambda: lobes_from_frf_draws(frf.frf_x, frf.frf_y, frf.frequency_hz, cut, speeds,
+                                                        method="sdm"), 1)
+        if args.skip_old:
+            t_old, check = float("nan"), "old implementation skipped"
+        else:
+            k = args.old_draws
+            t_sub, old = run_old(frf.frf_x[:k], frf.frf_y[:k], frf.frequency_hz, speeds, tmp)
+            t_old = t_sub * frf.n_draws / k
+            ok = np.isfinite(old)
+            check = f"median |new/old - 1| {np.median(np.abs(res.depth_limit_m[:k][ok] / old[ok] - 1)):.1e}"
+        rows.append(("SDM 100 posterior draws x 200", t_new, t_old, f"old: {args.old_draws} draws, scaled", 60.0,
+                     check + (f"; identify {t_id:.0f} s" if t_id else "")))
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=3, help="runs of each vectorised solver (median reported)")
     ap.add_argument("--naive-draws", type=int, default=2, help="draws timed with the naive ZOA loop")
     ap.add_argument("--naive-points", type=int, default=20, help="grid points timed with the naive SDM loop")
+    ap.add_argument("--posterior", help="posterior.nc of the bundled example (default: run identify)")
+    ap.add_argument("--old-draws", type=int, default=2, help="draws timed with the pre-issue-13 implementation")
+    ap.add_argument("--skip-old", action="store_true", help="do not run the pre-issue-13 implementation")
     args = ap.parse_args(argv)
 
     rows = []
@@ -165,8 +267,9 @@ def main(argv=None) -> int:
     err = float(np.max(np.abs(rho - smap.spectral_radius[i_s, i_d])))
     rows.append(("SDM 200 x 100 grid, 2 modes", t_sdm, t_naive_sdm, f"{args.naive_points} points x {sp.size * dp.size // args.naive_points}", 20.0, f"max |drho| {err:.1e}"))
 
-    print(f"stability lobes benchmark (median of {args.runs} runs; naive loop timed on a subset and scaled)")
-    print(f"{'case':30s} {'vectorised s':>12s} {'naive s':>10s} {'speed-up':>9s} {'budget s':>9s} {'ok':>4s}  naive subset / check")
+    example_cases(args, rows)
+    print(f"stability lobes benchmark (median of {args.runs} runs; naive loop / old implementation timed as stated)")
+    print(f"{'case':30s} {'current s':>12s} {'ref. s':>10s} {'ratio':>9s} {'budget s':>9s} {'ok':>4s}  reference / check")
     for name, t, tn, sub, budget, check in rows:
         ok = "yes" if t <= budget else "NO"
         print(f"{name:30s} {t:12.2f} {tn:10.1f} {tn / t:9.0f} {budget:9.1f} {ok:>4s}  {sub}; {check}")

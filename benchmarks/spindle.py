@@ -5,7 +5,14 @@ ratio to a naive implementation measured in the same run: Namazi's
 equations solved line by line as a nonlinear system (``scipy.optimize.root``
 on the six real unknowns of h, l = n, p, started from the previous line's
 solution) instead of the closed-form, vectorised linear solve.
-Run: ``python benchmarks/spindle.py``.
+
+The end-to-end case is the command a user runs: ``bayes-rcsa spindle
+ARTIFACT --samples 50`` on the synthetic artifact tests (both directions,
+budget 60 s), timed in a subprocess for the current tree and for the tree
+before issue 13 (commit ``OLD_COMMIT``, exported with ``git archive``), with
+the largest relative difference of their bootstrap samples (the speed-up must
+not change results).  ``--skip-old`` leaves the old run out.
+Run: ``python benchmarks/spindle.py [--samples 50] [--skip-old]``.
 """
 
 from __future__ import annotations
@@ -15,9 +22,13 @@ import os
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+import argparse  # noqa: E402
 import statistics  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 from scipy.optimize import root  # noqa: E402
@@ -63,7 +74,49 @@ def naive_inverse(ar, measured: np.ndarray, start: np.ndarray) -> np.ndarray:
     return out
 
 
+OLD_COMMIT = "0b81963"
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def cli_run(tree: Path, artifact: Path, out: Path, samples: int) -> float:
+    """Wall time of ``bayes-rcsa spindle`` run from source ``tree`` in a fresh interpreter."""
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "bayes_rcsa", "spindle", str(artifact), "--out", str(out),
+                    "--samples", str(samples), "--no-plots", "--quiet"], cwd=out.parent, env=env, check=True,
+                   capture_output=True)
+    return time.perf_counter() - t0
+
+
+def end_to_end(samples: int, skip_old: bool) -> None:
+    cfg = default_bench_config()
+    art = default_bench_artifact()
+    tests = generate_artifact_tests(cfg, art, np.random.default_rng(1))
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        artifact = Path(write_artifact_tests(tests, tmp / "artifact"))
+        t_new = cli_run(ROOT, artifact, tmp / "new", samples)
+        line = f"{'bayes-rcsa spindle, ' + str(samples) + ' samples (both directions)':<58}{t_new:>10.1f} s"
+        if not skip_old:
+            old_tree = tmp / "old"
+            old_tree.mkdir()
+            archive = subprocess.run(["git", "-C", str(ROOT), "archive", OLD_COMMIT, "bayes_rcsa"], check=True,
+                                     capture_output=True).stdout
+            subprocess.run(["tar", "-x", "-C", str(old_tree)], input=archive, check=True)
+            t_old = cli_run(old_tree, artifact, tmp / "old_out", samples)
+            a = np.load(tmp / "new" / "spindle_samples.npz")
+            b = np.load(tmp / "old_out" / "spindle_samples.npz")
+            diff = max(float(np.max(np.abs(a[k] - b[k])) / np.max(np.abs(b[k]))) for k in b.files
+                       if np.issubdtype(b[k].dtype, np.number) and b[k].size)
+            line += f"{t_old / t_new:>9.2f}x vs before issue 13 ({t_old:.1f} s); max rel. sample difference {diff:.1e}"
+        print(line + "  (budget 60 s)")
+
+
 def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--samples", type=int, default=50)
+    ap.add_argument("--skip-old", action="store_true")
+    args = ap.parse_args()
     cfg = default_bench_config()
     art = default_bench_artifact()
     tests = generate_artifact_tests(cfg, art, np.random.default_rng(1), directions=("x",))
@@ -98,6 +151,7 @@ def main() -> None:
     print(f"{'identify_direction (noise, inversion, smoothing, flags)':<58}{t_fit:>10.2f} s")
     print(f"{'identify_direction with 10 bootstrap samples':<58}{t_boot:>10.2f} s")
     print(f"   -> about {(t_boot - t_fit) / 10:.2f} s per bootstrap sample")
+    end_to_end(args.samples, args.skip_old)
 
 
 if __name__ == "__main__":

@@ -55,7 +55,10 @@ def register(subparsers) -> None:
     p.add_argument("artifact", type=Path, metavar="ARTIFACT", help="artifact file (TOML), see docs/spindle.md")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
     p.add_argument("--samples", type=_nonnegative_int, default=50, metavar="N",
-                   help="bootstrap samples of the flange receptance (0: none; default 50, 0.5-2 s each)")
+                   help="bootstrap samples of the flange receptance (0: none; default 50).  Cost per direction on "
+                   "2 cores, about 4000 lines: 5-10 s for the fit, 5-10 s more for the bootstrap start fits, then "
+                   "0.5-1.5 s per sample (about 1 min per direction at the default); the estimate and a progress "
+                   "bar are printed on stderr")
     p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (default 0)")
     p.add_argument("--max-modes", type=_nonnegative_int, default=None, metavar="N",
                    help="largest mode count tried by the modal smoothing (default: [fit] max_modes or 8)")
@@ -86,12 +89,26 @@ def run(args) -> int:
                          f"{sorted(setup.measurements)}")
     rng = np.random.default_rng(args.seed)
     results = {}
+    if not args.quiet:
+        from ..stability.progress import format_seconds
+
+        per = 8.0 + (9.0 + 0.8 * args.samples if args.samples else 0.0)  # measured, benchmarks/spindle.py
+        print(f"spindle: {len(directions)} direction(s), {args.samples} bootstrap samples each: estimated "
+              f"{format_seconds(per * len(directions))}", file=sys.stderr)
     for d in directions:
+        bar = None
         if not args.quiet:
+            from ..stability.progress import ProgressBar
+
             print(f"spindle: direction {d}: inverse coupling, modal smoothing"
                   + (f", {args.samples} bootstrap samples" if args.samples else ""), file=sys.stderr)
-        results[d] = identify_direction(setup, d, n_samples=args.samples, rng=rng,
-                                        max_modes=args.max_modes)
+            bar = ProgressBar(f"spindle {d}")
+        try:
+            results[d] = identify_direction(setup, d, n_samples=args.samples, rng=rng,
+                                            max_modes=args.max_modes, progress=bar)
+        finally:
+            if bar is not None:
+                bar.close()
     summary = write_outputs(setup, results, args.out, plots=not args.no_plots, seed=args.seed)
     if not args.quiet:
         for d, s in summary["directions"].items():

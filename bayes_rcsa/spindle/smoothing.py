@@ -372,7 +372,7 @@ class _Problem:
 
     def jacobian(self, x) -> np.ndarray:
         _, d = _evaluate(x, self.n, self.wt, self.sc, derivatives=True)
-        jac = np.einsum("fke,fep->fkp", self.w, d).reshape(-1, d.shape[-1])
+        jac = np.matmul(self.w, d).reshape(-1, d.shape[-1])  # (nf, k, e) @ (nf, e, p)
         return np.concatenate([jac.real, jac.imag], axis=0)
 
 
@@ -423,7 +423,7 @@ class _MeasurementProblem:
     def jacobian(self, x) -> np.ndarray:
         ent, d = _evaluate(x, self.n, self.wt, self.sc, derivatives=True)
         k = forward_jacobian(self.data.artifact, self._block(ent))[:, self.data.component, :] * self.sc.entry
-        jac = (np.einsum("fke,fep->fkp", k, d) * self.scale[..., None]).reshape(-1, d.shape[-1])
+        jac = (np.matmul(k, d) * self.scale[..., None]).reshape(-1, d.shape[-1])
         return np.concatenate([jac.real, jac.imag], axis=0)
 
 
