@@ -340,6 +340,96 @@ class _Progress:
             sys.stderr.flush()
 
 
+@dataclass
+class _Start:
+    """Where a run starts: walker positions, their log posterior, emcee's generator state, stored steps."""
+
+    coords: np.ndarray
+    log_prob: np.ndarray
+    random_state: tuple
+    done: int
+    chain: np.ndarray
+    chain_log_prob: np.ndarray
+    accepted: np.ndarray
+
+
+def _start(log_post: LogPosterior, initial, rng, resume_state) -> _Start:
+    """Step 1: the state to start from, new (checked walkers, seeded proposal generator) or resumed."""
+    nd = log_post.ndim
+    if resume_state is not None and resume_state.iteration > 0:
+        return _Start(resume_state.chain[-1], resume_state.log_prob[-1], resume_state.random_state,
+                      resume_state.iteration, resume_state.chain, resume_state.log_prob,
+                      resume_state.accepted.astype(float).copy())
+    if initial is None or rng is None:
+        raise SetupError("a new run needs initial walker positions and a random generator")
+    coords0 = np.asarray(initial, dtype=float)
+    log_post.priors.check_inside(coords0, "walker start")
+    lp0 = log_post(coords0)
+    if not np.all(np.isfinite(lp0)):
+        i = int(np.argmax(~np.isfinite(lp0)))
+        raise SetupError(f"walker start {i} has a non-finite log posterior ({lp0[i]!r})")
+    if coords0.ndim != 2 or coords0.shape[1] != nd:
+        raise SetupError(f"walker positions have shape {coords0.shape}, expected (n_walkers, {nd})")
+    from emcee.ensemble import walkers_independent
+
+    if not walkers_independent(coords0):
+        raise SetupError("the walker starts are not linearly independent (a degenerate initial ensemble)")
+    rstate = np.random.RandomState(int(rng.integers(0, 2**32 - 1))).get_state()
+    n_walkers = coords0.shape[0]
+    return _Start(coords0, lp0, rstate, 0, np.empty((0, n_walkers, nd)), np.empty((0, n_walkers)), np.zeros(n_walkers))
+
+
+class _Convergence:
+    """Step 2: the convergence rule of the module docstring, evaluated at the scheduled steps."""
+
+    def __init__(self, settings: SamplerSettings, diagnose):
+        self.settings = settings
+        self.diagnose = diagnose
+        self.last_diag = 0
+
+    def __call__(self, chain_now: np.ndarray, prev_tau):
+        settings = self.settings
+        n = chain_now.shape[0]
+        tau = _tau(chain_now)
+        ok_len = np.all(np.isfinite(tau)) and n > settings.tau_factor * tau.max()
+        ok_stable = prev_tau is not None and np.all(np.abs(tau - prev_tau) < settings.tau_rtol * tau)
+        diag = {}
+        ok_diag = False
+        # R-hat/ESS cost grows with the chain: evaluate them on the tau-thinned chain, and again
+        # only once the chain has grown by 10 % (they cannot change much in between).
+        if ok_len and ok_stable and n >= 1.1 * self.last_diag:
+            self.last_diag = n
+            burn, thin = burn_and_thin(tau, n)
+            if self.diagnose is None:
+                ok_diag = True
+            else:
+                diag = self.diagnose(chain_now[burn::thin])
+                ok_diag = bool(np.all(diag["rhat"] < settings.rhat_max) and np.all(diag["ess_bulk"] >= settings.ess_min))
+        return tau, bool(ok_len and ok_stable and ok_diag), diag
+
+
+def _replay(start: _Start, settings: SamplerSettings, decide: _Convergence, schedule: set[int]):
+    """Step 3 (resumed runs): the tau history of the checks already passed, and whether the run had converged."""
+    chain, done = start.chain, start.done
+    tau_history: list = []
+    prev_tau = None
+    for step in sorted(x for x in schedule if x <= done):
+        prev_tau = _tau(chain[:step])
+        tau_history.append((step, float(prev_tau.max())))
+    converged, reason, diag = False, "", {}
+    if done >= settings.max_steps:
+        reason = f"max_steps = {settings.max_steps} reached (checkpoint has {done} steps)"
+    elif tau_history:
+        # a previous process may have stopped at a converged check
+        _, converged, diag = decide(chain[: tau_history[-1][0]],
+                                    _tau(chain[: tau_history[-2][0]]) if len(tau_history) > 1 else None)
+        if converged and tau_history[-1][0] == done:
+            reason = "converged (found in checkpoint)"
+        else:
+            converged = False
+    return tau_history, prev_tau, converged, reason, diag
+
+
 def run_ensemble(
     log_post: LogPosterior,
     settings: SamplerSettings,
@@ -349,8 +439,14 @@ def run_ensemble(
     checkpoint: Checkpoint | None = None,
     resume_state: CheckpointState | None = None,
     diagnose: Callable[[np.ndarray], dict] | None = None,
+    moves=None,
 ) -> ChainResult:
     """Run emcee's EnsembleSampler until converged or ``settings.max_steps``.
+
+    Steps: the start state (``_start``), the convergence rule
+    (``_Convergence``), the replay of a resumed run's checks (``_replay``),
+    the sampling loop with batched checkpoint writes (``_sample_loop``), the
+    final burn-in, thinning and diagnostics.
 
     Parameters
     ----------
@@ -364,10 +460,16 @@ def run_ensemble(
     checkpoint : Checkpoint, optional
         Where steps are appended (created beforehand by the caller).
     resume_state : CheckpointState, optional
-        Continue this run instead of starting from ``initial``.
+        Continue this run instead of starting from ``initial``; a state
+        with no stored step counts as a new run (``initial`` and ``rng``
+        are then needed).
     diagnose : callable, optional
         ``diagnose(chain (n, n_walkers, ndim)) -> {"rhat", "ess_bulk", "ess_tail"}``;
         without it only the tau criteria decide convergence.
+    moves : emcee moves, optional
+        emcee's ``moves`` argument; default: differential-evolution moves with
+        ``settings.snooker_fraction`` snooker moves.  A resumed run must use
+        the moves of the original run to continue it exactly.
 
     Raises
     ------
@@ -377,140 +479,22 @@ def run_ensemble(
     """
     import emcee
 
-    nd = log_post.ndim
-    if resume_state is not None:
-        coords0 = resume_state.chain[-1]
-        lp0 = resume_state.log_prob[-1]
-        rstate = resume_state.random_state
-        done = resume_state.iteration
-        chain_parts = [resume_state.chain]
-        lp_parts = [resume_state.log_prob]
-        accepted = resume_state.accepted.astype(float).copy()
-    else:
-        if initial is None or rng is None:
-            raise SetupError("a new run needs initial walker positions and a random generator")
-        coords0 = np.asarray(initial, dtype=float)
-        log_post.priors.check_inside(coords0, "walker start")
-        lp0 = log_post(coords0)
-        if not np.all(np.isfinite(lp0)):
-            i = int(np.argmax(~np.isfinite(lp0)))
-            raise SetupError(f"walker start {i} has a non-finite log posterior ({lp0[i]!r})")
-        rstate = np.random.RandomState(int(rng.integers(0, 2**32 - 1))).get_state()
-        done = 0
-        chain_parts, lp_parts = [], []
-        accepted = np.zeros(coords0.shape[0])
-    n_walkers = coords0.shape[0]
-    if coords0.shape != (n_walkers, nd):
-        raise SetupError(f"walker positions have shape {coords0.shape}, expected (n_walkers, {nd})")
-    if resume_state is None:
-        from emcee.ensemble import walkers_independent
-
-        if not walkers_independent(coords0):
-            raise SetupError("the walker starts are not linearly independent (a degenerate initial ensemble)")
-
-    moves = [(emcee.moves.DEMove(), 1.0 - settings.snooker_fraction), (emcee.moves.DESnookerMove(), settings.snooker_fraction)]
+    start = _start(log_post, initial, rng, resume_state)
+    n_walkers, nd = start.coords.shape
+    if moves is None:
+        moves = [(emcee.moves.DEMove(), 1.0 - settings.snooker_fraction),
+                 (emcee.moves.DESnookerMove(), settings.snooker_fraction)]
     sampler = emcee.EnsembleSampler(n_walkers, nd, log_post, moves=moves, vectorize=True)
-
-    chain = np.concatenate(chain_parts) if chain_parts else np.empty((0, n_walkers, nd))
-    log_prob = np.concatenate(lp_parts) if lp_parts else np.empty((0, n_walkers))
-
-    last_diag = [0]
-
-    def decide(chain_now: np.ndarray, prev_tau):
-        n = chain_now.shape[0]
-        tau = _tau(chain_now)
-        ok_len = np.all(np.isfinite(tau)) and n > settings.tau_factor * tau.max()
-        ok_stable = prev_tau is not None and np.all(np.abs(tau - prev_tau) < settings.tau_rtol * tau)
-        diag = {}
-        ok_diag = False
-        # R-hat/ESS cost grows with the chain: evaluate them on the tau-thinned chain, and again
-        # only once the chain has grown by 10 % (they cannot change much in between).
-        if ok_len and ok_stable and n >= 1.1 * last_diag[0]:
-            last_diag[0] = n
-            burn, thin = burn_and_thin(tau, n)
-            if diagnose is None:
-                ok_diag = True
-            else:
-                diag = diagnose(chain_now[burn::thin])
-                ok_diag = bool(np.all(diag["rhat"] < settings.rhat_max) and np.all(diag["ess_bulk"] >= settings.ess_min))
-        return tau, bool(ok_len and ok_stable and ok_diag), diag
-
-    # Replay the checks a resumed run has already passed, for the tau history.
-    tau_history: list = []
-    prev_tau = None
+    decide = _Convergence(settings, diagnose)
     schedule = check_schedule(settings.check_every, settings.max_steps)
-    for step in sorted(x for x in schedule if x <= done):
-        prev_tau = _tau(chain[:step])
-        tau_history.append((step, float(prev_tau.max())))
+    tau_history, prev_tau, converged, reason, diag = _replay(start, settings, decide, schedule)
 
-    converged, reason, diag = False, "", {}
-    if done >= settings.max_steps:
-        reason = f"max_steps = {settings.max_steps} reached (checkpoint has {done} steps)"
-    elif tau_history:
-        # a previous process may have stopped at a converged check
-        _, converged, diag = decide(chain[: tau_history[-1][0]], _tau(chain[: tau_history[-2][0]]) if len(tau_history) > 1 else None)
-        if converged and tau_history[-1][0] == done:
-            reason = "converged (found in checkpoint)"
-        else:
-            converged = False
-
-    progress = _Progress(settings.progress, settings.max_steps)
+    chain, log_prob, accepted = start.chain, start.chain_log_prob, start.accepted
     t0 = time.perf_counter()
     n_new = 0
     if not reason:
-        remaining = settings.max_steps - done
-        state = emcee.State(coords0, log_prob=lp0, random_state=rstate)
-        buf_c, buf_l = [], []
-        acc_batch = np.zeros(n_walkers)
-        prev_coords = coords0.copy()
-        last_flush = time.monotonic()
-        new_c, new_l = [], []
-
-        def flush(rs) -> None:
-            nonlocal buf_c, buf_l, acc_batch, last_flush
-            if checkpoint is not None and buf_c:
-                checkpoint.append(np.array(buf_c), np.array(buf_l), acc_batch, rs)
-            buf_c, buf_l = [], []
-            acc_batch = np.zeros(n_walkers)
-            last_flush = time.monotonic()
-
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            for state in sampler.sample(state, iterations=remaining, store=False, progress=False,
-                                        skip_initial_state_check=True):
-                step = done + n_new + 1
-                n_new += 1
-                # DE proposals move an accepted walker with probability one
-                acc = np.any(state.coords != prev_coords, axis=1)
-                prev_coords = state.coords.copy()
-                accepted += acc
-                acc_batch += acc
-                buf_c.append(prev_coords)
-                buf_l.append(state.log_prob.copy())
-                new_c.append(buf_c[-1])
-                new_l.append(buf_l[-1])
-                if time.monotonic() - last_flush > settings.checkpoint_interval:
-                    flush(state.random_state)
-                if step in schedule:
-                    flush(state.random_state)
-                    chain = np.concatenate([chain, np.array(new_c)])
-                    log_prob = np.concatenate([log_prob, np.array(new_l)])
-                    new_c, new_l = [], []
-                    tau, converged, diag = decide(chain, prev_tau)
-                    prev_tau = tau
-                    tau_history.append((step, float(tau.max())))
-                    progress.update(step, f"tau_max={tau.max():.1f} acc={accepted.mean() / step:.2f}", force=True)
-                    if converged:
-                        reason = f"converged after {step} steps"
-                        break
-                else:
-                    progress.update(step)
-            flush(state.random_state)
-        if new_c:
-            chain = np.concatenate([chain, np.array(new_c)])
-            log_prob = np.concatenate([log_prob, np.array(new_l)])
-        if not reason:
-            reason = f"max_steps = {settings.max_steps} reached before convergence"
-    progress.close()
+        chain, log_prob, accepted, n_new, converged, reason, diag = _sample_loop(
+            sampler, start, settings, decide, schedule, checkpoint, tau_history, prev_tau)
     wall = time.perf_counter() - t0
 
     tau = _tau(chain) if chain.shape[0] > 1 else np.full(nd, np.nan)
@@ -521,3 +505,75 @@ def run_ensemble(
         chain=chain, log_prob=log_prob, accepted=accepted, tau=tau, converged=converged, reason=reason,
         burn=burn, thin=thin, diagnostics=diag, tau_history=tau_history, wall_time=wall, n_new_steps=n_new,
     )
+
+
+def _sample_loop(sampler, start: _Start, settings: SamplerSettings, decide: _Convergence, schedule: set[int],
+                 checkpoint: Checkpoint | None, tau_history: list, prev_tau):
+    """Step 4: emcee steps until converged or ``max_steps``; checkpoint batches and convergence checks.
+
+    Returns
+    -------
+    chain, log_prob, accepted, n_new, converged, reason, diag
+    """
+    import emcee
+
+    chain, log_prob, accepted = start.chain, start.chain_log_prob, start.accepted
+    done = start.done
+    n_walkers = start.coords.shape[0]
+    converged, reason, diag = False, "", {}
+    progress = _Progress(settings.progress, settings.max_steps)
+    n_new = 0
+    remaining = settings.max_steps - done
+    state = emcee.State(start.coords, log_prob=start.log_prob, random_state=start.random_state)
+    buf_c, buf_l = [], []
+    acc_batch = np.zeros(n_walkers)
+    prev_coords = start.coords.copy()
+    last_flush = time.monotonic()
+    new_c, new_l = [], []
+
+    def flush(rs) -> None:
+        nonlocal buf_c, buf_l, acc_batch, last_flush
+        if checkpoint is not None and buf_c:
+            checkpoint.append(np.array(buf_c), np.array(buf_l), acc_batch, rs)
+        buf_c, buf_l = [], []
+        acc_batch = np.zeros(n_walkers)
+        last_flush = time.monotonic()
+
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        for state in sampler.sample(state, iterations=remaining, store=False, progress=False,
+                                    skip_initial_state_check=True):
+            step = done + n_new + 1
+            n_new += 1
+            # DE proposals move an accepted walker with probability one
+            acc = np.any(state.coords != prev_coords, axis=1)
+            prev_coords = state.coords.copy()
+            accepted += acc
+            acc_batch += acc
+            buf_c.append(prev_coords)
+            buf_l.append(state.log_prob.copy())
+            new_c.append(buf_c[-1])
+            new_l.append(buf_l[-1])
+            if time.monotonic() - last_flush > settings.checkpoint_interval:
+                flush(state.random_state)
+            if step in schedule:
+                flush(state.random_state)
+                chain = np.concatenate([chain, np.array(new_c)])
+                log_prob = np.concatenate([log_prob, np.array(new_l)])
+                new_c, new_l = [], []
+                tau, converged, diag = decide(chain, prev_tau)
+                prev_tau = tau
+                tau_history.append((step, float(tau.max())))
+                progress.update(step, f"tau_max={tau.max():.1f} acc={accepted.mean() / step:.2f}", force=True)
+                if converged:
+                    reason = f"converged after {step} steps"
+                    break
+            else:
+                progress.update(step)
+        flush(state.random_state)
+    if new_c:
+        chain = np.concatenate([chain, np.array(new_c)])
+        log_prob = np.concatenate([log_prob, np.array(new_l)])
+    if not reason:
+        reason = f"max_steps = {settings.max_steps} reached before convergence"
+    progress.close()
+    return chain, log_prob, accepted, n_new, converged, reason, diag
