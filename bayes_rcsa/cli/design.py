@@ -1,0 +1,115 @@
+"""``bayes-rcsa design``: which hammer test next (expected reduction of a target's uncertainty)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from ..errors import SetupError
+from ._common import nonnegative_int, parse_float, parse_float_list, positive_int
+
+__all__ = ["register", "run"]
+
+DESCRIPTION = """\
+Rank candidate impact-hammer tests by the expected 90 % width of a target after each one.
+
+With --posterior (posterior.nc of 'bayes-rcsa identify'): for every candidate test, measurements are
+simulated from the posterior draws with the noise level and tempering the fit found, the draws are
+re-weighted by each simulated measurement's likelihood, and the resulting 90 % widths are averaged
+(nested Monte Carlo; a Laplace/Fisher approximation where the importance weights collapse).
+A posterior fitted at one clamping length is first given the growth law's prior uncertainty.
+
+Without --posterior (no data yet): which two clamping lengths of the feasible range minimise the
+expected 90 % width of the dominant natural frequency averaged over the range (prior draws, Laplace).
+
+  --target    frequency@L | stiffness@L | lobes@L:START:STOP[:COUNT]   (L in m, speeds in rpm)
+  --candidates 0.030,0.035,0.040,tool:NAME@0.030,dir:y@0.030
+
+Writes to --out: design.json (ranking best first, expected widths with Monte Carlo errors, the
+verdict whether another test is worth it) and design.png. See docs/design.md.
+"""
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("design", help="which hammer test next: expected uncertainty reduction of a target",
+                              description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("setup", type=Path, metavar="SETUP", help="setup file (TOML)")
+    p.add_argument("--posterior", type=Path, default=None, metavar="FILE",
+                   help="posterior.nc written by 'bayes-rcsa identify' (omit for the no-data planning mode)")
+    p.add_argument("--candidates", default=None, metavar="LIST",
+                   help="candidate tests: clamping lengths in m, tool:NAME@L, dir:D@L (no-data mode: lengths only; "
+                   "default 7 lengths over the feasible range)")
+    p.add_argument("--target", default=None, metavar="TARGET",
+                   help="frequency@L, stiffness@L or lobes@L:START:STOP[:COUNT] (required with --posterior)")
+    p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
+    p.add_argument("--draws", type=positive_int, default=1500, metavar="N",
+                   help="posterior draws re-weighted (default 1500)")
+    p.add_argument("--truths", type=positive_int, default=120, metavar="M",
+                   help="simulated measurements per candidate (default 120)")
+    p.add_argument("--method", choices=("auto", "importance", "laplace"), default="auto",
+                   help="estimator (default auto: importance re-weighting, Laplace where the weights collapse)")
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="random seed (default 0)")
+    p.add_argument("--noise-scale", type=float, default=None, metavar="S",
+                   help="no-data mode: relative noise of the future tests (default 0.02)")
+    cut = p.add_argument_group("cutting conditions (lobes target)")
+    cut.add_argument("--kt", default=None, metavar="PA", help="tangential cutting-force coefficient in Pa")
+    cut.add_argument("--kr", default=None, metavar="PA", help="radial cutting-force coefficient in Pa")
+    cut.add_argument("--flutes", type=positive_int, default=None, help="number of flutes")
+    cut.add_argument("--radial-immersion", default=None, metavar="R", help="radial depth / diameter in (0, 1]")
+    cut.add_argument("--milling", choices=("down", "up"), default="down", help="down (climb) or up milling")
+    p.add_argument("--no-plots", action="store_true", help="skip design.png")
+    p.set_defaults(func=run)
+
+
+def _cutting(args, target):
+    if target.kind != "lobes":
+        return None
+    from ..stability import CuttingConditions
+
+    missing = [o for o, v in (("--kt", args.kt), ("--kr", args.kr), ("--flutes", args.flutes),
+                              ("--radial-immersion", args.radial_immersion)) if v is None]
+    if missing:
+        raise SetupError(f"--target {target.text!r}: a lobes target needs {', '.join(missing)}")
+    return CuttingConditions(kt=parse_float(args.kt, "--kt", positive=True), kr=parse_float(args.kr, "--kr"),
+                             flutes=args.flutes, radial_immersion=parse_float(args.radial_immersion, "--radial-immersion",
+                                                                              positive=True), milling=args.milling)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..design.outputs import write_design_outputs
+    from ..design.targets import parse_candidates, parse_target
+    from ..design.workflow import run_design, run_planning
+    from ..io.atomic import directory_lock, new_output_directory
+    from ..io.setup import load_setup
+    from ..posterior.growth_prior import feasible_growth_law
+
+    setup = load_setup(args.setup)
+    if args.posterior is not None:
+        if not args.posterior.is_file():
+            raise SetupError(f"--posterior {args.posterior}: no such file (posterior.nc written by 'bayes-rcsa identify')")
+        if args.target is None or args.candidates is None:
+            raise SetupError("--posterior needs --target and --candidates")
+        if args.noise_scale is not None:
+            raise SetupError("--noise-scale is for the no-data mode; with --posterior the fit's noise level is used")
+        target = parse_target(args.target)
+        feasible = feasible_growth_law(setup)
+        if feasible is None:
+            raise SetupError(f"{args.setup}: [contact] clamping_range is needed to check the candidates")
+        feasible.check_lengths([target.clamping_length], "--target clamping length")
+        candidates = parse_candidates(args.candidates, setup, feasible)
+        result = run_design(setup, args.posterior, target, candidates, args.draws, args.truths, args.seed, args.method,
+                            _cutting(args, target))
+    else:
+        if args.target is not None:
+            raise SetupError("--target needs --posterior; without data the design plans two clamping lengths for the "
+                             "transfer uncertainty over the whole range")
+        lengths = None if args.candidates is None else parse_float_list(args.candidates, "--candidates", positive=True)
+        noise = 0.02 if args.noise_scale is None else parse_float(str(args.noise_scale), "--noise-scale", positive=True)
+        result = run_planning(setup, lengths, args.truths, args.seed, noise)
+    with directory_lock(args.out), new_output_directory(args.out):
+        write_design_outputs(result, args.out, plots=not args.no_plots)
+    doc = result.as_dict()
+    print(json.dumps({"design": str(args.out / "design.json"), "best": doc["best"]["test"],
+                      "verdict": doc.get("verdict", f"measure {doc['best']['test']}")}))
+    return 0
