@@ -46,7 +46,8 @@ DOCS = Path(__file__).resolve().parent.parent / "docs" / "discrepancy.md"
 def campaign(effects: dict, seed: int, root: Path):
     cfg = default_bench_config(hidden_effects=effects)
     camp = generate_campaign(cfg, np.random.default_rng(seed))
-    return load_setup(write_campaign(camp, root / f"{'_'.join(effects) or 'clean'}_{seed}")), cfg, camp
+    path = write_campaign(camp, root / f"{'_'.join(effects) or 'clean'}_{seed}", overwrite=True)
+    return load_setup(path), cfg, camp
 
 
 def lengths_for(effect: str | None):
@@ -83,6 +84,7 @@ def naming(seeds: int, clean_seeds: int, root: Path, write_docs: bool) -> str:
         hits, halved, n, named_as = 0, 0, 0, []
         for seed in range(seeds):
             setup, _, _ = campaign({effect: True}, seed, root)
+            t0 = time.perf_counter()
             r = run_discrepancy(setup, DiscrepancyOptions(lengths=lengths_for(effect), seed=seed)).report
             ok = r["named_effect"] == effect or (r["named_effect"] is not None and effect in r["confounded_with"])
             hits += ok
@@ -90,7 +92,7 @@ def naming(seeds: int, clean_seeds: int, root: Path, write_docs: bool) -> str:
             n += 1
             named_as.append(str(r["named_effect"]))
             print(f"{effect} seed {seed}: named {r['named_effect']} (confounded {r['confounded_with']}), "
-                  f"gap {r['gap_before']:.4f} -> {r['gap_after']:.4f}", flush=True)
+                  f"gap {r['gap_before']:.4f} -> {r['gap_after']:.4f} ({time.perf_counter() - t0:.1f} s)", flush=True)
         all_ok += hits
         all_n += n
         lo, hi = clopper_pearson(hits, n)

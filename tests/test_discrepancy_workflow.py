@@ -168,3 +168,45 @@ def test_example_walks_the_loop_in_quick_mode(capsys):
     assert r["named_effect"] == "tip_mass" and r["gap_after"] <= 0.5 * r["gap_before"]
     for step in ("1. ", "2. ", "3. named effect: tip_mass", "4. gap", "5. wrote", "terms = ['tip_mass']"):
         assert step in out
+
+
+def test_unexplained_effect_gets_the_statistical_discrepancy_and_wider_intervals(tmp_path_factory):
+    # a flange resonance (extra_mode) is in the truth but excluded from the candidates: nothing can be named
+    path, _ = _campaign(tmp_path_factory, {"extra_mode": True}, 3)
+    res = run_discrepancy(load_setup(path), DiscrepancyOptions(lengths=FIT, candidates=("tip_mass",), n_refit=1,
+                                                               leave_one_out=False))
+    r = res.report
+    assert r["adequate"] is False and r["named_effect"] is None
+    assert r["final_model"] == "statistical_discrepancy"
+    width = lambda q: q["q95"] - q["q05"]  # noqa: E731
+    for length in ("25", "40"):
+        assert width(r["stiffness_after"]["k_xf"][length]) > width(r["stiffness_before"]["k_xf"][length])
+
+
+def test_statistical_discrepancy_absorbs_a_smooth_gain_but_not_a_resonance_shift():
+    from types import SimpleNamespace
+
+    from bayes_rcsa.discrepancy.statistical import StatisticalDiscrepancy
+    from bayes_rcsa.model.receptance import PointReceptance
+
+    f = np.arange(500.0, 3500.0, 2.0)
+    spindle = PointReceptance(f, np.ones((f.size, 2, 2)) * (1e-8 - 1e-9j))
+    ctx = SimpleNamespace(model=SimpleNamespace(spindle={"x": spindle}), frequency_hz=f)
+    term = StatisticalDiscrepancy()
+    names = [p.name for p in term.parameters(None)]
+    h = _sdof(f, 1000.0, 0.01)[None]
+    zero = {n: np.zeros(1) for n in names}
+    assert np.array_equal(term.frf(zero, h, ctx), h)
+    basis = term.basis(ctx)  # (3, n)
+
+    def best_fit_residual(target):
+        # least-squares coefficients of target / h - 1 on the basis (what the term can represent)
+        a = (basis * h[0]).T
+        coef = np.linalg.lstsq(a, target - h[0], rcond=None)[0]
+        return np.linalg.norm(a @ coef - (target - h[0])) / np.linalg.norm(target - h[0])
+
+    gain = h[0] * 1.03 * np.exp(0.02j) * (1 + 0.01 * (f - 2000) / 1500)  # calibration + slow trend
+    assert best_fit_residual(gain) < 1e-9
+    shifted = _sdof(f, 1010.0, 0.01)  # a 1 % resonance shift
+    # its residual changes sign within a few bandwidths: the smooth basis leaves most of it (measured: 69 % RMS)
+    assert best_fit_residual(shifted) > 0.5

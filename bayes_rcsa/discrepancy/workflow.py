@@ -32,7 +32,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..errors import DataError, SetupError
+from ..errors import DataError, ModelError, SetupError
 from ..inference.band import band_mask
 from ..inference.problem import IdentificationOptions, Problem, build_problem_from_setup
 from ..model.assembly import ConfigurationStack
@@ -96,9 +96,24 @@ class DiscrepancyResult:
     report: dict = field(default_factory=dict)
 
 
-def default_candidates(existing: Sequence[str] = ()) -> tuple[str, ...]:
-    """Every registered physical term (role ``term``) not in ``existing``."""
-    return tuple(n for n in known_terms() if get_term(n).role == "term" and n not in existing)
+def default_candidates(existing: Sequence[str] = (), model=None) -> tuple[str, ...]:
+    """Every registered physical term (role ``term``) not in ``existing`` that applies to ``model``.
+
+    A term that refuses the model (e.g. ``fluted_section`` for a tool without flutes raises
+    :class:`~bayes_rcsa.errors.ModelError` from ``parameters``) is not a candidate for it.
+    """
+    out = []
+    for n in known_terms():
+        cls = get_term(n)
+        if cls.role != "term" or n in existing:
+            continue
+        if model is not None:
+            try:
+                cls().parameters(model)
+            except ModelError:
+                continue
+        out.append(n)
+    return tuple(out)
 
 
 def _existing_terms(setup) -> list[str]:
@@ -133,7 +148,7 @@ def validate(setup, options: DiscrepancyOptions) -> tuple[tuple[str, ...], Ident
     """
     existing = _existing_terms(setup)
     if options.candidates is None:
-        cands = default_candidates(existing)
+        cands = default_candidates(existing, setup.model())
     else:
         cands = tuple(options.candidates)
         for c in cands:
