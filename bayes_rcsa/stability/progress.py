@@ -58,9 +58,11 @@ class ProgressBar:
         self._drawn = True
 
     def close(self) -> None:
-        """Finish the line (only when something was drawn)."""
+        """Finish the line (only when something was drawn): the final state, then a newline."""
         if self._drawn:
-            self.stream.write(f"\r{self.label} [{'#' * self.width}] 100 % "
-                              f"{format_seconds(time.monotonic() - self.start)}\n")
+            self._last = -1e9
+            self.quiet_seconds = 0.0
+            self(1.0)
+            self.stream.write("\n")
             self.stream.flush()
             self._drawn = False
