@@ -22,8 +22,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any, Sequence
+from typing import Sequence
 
 import numpy as np
 
@@ -31,7 +30,6 @@ from ..errors import DataError, SetupError
 from ..model.assembly import Configuration, ConfigurationStack
 from ..model.natural_frequencies import natural_frequency
 from ..params.forward import ForwardModel
-from ..params.growth import GrowthLaw
 from ..posterior.draws import PosteriorDraws, load_posterior
 from ..posterior.growth_prior import feasible_growth_law, with_growth_prior
 from . import estimators as E
