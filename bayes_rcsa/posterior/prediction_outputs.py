@@ -295,6 +295,9 @@ def _blocks(run: PredictionRun, images: Sequence[str]) -> list[tuple]:
         ("p", f"Setup {meta['setup']}; posterior {meta['posterior']} (method {meta['method']}, fitted at "
               f"{', '.join(f'{l * 1e3:g}' for l in meta['fit_lengths']) or '?'} mm); {meta['n_draws']} of "
               f"{meta['n_draws_available']} draws (subset seed {meta['subset_seed']})."),
+        ("p", "Parameter model taken from the " + str(meta.get("parameter_model_source", "posterior"))
+              + (f" (model terms: {', '.join(meta['model_terms'])})" if meta.get("model_terms") else "") + ". "
+              + " ".join(n if n.endswith(".") else n + "." for n in meta.get("parameter_model_notes", []))),
         ("h", 2, "Dominant natural frequency: measured vs predicted (cf. the reference paper's Table 4)"),
         ("table", *_table4(p)),
         ("p", "Intervals are central posterior credible intervals. Natural-frequency rule: " + NATURAL_FREQUENCY_RULE + "."),
