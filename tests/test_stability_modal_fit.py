@@ -65,3 +65,18 @@ def test_fit_input_errors():
         fit_modal_model(np.arange(5.0), np.ones(5))
     with pytest.raises(DataError):
         fit_modal_model(np.arange(1.0, 21.0), np.zeros(20))
+
+
+def test_refit_from_a_neighbouring_draw_reaches_the_full_fit():
+    from bayes_rcsa.stability.modal_fit import refit_modal_model
+
+    f = np.linspace(500.0, 3000.0, 600)
+    a = ModalModel([1287.0, 2650.0], [0.02, 0.03], [1.0e6, 6.0e6])
+    b = ModalModel([1295.0, 2640.0], [0.021, 0.029], [1.02e6, 5.9e6])  # a "neighbouring draw"
+    first = fit_modal_model(f, a.frf(f), max_modes=4)
+    full = fit_modal_model(f, b.frf(f), max_modes=4)
+    warm = refit_modal_model(f, b.frf(f), first)
+    assert warm.model.n_modes == full.model.n_modes == 2
+    np.testing.assert_allclose(warm.model.natural_frequency_hz, b.natural_frequency_hz, rtol=1e-8)
+    np.testing.assert_allclose(warm.model.stiffness, full.model.stiffness, rtol=1e-6)
+    np.testing.assert_allclose(warm.model.damping_ratio, full.model.damping_ratio, rtol=1e-6)

@@ -36,7 +36,7 @@ from scipy.optimize import least_squares
 
 from ..errors import ConvergenceError, DataError, ModelError
 
-__all__ = ["ModalModel", "ModalFit", "fit_modal_model"]
+__all__ = ["ModalModel", "ModalFit", "fit_modal_model", "refit_modal_model"]
 
 
 @dataclass(frozen=True)
@@ -229,3 +229,66 @@ def fit_modal_model(
     model = ModalModel(fn[order], ze[order], kk[order])
     rms_rel = float(np.sqrt(rss / f.size))  # gs has unit RMS
     return ModalFit(model=model, residual_compliance=float(p[-1] * scale), bic=np.asarray(bics), rms_relative=rms_rel)
+
+
+def refit_modal_model(frequency_hz, frf, start: ModalFit, source: str = "<frf>") -> ModalFit:
+    """Refine a modal fit of a similar receptance (e.g. the previous posterior draw) on ``frf``.
+
+    The mode count of ``start`` is kept (no BIC search) and its modes and
+    residual compliance are the start values of one nonlinear least-squares
+    refinement, which costs a fraction of :func:`fit_modal_model`.  Meant for
+    many draws of one posterior, whose FRFs differ by far less than the
+    spacing of their modes; ``bic`` of the result holds the refined fit only.
+
+    Parameters
+    ----------
+    frequency_hz : (n_freq,) Hz
+    frf : (n_freq,) complex, m/N
+    start : ModalFit
+    source : str, name used in error messages
+
+    Returns
+    -------
+    ModalFit
+    """
+    f = np.asarray(frequency_hz, dtype=float)
+    g = np.asarray(frf, dtype=complex)
+    if f.ndim != 1 or g.shape != f.shape or f.size < 8:
+        raise DataError(f"{source}: need matching 1-D frequency and FRF arrays with >= 8 lines")
+    scale = float(np.sqrt(np.mean(np.abs(g) ** 2)))
+    if not np.isfinite(scale) or scale == 0:
+        raise DataError(f"{source}: FRF is zero or not finite")
+    gs = g / scale
+    m = start.model
+    r = m.n_modes
+    lo_f, hi_f = np.log(f[0] * 0.5), np.log(f[-1] * 2.0)
+    p0 = np.empty(3 * r + 1)
+    p0[0 : 3 * r : 3] = np.clip(np.log(m.natural_frequency_hz), lo_f + 1e-9, hi_f - 1e-9)
+    p0[1 : 3 * r : 3] = np.clip(np.log(m.damping_ratio), np.log(1e-4) + 1e-9, np.log(0.5) - 1e-9)
+    p0[2 : 3 * r : 3] = np.log(m.stiffness * scale)
+    p0[-1] = start.residual_compliance / scale
+    lb = np.tile([lo_f, np.log(1e-4), -np.inf], r).tolist() + [-np.inf]
+    ub = np.tile([hi_f, np.log(0.5), np.inf], r).tolist() + [np.inf]
+
+    def fun(p):
+        mm, _ = _modes_and_jac(p, f)
+        d = mm - gs
+        return np.concatenate([d.real, d.imag])
+
+    def jac(p):
+        _, J = _modes_and_jac(p, f)
+        return np.concatenate([J.real, J.imag])
+
+    sol = least_squares(fun, p0, jac=jac, bounds=(lb, ub), x_scale="jac", max_nfev=200)
+    p = sol.x
+    rss = float(np.sum(sol.fun**2))
+    n_obs = 2 * f.size
+    fn = np.exp(p[0 : 3 * r : 3])
+    ze = np.exp(p[1 : 3 * r : 3])
+    kk = np.exp(p[2 : 3 * r : 3]) / scale
+    if not np.all(np.isfinite(kk)):
+        raise ConvergenceError(f"{source}: modal refit diverged")
+    order = np.argsort(fn)
+    bic = n_obs * np.log(max(rss, 1e-300) / n_obs) + (3 * r + 1) * np.log(n_obs)
+    return ModalFit(model=ModalModel(fn[order], ze[order], kk[order]), residual_compliance=float(p[-1] * scale),
+                    bic=np.array([bic]), rms_relative=float(np.sqrt(rss / f.size)))

@@ -77,7 +77,6 @@ O(Δt^2)).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -85,7 +84,6 @@ import numpy as np
 from ..errors import SetupError
 from .cutting import CuttingConditions, interval_directional_matrices
 from ._sdm_kernel import apply_monodromy
-from .modal_fit import ModalModel
 
 __all__ = [
     "SDMResult",
