@@ -168,8 +168,9 @@ def test_tip_mass_shift_matches_the_finite_element_bench_and_stays_passive():
     fe1 = true_tool_point_frf(loaded, Configuration(length), f)
     shift_fe = natural_frequency(f, fe1) - natural_frequency(f, fe0)
     assert shift_fe < -10.0  # the mass lowers the tool mode noticeably
-    # the two models differ in the spindle/holder details by ~1 % in frequency; the shift agrees to 10 %
-    assert shift_rcsa == pytest.approx(shift_fe, rel=0.10)
+    # measured: -115.216 Hz (RCSA) vs -115.220 Hz (FE), 4e-5 apart; the models' own mode differs by 2e-6
+    # relative, so 1e-3 leaves room for the FE mesh and still catches a wrong inertia (r_g^2 moves it ~1e-2)
+    assert shift_rcsa == pytest.approx(shift_fe, rel=1e-3)
     # passive point receptance (Im h <= 0 with e^{+iwt}) with the mass
     assert np.all(h1.imag <= 0)
 
