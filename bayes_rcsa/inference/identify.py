@@ -272,7 +272,7 @@ def _startup(problem: Problem, lp_full: LogPosterior, state) -> _Startup:
 
 
 def _sample(problem: Problem, lp: LogPosterior, startup: _Startup, settings: SamplerSettings, n_walkers: int,
-            fingerprint: dict, ckpt: Checkpoint | None, state, rng_init, rng_mcmc) -> ChainResult:
+            fingerprint: dict, ckpt: Checkpoint | None, state, rng_init, rng_mcmc, moves=None) -> ChainResult:
     """Step 3: the emcee run, new or continued.
 
     A checkpoint with no stored step (killed right after the start-up) is
@@ -291,7 +291,7 @@ def _sample(problem: Problem, lp: LogPosterior, startup: _Startup, settings: Sam
             })
         state = None
     chain = run_ensemble(lp, settings, initial=initial, rng=rng_mcmc, checkpoint=ckpt, resume_state=state,
-                         diagnose=chain_diagnostics)
+                         diagnose=chain_diagnostics, moves=moves)
     if ckpt is not None:
         ckpt.finish()
     return chain
@@ -474,6 +474,7 @@ def identify(
     resume: bool = False,
     max_draws: int = MAX_DRAWS,
     spindle_samples=None,
+    moves=None,
 ) -> IdentificationResult:
     """Run the identification.
 
@@ -497,6 +498,10 @@ def identify(
     spindle_samples : SpindleSamples, optional
         Flange-receptance samples (``bayes-rcsa spindle``); the predicted
         natural-frequency intervals then mix the posterior draws with them.
+    moves : emcee moves, optional
+        Passed to :func:`.sampler.run_ensemble` (default: differential
+        evolution with ``settings.snooker_fraction`` snooker moves).  Not part
+        of the resume fingerprint: resume with the moves of the original run.
 
     Raises
     ------
@@ -517,7 +522,7 @@ def identify(
     state = _resume_state(ckpt, checkpoint_path, fingerprint) if resume else None
     startup = _startup(problem, lp_full, state)
     lp = lp_full.with_likelihood(problem.likelihood.with_tempering(startup.beta))
-    chain = _sample(problem, lp, startup, settings, n_walkers, fingerprint, ckpt, state, rng_init, rng_mcmc)
+    chain = _sample(problem, lp, startup, settings, n_walkers, fingerprint, ckpt, state, rng_init, rng_mcmc, moves)
     theta, log_prob, extra = _thin(chain, max_draws)
     return _summarise(problem, seed, settings, spindle_samples, rng_spindle, t_start, lp_full, lp, startup, chain,
                       theta, log_prob, extra, n_walkers)
