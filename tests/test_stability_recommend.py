@@ -187,7 +187,7 @@ def test_method_registry_drives_the_cli(tmp_path, capsys):
 
 def test_estimate_and_budget_advice_on_stderr(tmp_path, capsys):
     out = tmp_path / "o"
-    argv = ["lobes", "--measured-x", FX, "--measured-y", FY, *CASE, "--method", "sdm", "--speeds", "12000:15000:8",
+    argv = ["lobes", "--measured-x", FX, "--measured-y", FY, *CASE, "--method", "sdm", "--speeds", "12000:15000:4",
             "--budget", "0.01", "--out", str(out)]
     assert main(argv) == 0
     err = capsys.readouterr().err

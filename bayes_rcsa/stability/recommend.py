@@ -231,7 +231,10 @@ def recommend(
             best = i
             break
         if limits_at is not None and tol.speed_rel > 0:
-            fine = np.linspace(n[i] * (1 - tol.speed_rel), n[i] * (1 + tol.speed_rel), _FINE_POINTS)
+            # about 4 checks per grid step across the window (at most _FINE_POINTS, at least 5)
+            step = float(np.min(np.diff(n)))
+            k_fine = int(np.clip(np.ceil(8 * tol.speed_rel * n[i] / step) + 1, 5, _FINE_POINTS))
+            fine = np.linspace(n[i] * (1 - tol.speed_rel), n[i] * (1 + tol.speed_rel), k_fine)
             a_f = level_limit(np.atleast_2d(limits_at(fine)), level) / kf
             a_rob[i] = min(a_rob[i], float(np.min(a_f)))
             if not (np.isfinite(a_rob[i]) and a_rob[i] > 0):
