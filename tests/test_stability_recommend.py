@@ -192,3 +192,13 @@ def test_estimate_and_budget_advice_on_stderr(tmp_path, capsys):
     assert main(argv) == 0
     err = capsys.readouterr().err
     assert "estimated" in err and "--draws" in err and "--method zoa" in err
+
+
+def test_flute_length_of_the_example_tool_limits_posterior_mode():
+    from bayes_rcsa.io import load_setup
+    from bayes_rcsa.stability.posterior_frf import flute_length
+
+    setup = load_setup(EXAMPLE / "setup.toml", load_data=False)
+    tool = next(iter(setup.tools.values()))
+    # the example's fluted segment (diameter_ratio 0.8) is 30 mm long, the shank follows
+    assert flute_length(tool) == pytest.approx(0.03)
