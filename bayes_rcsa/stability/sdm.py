@@ -463,14 +463,19 @@ def _explicit(steps: _Steps) -> np.ndarray:
     return np.ascontiguousarray(_apply(steps, eye).transpose(2, 0, 1))
 
 
-def _arnoldi_radius(steps: _Steps, krylov: int, rng: np.random.Generator, tol: float = _RITZ_TOL):
-    """Dominant Ritz modulus and a convergence flag per batch point (residual <= tol relative)."""
+def _arnoldi_radius(steps: _Steps, krylov: int, rng: np.random.Generator, tol: float = _RITZ_TOL, v0=None):
+    """Dominant Ritz modulus, a convergence flag (residual <= tol relative) and the real part of the
+    dominant Ritz vector (d, G) per batch point.  ``v0`` (d, G): start vectors (default: one random
+    vector from ``rng`` for all points)."""
     G, d = steps.size, steps.dim
     k = min(krylov, d)
     V = np.zeros((k + 1, d, G))
     H = np.zeros((G, k + 1, k))
-    v0 = rng.standard_normal(d)
-    V[0] = (v0 / np.linalg.norm(v0))[:, None]
+    if v0 is None:
+        v = rng.standard_normal(d)
+        V[0] = (v / np.linalg.norm(v))[:, None]
+    else:
+        V[0] = v0 / np.maximum(np.linalg.norm(v0, axis=0), 1e-300)
     for j in range(k):
         w = _apply(steps, V[j][:, None, :])[:, 0, :]
         for _ in range(2):  # classical Gram-Schmidt, repeated once for orthogonality
@@ -495,25 +500,32 @@ def _arnoldi_radius(steps: _Steps, krylov: int, rng: np.random.Generator, tol: f
     s_vec /= np.maximum(np.linalg.norm(s_vec, axis=1, keepdims=True), 1e-300)
     resid = np.abs(H[:, k, k - 1]) * np.abs(s_vec[:, k - 1])
     converged = resid <= tol * np.maximum(rho, 1e-12)
-    return rho, converged
+    # real part (plus imaginary part, so a real eigenvector never vanishes) of V_k s: lies in the
+    # dominant invariant subspace, a good start for a neighbouring matrix (next depth of a search)
+    x = np.einsum("idg,gi->dg", V[:k], s_vec)
+    return rho, converged, x.real + x.imag
 
 
-def _radius_batch(steps: _Steps, solver: str, krylov: int, rng, tol: float = _RITZ_TOL) -> np.ndarray:
+def _radius_batch(steps: _Steps, solver: str, krylov: int, rng, tol: float = _RITZ_TOL, v0=None):
+    """ρ (G,) and dominant Ritz vectors (d, G) (zeros where dense eigenvalues were used)."""
+    vec = np.zeros((steps.dim, steps.size))
     if solver == "eig":
-        return np.max(np.abs(np.linalg.eigvals(_explicit(steps))), axis=-1)
+        return np.max(np.abs(np.linalg.eigvals(_explicit(steps))), axis=-1), vec
     rho = np.empty(steps.size)
     todo = np.arange(steps.size)
     k = krylov
+    start = v0
     while todo.size:
         sub = steps if todo.size == steps.size else steps.subset(todo)
         if k >= sub.dim:  # a full Krylov space costs more than the dense eigenvalues
             rho[todo] = np.max(np.abs(np.linalg.eigvals(_explicit(sub))), axis=-1)
             break
-        r, ok = _arnoldi_radius(sub, k, rng, tol)
+        r, ok, x = _arnoldi_radius(sub, k, rng, tol, None if start is None else start[:, todo])
         rho[todo[ok]] = r[ok]
+        vec[:, todo[ok]] = x[:, ok]
         todo = todo[~ok]
         k *= 2  # the few unconverged points get a larger Krylov space
-    return rho
+    return rho, vec
 
 
 # ----------------------------------------------------------------------------------------
@@ -555,7 +567,9 @@ def spectral_radius_batch(
     chunk: int = 4096,
     rng: np.random.Generator | None = None,
     ritz_tol: float = _RITZ_TOL,
-) -> np.ndarray:
+    start=None,
+    vectors: bool = False,
+):
     """ρ(Φ) for points that each have their own modal model, speed and depth, (G,).
 
     Parameters
@@ -569,6 +583,8 @@ def spectral_radius_batch(
     chunk : int, largest number of points processed at once (bounds memory)
     rng : numpy Generator for the Arnoldi start vector (default: fixed seed 0)
     ritz_tol : float, relative residual at which a dominant Ritz value is accepted
+    start : (G,) object array of (d,) start vectors or None entries, or None (random start)
+    vectors : bool, also return the dominant Ritz vectors as a (G,) object array (start of a next call)
     """
     _check_solver(solver)
     rng = np.random.default_rng(0) if rng is None else rng
@@ -580,14 +596,21 @@ def spectral_radius_batch(
         raise SetupError(f"intervals {intervals!r}: expected >= 2 per tooth period")
     modal = _modal_batch(pairs, np.arange(len(pairs)))
     rho = np.empty(speed.size)
+    out_vec = np.empty(speed.size, dtype=object) if vectors else None
     for m in np.unique(m_all):
         disc, factor = _discretise(cutting, int(m))
         idx = np.nonzero(m_all == m)[0]
         for s in range(0, idx.size, chunk):
             sel = idx[s : s + chunk]
             steps = _steps(modal.take(index[sel]), disc, factor * 60.0 / speed[sel], depth[sel])
-            rho[sel] = _radius_batch(steps, solver, krylov, rng, ritz_tol)
-    return rho
+            v0 = None
+            if start is not None and all(start[g] is not None and start[g].shape == (steps.dim,) for g in sel):
+                v0 = np.stack([start[g] for g in sel], axis=1)
+            rho[sel], vec = _radius_batch(steps, solver, krylov, rng, ritz_tol, v0)
+            if vectors:
+                for c, g in enumerate(sel):
+                    out_vec[g] = vec[:, c] if np.any(vec[:, c]) else None
+    return (rho, out_vec) if vectors else rho
 
 
 def spectral_radius(
@@ -662,7 +685,7 @@ def periodic_dde_radius(
     disc = _Discretisation(m, current, groups, L)
     modal = _modal_batch([(modes_x, modes_y)], np.zeros(1, dtype=int))
     steps = _steps(modal, disc, np.array([float(period_s)]), np.array([float(scale)]))
-    return float(_radius_batch(steps, solver, krylov, np.random.default_rng(0) if rng is None else rng)[0])
+    return float(_radius_batch(steps, solver, krylov, np.random.default_rng(0) if rng is None else rng)[0][0])
 
 
 def _free_radius(modes_x, modes_y, cutting, speed):
@@ -813,7 +836,8 @@ def sdm_depth_limits_batch(
     rtol: float = 2e-3,
     expand: float = 1.6,
     max_expand: int = 8,
-    krylov: int = 28,
+    krylov: int = 20,
+    krylov_warm: int = 8,
     progress=None,
 ) -> np.ndarray:
     """Limit depth of many (model, speed) points at once: predicted bracket from a guess, then safeguarded secant.
@@ -829,8 +853,10 @@ def sdm_depth_limits_batch(
     rtol : float, relative width of the final bracket
     expand : float, bracket growth factor when the predicted bracket misses
     max_expand : int, growth steps before a point is declared free of chatter (+inf)
-    krylov : int, Arnoldi steps (fitted modal models often carry lightly damped modes whose multipliers
-        crowd the unit circle; 14 steps rarely converge there, 28 nearly always do)
+    krylov : int, Arnoldi steps of the first evaluation (fitted modal models often carry lightly damped
+        modes whose multipliers crowd the unit circle; 14 steps rarely converge there, 20 mostly do)
+    krylov_warm : int, Arnoldi steps of later evaluations, started from the point's previous dominant
+        Ritz vector (doubled where they do not converge)
     progress : callable(fraction) or None, called after each batched evaluation
 
     Returns
@@ -863,11 +889,18 @@ def sdm_depth_limits_batch(
     budget = 5.0  # typical evaluations per point, for the progress fraction only
     done_evals = [0.0]
 
+    vecs = np.empty(G, dtype=object)  # dominant Ritz vector of each point's last evaluation
+
     def rho(sel, a):
         # a stability decision and the secant step need ρ to ~1e-4 (the depth then to ~1e-4 relative,
-        # well inside rtol); the looser Ritz tolerance saves Krylov passes near clustered multipliers
-        r = spectral_radius_batch(pairs, index[sel], cutting, speed[sel], a, m_all[sel], krylov=krylov,
-                                  ritz_tol=_BATCH_RITZ_TOL)
+        # well inside rtol); the looser Ritz tolerance saves Krylov passes near clustered multipliers.
+        # From the second evaluation on, each point starts from its previous dominant Ritz vector:
+        # the depth changes little, so a short Krylov space converges.
+        warm = all(vecs[g] is not None for g in sel)
+        r, v = spectral_radius_batch(pairs, index[sel], cutting, speed[sel], a, m_all[sel],
+                                     krylov=krylov_warm if warm else krylov, ritz_tol=_BATCH_RITZ_TOL,
+                                     start=vecs[sel] if warm else None, vectors=True)
+        vecs[sel] = v
         done_evals[0] += sel.size
         if progress is not None:
             progress(min(0.99, done_evals[0] / (budget * G)))
