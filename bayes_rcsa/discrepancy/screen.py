@@ -40,7 +40,7 @@ from .fit import ModelFit, whitened_residuals
 
 __all__ = ["ScoreResult", "embed_baseline", "score_test"]
 
-_FINE = 48  # grid points of the first inactive parameter
+_FINE = 120  # grid points of the first inactive parameter (25 Hz over a 3 kHz file: within a resonance half-width)
 _COARSE_Q = (0.15, 0.5, 0.85)  # prior quantiles of the others
 _N_STARTS = 3  # best grid points handed to the refit as starting points
 

@@ -18,7 +18,7 @@ Decision
 --------
 * A candidate is *supported* when ``criterion > LN_BF_NAME`` (= ln 100,
   "decisive" on Jeffreys' scale) **and** it removes at least
-  ``MIN_GAP_REDUCTION`` (20 %) of the baseline's RMS relative residual on
+  ``MIN_GAP_REDUCTION`` (10 %) of the baseline's RMS relative residual on
   the fitted lines.
 * The winner is the supported candidate with the largest criterion; the
   runner-up and the margin (difference of criteria) are reported.
@@ -43,7 +43,7 @@ __all__ = ["LN_BF_NAME", "LN_BF_CONFOUNDED", "MIN_GAP_REDUCTION", "Refit", "refi
 
 LN_BF_NAME = math.log(100.0)
 LN_BF_CONFOUNDED = math.log(10.0)
-MIN_GAP_REDUCTION = 0.2
+MIN_GAP_REDUCTION = 0.1
 
 
 def gap(measured: np.ndarray, predicted: np.ndarray) -> float:

@@ -369,7 +369,7 @@ def build_report(res: DiscrepancyResult) -> dict:
         "detection": res.detection.as_dict(),
         "tempering": res.baseline.tempering,
         "criterion": "Laplace log evidence of the tempered posterior minus the baseline's (beta = 1/tau_r of the "
-                     "baseline); named when > ln 100 and the fitted-line gap drops by >= 20 %",
+                     "baseline); named when > ln 100 and the fitted-line gap drops by >= 10 %",
         "measurements_before": b["measurements"],
         "measurements_after": a["measurements"],
         "final_parameters": a["term_parameters"],

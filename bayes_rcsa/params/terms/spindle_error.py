@@ -25,8 +25,8 @@ the file exactly.  Uniform scaling of all stiffness stands in for scaling
 the bearings only; it is accurate for bearing-dominated (rigid-shaft)
 modes and over-corrects shaft-bending modes (docs/discrepancy.md).
 
-Modal fit.  Peaks of the summed normalised magnitudes of h, l, p give the
-initial poles; frequencies and damping coefficients are refined by
+Modal fit.  Peaks of the summed normalised magnitudes of h, l, p (and
+optionally poles just outside the file's range) give the initial poles; frequencies and damping coefficients are refined by
 variable projection (residues by linear least squares inside a
 Levenberg-Marquardt loop on the poles) on the whole file.
 
@@ -110,7 +110,8 @@ def _solve_residues(omega, y, weights, w2, c):
     return coef, np.concatenate(resid)
 
 
-def fit_flange_modal_model(frequency_hz: np.ndarray, block: np.ndarray, prominence: float = 0.05) -> FlangeModalModel:
+def fit_flange_modal_model(frequency_hz: np.ndarray, block: np.ndarray, prominence: float = 0.05,
+                           extra_poles: tuple = ()) -> FlangeModalModel:
     """Fit :class:`FlangeModalModel` to a measured flange block.
 
     Parameters
@@ -120,6 +121,15 @@ def fit_flange_modal_model(frequency_hz: np.ndarray, block: np.ndarray, prominen
     prominence : float
         Peaks of the summed normalised magnitude below this fraction of its
         range are not taken as modes.
+    extra_poles : tuple of float
+        Initial poles for modes just outside the file's range, as multiples
+        of its first (``< 1``) or last (``> 1``) frequency.  They let a mode
+        at or beyond a band edge (e.g. the bench's at ~503 Hz for a file
+        starting at 500 Hz) scale with the others instead of ending up in
+        the fixed residual.  Off by default: on the bench, ``(0.85, 1.3)``
+        cuts the modal misfit from 12 % to 0.07 % but not the error of the
+        corrected file (which is set by the uniform-scaling assumption),
+        and the pole search then takes about a minute instead of a second.
 
     Raises
     ------
@@ -142,7 +152,7 @@ def fit_flange_modal_model(frequency_hz: np.ndarray, block: np.ndarray, prominen
     peaks, _ = find_peaks(mag, prominence=prominence * (mag.max() - mag.min()))
     peaks = peaks[np.argsort(mag[peaks])[::-1][:_MAX_MODES]]
     peaks = np.sort(peaks)
-    w0 = omega[peaks]
+    w0 = np.concatenate([omega[peaks], [x * (omega[0] if x < 1 else omega[-1]) for x in extra_poles]])
     c_init = 2 * 0.03 * w0  # 3 % damping as a start; refined below
     if w0.size:
         def fun(x):
