@@ -91,9 +91,10 @@ def test_cutting_force_tolerance_scales_the_depth_and_user_limits_bind(tmp_path)
     assert capped["depth_grid_m"]["max"] > rec["depth_m"]  # the limit binds, and the file says so
     flute = run_lobes(tmp_path, "flute", "--flute-length", "0.00005")["recommended"]
     assert flute["depth_m"] <= 5e-5 and flute["binding_limit"].startswith("flute_length")
-    # the recommended speed never leaves --speeds
+    # the recommended speed never leaves --speeds; here (a flat lobe floor, rising a.n) the range end binds
     narrow = run_lobes(tmp_path, "narrow", "--speeds", "20000:30000:100")["recommended"]
     assert 20000 * 1.02 <= narrow["spindle_speed_rpm"] * 1.0000001 and narrow["spindle_speed_rpm"] * 1.02 <= 30000 * 1.0000001
+    assert narrow["binding_limit"].endswith("+speed_range")
 
 
 @pytest.mark.parametrize(

@@ -294,7 +294,8 @@ def _describe(n, lim, a_lvl, kf, i, a, a_rob_i, tol, level, cap, caps) -> Recomm
     top = a * (1 + tol.depth_margin)
     p_neigh = min(_p_stable(lim[:, j] / kf, top) for j in np.nonzero(win)[0])
     binding = "stability" if a_rob_i / ((1 + tol.depth_margin) * _INSIDE) <= cap else _cap_name(caps, cap)
-    if abs(lo - n[0]) <= 0.51 * (n[1] - n[0]) or abs(hi - n[-1]) <= 0.51 * (n[-1] - n[-2]):
+    cand = np.nonzero((n * (1 - tol.speed_rel) >= n[0] * (1 - 1e-12)) & (n * (1 + tol.speed_rel) <= n[-1] * (1 + 1e-12)))[0]
+    if cand.size and i in (cand[0], cand[-1]):  # the first or last speed whose window fits in the range
         binding += "+speed_range"
     # nearest speed, below and above, where depth a is no longer stable at the level
     bad = ~(a < a_lvl / kf)
