@@ -254,6 +254,11 @@ class TargetEvaluator:
                     peaks = [float(np.max(median[(f >= lo) & (f <= hi)])) for lo, hi, _ in modes]
                     lo, hi, _ = modes[int(np.argmax(peaks))]
                     self.band = (lo, hi)
+                    # only the band's lines are needed from now on (same rule, same lines, less work)
+                    keep = (f >= lo) & (f <= hi)
+                    self.frequency_hz = f[keep]
+                    self._forward["f"] = ForwardModel(parameters, ConfigurationStack(
+                        [model.precompute(Configuration(length, direction, tool), f[keep])]), model)
         elif target.kind == "lobes":
             if cutting is None:
                 raise SetupError(f"--target {target.text!r}: a lobes target needs the cutting conditions "
@@ -283,8 +288,7 @@ class TargetEvaluator:
         if kind == "stiffness":
             return self.parameters.contact(values, [self.target.clamping_length]).k_xf[:, :1].astype(float)
         if kind == "frequency":
-            h = self._forward["f"].frf(values)
-            return natural_frequency(self.frequency_hz, h, self.band)[:, None]
+            return natural_frequency(self.frequency_hz, self._forward["f"].frf(values))[:, None]
         from ..stability import zoa_lobes
 
         hx = self._forward["x"].frf(values)

@@ -31,7 +31,7 @@ from ..model.assembly import Configuration, ConfigurationStack
 from ..model.natural_frequencies import natural_frequency
 from ..params.forward import ForwardModel
 from ..posterior.draws import PosteriorDraws, load_posterior
-from ..posterior.growth_prior import feasible_growth_law, with_growth_prior
+from ..posterior.growth_prior import feasible_growth_law, needs_growth_prior, with_growth_prior
 from . import estimators as E
 from .targets import Candidate, Target, TargetEvaluator, design_direction, design_tool, frequency_lines
 
@@ -40,11 +40,17 @@ __all__ = ["WORTH_IT_FRACTION", "DEFAULT_DRAWS", "DEFAULT_TRUTHS", "CandidateRes
 
 #: A test is worth doing when it is expected to shrink the target's 90 % width by at least this fraction
 #: of the current width (and by more than twice its Monte Carlo error).
-WORTH_IT_FRACTION = 0.25
+WORTH_IT_FRACTION = 1.0 / 3.0
 DEFAULT_DRAWS = 1500
 DEFAULT_TRUTHS = 120
-#: Relative step of the central differences, in posterior (or prior) standard deviations of each coordinate.
-FD_STEP = 0.1
+#: Growth-prior draws combined with each draw of a single-length posterior.
+GROWTH_REPLICATES = 16
+#: Steps of the central differences, in posterior (or prior) standard deviations of each coordinate: of the FRF,
+#: and of the target.  The target's step is small because the natural-frequency rule (parabola through three
+#: lines) has a local slope that varies within a line spacing, and the width after a test (tenths of a Hz on
+#: 8-Hz lines) is set by the slope at the truth, not by its average over a line.
+FD_STEP = 0.01
+FD_STEP_TARGET = 0.002
 #: Relative noise scale and tempering assumed in the no-data mode (no fit to take them from).
 PLANNING_NOISE = 0.02
 PLANNING_TEMPERING = 1.0
@@ -123,7 +129,7 @@ class DesignResult:
                      "expected_width": b.estimate.expected_width, "mc_error": b.estimate.mc_error},
             "expected_gain": gain, "relative_gain": gain / self.current_width if self.current_width > 0 else None,
             "worth_it": worth,
-            "worth_it_rule": f"expected width reduction >= {WORTH_IT_FRACTION:g} x current width and > 2 MC errors",
+            "worth_it_rule": f"expected width reduction >= {WORTH_IT_FRACTION:.3g} x current width and > 2 MC errors",
             "verdict": verdict,
             "method": {"estimator": "nested Monte Carlo with importance re-weighting of posterior draws "
                                     "(Laplace/Fisher approximation where the weights collapse)",
@@ -245,7 +251,9 @@ def design_from_draws(setup, draws: PosteriorDraws, target: Target, candidates: 
     names = list(pm.physical_names)
     u = E.sampling_coordinates(pm, values, names)
     cov = np.atleast_2d(np.cov(u, rowvar=False))
-    step = FD_STEP * np.sqrt(np.diag(cov))
+    sd = np.sqrt(np.diag(cov))
+    step, step_t = FD_STEP * sd, FD_STEP_TARGET * sd
+    bounds = np.array([pm.priors[n].bounds for n in names], dtype=float)  # support in sampling coordinates
     rng_is, rng_lp = rng.spawn(2)
     m = int(min(n_truths, draws.n_draws))
     truths = rng_lp.choice(draws.n_draws, m, replace=False)
@@ -261,7 +269,7 @@ def design_from_draws(setup, draws: PosteriorDraws, target: Target, candidates: 
             if grad_t is None:
                 grad_t = E.finite_difference_jacobian(
                     lambda uu: evaluator(E.with_sampling_coordinates(pm, values, names, uu, np.repeat(truths, 2 * len(names)))),
-                    u[truths], step)
+                    u[truths], step_t)
             cfg = cand.configuration
             f_band = frequency_lines(setup, cfg.direction)
             f_band = f_band[(f_band >= band[0]) & (f_band <= band[1])]
@@ -271,7 +279,7 @@ def design_from_draws(setup, draws: PosteriorDraws, target: Target, candidates: 
                 u[truths], step)
             w = 1.0 / (noise.scale**2 * (np.abs(h[truths]) ** 2 + floor2))
             gt = np.nan_to_num(grad_t)
-            lap = E.laplace_widths(jac, gt, cov, w, noise.tempering)
+            lap = E.laplace_widths(jac, gt, cov, w, noise.tempering, u[truths], bounds, rng_lp)
         chosen = lap if (method == "laplace" or imp is None or imp.collapsed) else imp
         results.append(CandidateResult(cand, chosen, imp, lap, int(h.shape[1]), band))
     results.sort(key=lambda r: r.estimate.expected_width)
@@ -288,8 +296,13 @@ def design_from_draws(setup, draws: PosteriorDraws, target: Target, candidates: 
 
 
 def run_design(setup, posterior_path, target: Target, candidates: Sequence[Candidate], n_draws: int = DEFAULT_DRAWS,
-               n_truths: int = DEFAULT_TRUTHS, seed: int = 0, method: str = "auto", cutting=None) -> DesignResult:
-    """:func:`design_from_draws` for a ``posterior.nc`` and its setup (posterior mode of ``bayes-rcsa design``)."""
+               n_truths: int = DEFAULT_TRUTHS, seed: int = 0, method: str = "auto", cutting=None,
+               growth_replicates: int = GROWTH_REPLICATES) -> DesignResult:
+    """:func:`design_from_draws` for a ``posterior.nc`` and its setup (posterior mode of ``bayes-rcsa design``).
+
+    ``growth_replicates``: for a single-length posterior, each of the ``n_draws`` draws is combined with this
+    many independent growth-prior draws (see the comment in the code).
+    """
     from ..inference.problem import IdentificationOptions
 
     attrs = posterior_attributes(posterior_path)
@@ -298,6 +311,12 @@ def run_design(setup, posterior_path, target: Target, candidates: Sequence[Candi
     rng_sub, rng_growth, rng_design = np.random.default_rng(seed).spawn(3)
     draws = draws.subset(n_draws, rng_sub)
     feasible = feasible_growth_law(setup, attrs)
+    if needs_growth_prior(draws, feasible) and growth_replicates > 1:
+        # In the current posterior the growth factors are independent of everything else (their prior), so
+        # each posterior draw combined with several growth draws is still a draw from it.  The first test at
+        # a new length pins the growth ~100 times tighter than its prior; without the replicates the
+        # importance weights would collapse onto a handful of draws.
+        draws = draws.take(np.repeat(np.arange(draws.n_draws), growth_replicates))
     draws = with_growth_prior(draws, feasible, rng_growth, setup.extra.get("priors"))
     if "tempering" not in attrs:
         raise DataError(f"{posterior_path}: attribute 'tempering' missing (rerun 'bayes-rcsa identify')")
@@ -391,7 +410,9 @@ def run_planning(setup, candidate_lengths: Sequence[float] | None = None, n_trut
     values = pm.values(theta)
     u_all = E.sampling_coordinates(pm, values, names)
     cov = np.atleast_2d(np.cov(u_all, rowvar=False))
-    step = FD_STEP * np.sqrt(np.diag(cov))
+    sd = np.sqrt(np.diag(cov))
+    step, step_t = FD_STEP * sd, FD_STEP_TARGET * sd
+    bounds = np.array([pm.priors[n].bounds for n in names], dtype=float)
     f = frequency_lines(setup, direction)
     targets = np.linspace(growth.l_a, growth.l_b, n_target_lengths)
     fwd_t = ForwardModel(pm, ConfigurationStack([model.precompute(Configuration(float(l), direction, tool), f)
@@ -413,7 +434,7 @@ def run_planning(setup, candidate_lengths: Sequence[float] | None = None, n_trut
         h = fwd_t.frf(E.with_sampling_coordinates(pm, values, names, uu, rep))
         return natural_frequency(f, h.reshape(uu.shape[0], targets.size, f.size))
 
-    grad = np.nan_to_num(E.finite_difference_jacobian(target_fn, u, step))  # (M, K, p)
+    grad = np.nan_to_num(E.finite_difference_jacobian(target_fn, u, step_t))  # (M, K, p)
     jacs, weights = [], []
     for length in lengths:  # candidate lengths, not draws
         fwd = ForwardModel(pm, ConfigurationStack([model.precompute(Configuration(float(length), direction, tool), f)]),
@@ -430,7 +451,8 @@ def run_planning(setup, candidate_lengths: Sequence[float] | None = None, n_trut
     prior_width = E.laplace_current_width(grad, cov)
     pairs = []
     for i, j in itertools.combinations(range(lengths.size), 2):
-        est = E.laplace_widths([jacs[i], jacs[j]], grad, cov, [weights[i], weights[j]], [tempering, tempering])
+        est = E.laplace_widths([jacs[i], jacs[j]], grad, cov, [weights[i], weights[j]], [tempering, tempering],
+                               u, bounds, np.random.default_rng([seed, i, j]))
         pairs.append(((float(lengths[i]), float(lengths[j])), est))
     pairs.sort(key=lambda p: p[1].expected_width)
     return PlanningResult(tuple(pairs), prior_width, targets, lengths, noise, int(keep.size), direction, tuple(notes))
