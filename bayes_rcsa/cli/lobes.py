@@ -9,7 +9,6 @@ inputs in :mod:`~bayes_rcsa.stability.posterior_frf`, the files in
 from __future__ import annotations
 
 import argparse
-import re
 import sys
 
 import numpy as np
@@ -21,8 +20,6 @@ __all__ = ["register", "run", "parse_speeds", "parse_fraction", "parse_coefficie
 
 DEFAULT_SPEED_POINTS = 400
 DEFAULT_BUDGET_S = 120.0
-# argparse treats "-790e6" as an option unless told that such strings are numbers
-_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?([±]|\+-)?.*$")
 
 
 def register(subparsers) -> None:
@@ -41,7 +38,6 @@ def register(subparsers) -> None:
         "in that view; --feed names the machine axis along which the tool advances.  Methods: "
         + "; ".join(f"{n}: {STABILITY_METHODS.get(n).summary}" for n in names) + ".",
     )
-    p._negative_number_matcher = _NUMBER  # accept "--kt -790e6" as a value (then refused with a reason)
     src = p.add_argument_group("dynamics (one of the two modes)")
     src.add_argument("setup", nargs="?", metavar="SETUP", help="setup TOML (posterior mode)")
     src.add_argument("--posterior", metavar="FILE", help="posterior.nc of 'bayes-rcsa identify' (posterior mode)")
