@@ -62,7 +62,7 @@ def test_tip_mass_named_by_the_cli_with_amended_setup(tmp_path_factory, tmp_path
     out = tmp_path / "disc"
     # three candidates keep the test short; the naming among all seven is covered by the other tests
     code = cli_main.main(["discrepancy", str(path), "--out", str(out), "--lengths", "0.025,0.040", "--seed", "0",
-                          "--candidates", "tip_mass,fluted_section,contact_damping", "--refit", "2"])
+                          "--candidates", "tip_mass,fluted_section,contact_damping"])
     assert code == 0
     assert capsys.readouterr().out.strip().startswith("named tip_mass")
     r = json.loads((out / "discrepancy.json").read_text())
