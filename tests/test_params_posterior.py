@@ -83,3 +83,19 @@ def test_predict_and_lobes_use_the_posterior_after_the_setup_was_edited(fitted, 
     b = posterior_frf_draws(setup_path, posterior, 0.030, 20, rng())
     np.testing.assert_array_equal(a.frf_x, b.frf_x)
     np.testing.assert_array_equal(a.frf_y, b.frf_y)
+
+
+def test_predict_cli_says_when_the_setup_disagrees_with_the_posterior(fitted, tmp_path, capsys):
+    from bayes_rcsa.cli.main import main
+
+    setup_path, posterior, _ = fitted
+    edited = _edited(setup_path, tmp_path)
+    out = tmp_path / "pred"
+    rc = main(["predict", str(edited), "--posterior", str(posterior), "--lengths", "0.030", "--max-draws", "30",
+               "--no-plots", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 0
+    lines = [ln for ln in err.splitlines() if "translational_damping" in ln]
+    assert len(lines) == 1 and lines[0].startswith("bayes-rcsa predict: warning:") and "posterior" in lines[0], err
+    doc = json.loads((out / "frequencies.json").read_text())
+    assert doc["parameter_model_source"] == "posterior"

@@ -5,9 +5,10 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import warnings
 from pathlib import Path
 
-from ..errors import SetupError
+from ..errors import DataWarning, SetupError
 from ._common import nonnegative_int, parse_float_list, parse_frequency_grid
 
 __all__ = ["register", "run"]
@@ -78,6 +79,10 @@ def run(args: argparse.Namespace) -> int:
                             max_draws=None if args.max_draws == 0 else args.max_draws, seed=args.seed)
     with directory_lock(args.out), new_output_directory(args.out):
         write_prediction_outputs(result, args.out, plots=not args.no_plots)
+    # the posterior, not the (possibly edited) setup, defines the model: say where they differ
+    for note in result.meta.get("parameter_model_notes", []):
+        if note.startswith("warning:"):
+            warnings.warn(note.removeprefix("warning:").strip(), DataWarning, stacklevel=1)
     n_nan = sum(1 for m in result.prediction.modes if m.nan_fraction > 0)
     if n_nan:
         print(f"warning: {n_nan} mode(s) have draws without a resonance inside the mode band "
