@@ -34,6 +34,8 @@ COMMANDS = (
     "lobes",
     "discrepancy",
     "design",
+    "report",
+    "batch",
 )
 
 
