@@ -268,3 +268,13 @@ def test_checkpoint_roundtrip_mirror_and_emcee_layout(tmp_path):
     st2 = ck.open()
     np.testing.assert_array_equal(st2.chain, st.chain)
     assert Checkpoint._read(tmp_path / "chain.h5") is not None
+
+
+def test_prior_errors_name_the_key_and_keep_the_reason():
+    # a constructor's own check (sigma <= 0) must not be reported as "parameters must be numbers"
+    with pytest.raises(SetupError, match=r"priors\.k_xf: log-normal .*sigma=-1"):
+        prior_from_spec({"distribution": "log-normal", "median": 1e6, "sigma": -1}, "priors.k_xf")
+    with pytest.raises(SetupError, match=r"priors\.k_xf = \['a', 3\]: expected a \[lo, hi\] pair of numbers"):
+        prior_from_spec(["a", 3], "priors.k_xf")
+    with pytest.raises(SetupError, match=r"contact\.translational_stiffness: log-uniform prior bounds"):
+        prior_from_spec([5, 1], "contact.translational_stiffness")

@@ -333,8 +333,11 @@ def build_parameter_model(model: ToolPointModel, contact: ContactSpec, growth: G
     def add(name: str, prior: Prior | None = None, value: float | None = None) -> None:
         params.append(contact_parameter(name, prior, value))
 
-    add("k_xf", prior_from_spec(user.get("k_xf", list(contact.translational_stiffness)), "contact.translational_stiffness"))
-    add("k_thetaM", prior_from_spec(user.get("k_thetaM", list(contact.rotational_stiffness)), "contact.rotational_stiffness"))
+    # messages name the key the value came from: [priors] overrides [contact]
+    add("k_xf", prior_from_spec(user.get("k_xf", list(contact.translational_stiffness)),
+                                "priors.k_xf" if "k_xf" in user else "contact.translational_stiffness"))
+    add("k_thetaM", prior_from_spec(user.get("k_thetaM", list(contact.rotational_stiffness)),
+                                    "priors.k_thetaM" if "k_thetaM" in user else "contact.rotational_stiffness"))
     if growth.has_growth and growth.growth_bound > 0:
         q = growth.growth_bound
         for name in ("g_xf", "g_thetaM"):

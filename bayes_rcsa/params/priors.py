@@ -402,8 +402,14 @@ def prior_from_spec(spec, name: str, default_kind: str = "log-uniform") -> Prior
     if isinstance(spec, (list, tuple)):
         if len(spec) != 2:
             raise SetupError(f"{name} = {spec!r}: expected a [lo, hi] pair")
-        lo, hi = (float(v) for v in spec)
-        return LogUniform(lo, hi) if default_kind == "log-uniform" else Uniform(lo, hi)
+        try:
+            lo, hi = (float(v) for v in spec)
+        except (TypeError, ValueError):
+            raise SetupError(f"{name} = {spec!r}: expected a [lo, hi] pair of numbers") from None
+        try:
+            return LogUniform(lo, hi) if default_kind == "log-uniform" else Uniform(lo, hi)
+        except SetupError as exc:
+            raise SetupError(f"{name}: {exc}") from None
     if isinstance(spec, Mapping):
         kind = str(spec.get("distribution", default_kind)).lower()
         try:
@@ -417,6 +423,8 @@ def prior_from_spec(spec, name: str, default_kind: str = "log-uniform") -> Prior
                 return Normal(float(spec["mu"]), float(spec["sigma"]), _opt(spec, "lo"), _opt(spec, "hi"))
         except KeyError as exc:
             raise SetupError(f"{name}: {kind} prior needs key {exc.args[0]!r}") from None
+        except SetupError as exc:  # a constructor's own check (e.g. sigma <= 0): keep its reason, name the key
+            raise SetupError(f"{name}: {exc}") from None
         except (TypeError, ValueError):
             raise SetupError(f"{name} = {dict(spec)!r}: prior parameters must be numbers") from None
         raise SetupError(f"{name}: unknown distribution {kind!r}; expected uniform, log-uniform, log-normal or normal")

@@ -17,6 +17,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..io.atomic import atomic_path
+from ..io.jsonable import dumps_strict
 from ..io.figures import new_figure as _figure
 
 __all__ = [
@@ -34,15 +35,9 @@ FIT_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "t
               "tab:olive", "tab:cyan", "tab:gray")
 
 
-def _jsonable(obj):
-    from ..inference.results import to_jsonable
-
-    return to_jsonable(obj)
-
-
 def _save(fig, path, numbers: dict) -> dict:
     path = Path(path)
-    text = json.dumps(_jsonable(numbers), allow_nan=False)
+    text = dumps_strict(numbers)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", metadata={METADATA_KEY: text})
     return numbers

@@ -27,7 +27,6 @@ artifact file read by ``bayes-rcsa spindle``.
 
 from __future__ import annotations
 
-import json
 import math
 import shutil
 from dataclasses import dataclass, field
@@ -36,12 +35,13 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SetupError
+from ..io.jsonable import dumps_strict
 from ..model.geometry import Holder, HolderSegment
 from ..model.materials import Material
 from ..model.receptance import FRF
 from ..model.sections import circular_section, composite_section
 from .bench import true_spindle_receptance
-from .campaign import _jsonable, _replace_dir
+from .campaign import _replace_dir
 from .config import BenchConfig
 from .fe import Chain, NodeRef, assemble, mesh, receptance
 from .noise import add_measurement_noise
@@ -400,7 +400,7 @@ def write_artifact_tests(tests: ArtifactTests, out_dir, overwrite: bool = False,
         if seed is not None:
             truth["seed"] = int(seed)
         (tmp / "truth.json").write_text(
-            json.dumps(_jsonable(truth), indent=2, sort_keys=True, allow_nan=False) + "\n", encoding="utf-8")
+            dumps_strict(truth, nonfinite="error", indent=2, sort_keys=True) + "\n", encoding="utf-8")
         _replace_dir(tmp, out_dir)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
