@@ -20,7 +20,15 @@ for all draws).  From the draws of ``H`` this module derives
   band edge has no resonance inside the band: it gets ``NaN`` for all three,
   is left out of the quantiles and counted in ``nan_fraction``;
 * where a measurement of the configuration exists, the same three
-  quantities of the measured FRF in the same band.
+  quantities of the measured FRF in the same band;
+* with a :class:`PredictiveNoise`, the posterior-predictive interval of the
+  peak a *new hammer test* would show: every draw's FRF gets the fit's
+  measurement noise (circular complex Gaussian with the likelihood's
+  variance ``s^2 (|H|^2 + (eps max|H|)^2)``, coherence 1, ``s`` one of the
+  draw's fitted noise scales) and the same natural-frequency rule is
+  applied to the noisy FRF.  The model interval says where the noise-free
+  resonance of the model lies; the predictive one says where a measured
+  peak will fall, and is the one to compare a new measurement with.
 
 :func:`parameter_influence` reports how much each contact parameter alone
 moves the predicted natural frequencies across its posterior range, which
@@ -47,6 +55,8 @@ __all__ = [
     "MODE_REL_HEIGHT",
     "MODE_REL_PROMINENCE",
     "PredictionTarget",
+    "PredictiveNoise",
+    "noisy_frf",
     "FRFBands",
     "ModePrediction",
     "Prediction",
@@ -93,6 +103,66 @@ class PredictionTarget:
 
 
 @dataclass(frozen=True)
+class PredictiveNoise:
+    """The fit's measurement-noise model, for simulating new hammer tests.
+
+    Attributes
+    ----------
+    scale : (n_draws,) float
+        Relative noise scale ``s`` of each draw (one of the draw's fitted
+        ``sigma_j``, chosen at random: a new test is as noisy as one of the
+        fitted ones).
+    floor : float
+        Noise floor ``eps`` relative to the largest ``|H|`` of the FRF (the
+        likelihood's ``noise_floor``).
+    rng : numpy.random.Generator
+        Draws the noise.
+    source : str
+        Where the model came from, for the outputs.
+    """
+
+    scale: np.ndarray
+    floor: float
+    rng: np.random.Generator
+    source: str = ""
+
+    @classmethod
+    def from_draws(cls, draws: PosteriorDraws, floor: float, rng: np.random.Generator,
+                   source: str = "") -> "PredictiveNoise | None":
+        """Per draw, one of its noise scales ``sigma_j`` picked uniformly; ``None`` without noise scales."""
+        names = [n for n in draws.parameters.noise_names if n in draws.values]
+        if not names:
+            return None
+        s = np.column_stack([np.asarray(draws.values[n], dtype=float) for n in names])
+        pick = rng.integers(0, len(names), size=s.shape[0])
+        return cls(s[np.arange(s.shape[0]), pick], float(floor), rng, source)
+
+
+def noisy_frf(h: np.ndarray, noise: PredictiveNoise) -> np.ndarray:
+    """``h`` plus one simulated measurement noise realisation per draw.
+
+    Parameters
+    ----------
+    h : (n_draws, n_freq) complex, m/N
+        Noise-free FRFs of the draws.
+    noise : PredictiveNoise
+        ``scale`` must have ``n_draws`` entries.
+
+    Returns
+    -------
+    (n_draws, n_freq) complex, m/N
+        ``h + r`` with ``r`` circular complex Gaussian of variance
+        ``s^2 (|h|^2 + (eps max_n |h|)^2)`` per line (coherence 1), as in
+        :mod:`bayes_rcsa.inference.likelihood`.
+    """
+    h = np.asarray(h)
+    a = np.abs(h)
+    var = noise.scale[:, None] ** 2 * (a**2 + (noise.floor * np.max(a, axis=-1, keepdims=True)) ** 2)
+    z = noise.rng.standard_normal(h.shape) + 1j * noise.rng.standard_normal(h.shape)
+    return h + np.sqrt(var / 2.0) * z
+
+
+@dataclass(frozen=True)
 class FRFBands:
     """Quantiles of the predictive FRF of one configuration.
 
@@ -134,6 +204,9 @@ class ModePrediction:
     has_measurement, fitted : bool
     nan_fraction : float
         Share of draws without a resonance inside the band.
+    predictive_peak_hz : dict or None
+        Posterior-predictive quantiles of the peak frequency of a new,
+        noisy measurement (``None`` without a noise model).
     """
 
     configuration: Configuration
@@ -148,6 +221,7 @@ class ModePrediction:
     has_measurement: bool
     fitted: bool
     nan_fraction: float
+    predictive_peak_hz: dict | None = None
 
     def as_dict(self) -> dict:
         """The ``frequencies.json`` entry of this mode (strict JSON values)."""
@@ -162,12 +236,18 @@ class ModePrediction:
             "band_hi_hz": self.band_hz[1],
         }
         out.update({f"{k}_hz": v for k, v in self.natural_frequency_hz.items()})
+        pp = self.predictive_peak_hz
+        if pp is not None:
+            out.update({f"predictive_peak_{k}_hz": pp[k] for k in ("q05", "q50", "q95")})
         if self.has_measurement:
             out["measured_hz"] = self.measured_hz
             q50, m = self.natural_frequency_hz["q50"], self.measured_hz
             out["error_q50_pct"] = None if q50 is None or m is None else 100.0 * (q50 - m) / m
             lo, hi = self.natural_frequency_hz["q05"], self.natural_frequency_hz["q95"]
             out["measured_in_90"] = None if lo is None or m is None else bool(lo <= m <= hi)
+            if pp is not None:
+                plo, phi = pp["q05"], pp["q95"]
+                out["measured_in_predictive_90"] = None if plo is None or m is None else bool(plo <= m <= phi)
             out["fitted"] = self.fitted
         out["peak_magnitude"] = dict(self.peak_magnitude, unit="m/N")
         out["dynamic_stiffness"] = dict(self.dynamic_stiffness, unit="N/m")
@@ -389,7 +469,8 @@ def mode_statistics(frequency_hz, h, band: tuple[float, float]) -> tuple[np.ndar
     return fn, np.where(np.isfinite(fn), peak, np.nan)
 
 
-def _mode_predictions(target: PredictionTarget, f: np.ndarray, h: np.ndarray, median_mag: np.ndarray):
+def _mode_predictions(target: PredictionTarget, f: np.ndarray, h: np.ndarray, median_mag: np.ndarray,
+                      h_noisy: np.ndarray | None = None):
     """ModePrediction of every mode and the per-draw natural frequencies (n_draws,) of each."""
     modes = find_modes(f, median_mag)
     if not modes:
@@ -409,19 +490,20 @@ def _mode_predictions(target: PredictionTarget, f: np.ndarray, h: np.ndarray, me
                 m_pk = float(b) if np.isfinite(b) else None
         with np.errstate(divide="ignore", invalid="ignore"):
             stiffness = 1.0 / pk
+        pp = None if h_noisy is None else quantile_dict(natural_frequency(f, h_noisy, (lo, hi)))
         out.append(ModePrediction(
             configuration=target.configuration, mode=k + 1, dominant=(k == dominant), band_hz=(lo, hi),
             natural_frequency_hz=quantile_dict(fn), peak_magnitude=quantile_dict(pk),
             dynamic_stiffness=quantile_dict(stiffness), measured_hz=m_hz, measured_peak_magnitude=m_pk,
             has_measurement=meas is not None, fitted=target.fitted,
-            nan_fraction=float(np.mean(~np.isfinite(fn))),
+            nan_fraction=float(np.mean(~np.isfinite(fn))), predictive_peak_hz=pp,
         ))
         freqs.append(fn)
     return out, freqs
 
 
 def predict(draws: PosteriorDraws, model: ToolPointModel, targets: Sequence[PredictionTarget],
-            influence: bool = True) -> Prediction:
+            influence: bool = True, noise: PredictiveNoise | None = None) -> Prediction:
     """Posterior predictive FRF bands and per-mode intervals for every target.
 
     Parameters
@@ -432,6 +514,9 @@ def predict(draws: PosteriorDraws, model: ToolPointModel, targets: Sequence[Pred
     targets : sequence of PredictionTarget
     influence : bool
         Also run :func:`parameter_influence`.
+    noise : PredictiveNoise, optional
+        Also compute each mode's posterior-predictive peak interval of a new
+        measurement (``predictive_peak_hz``).
 
     Returns
     -------
@@ -445,7 +530,8 @@ def predict(draws: PosteriorDraws, model: ToolPointModel, targets: Sequence[Pred
         q_re = column_quantiles(h.real, levels)
         q_im = column_quantiles(h.imag, levels)
         bands.append(FRFBands(t.configuration, t.frequency_hz, q_mag, q_re, q_im, t.measured))
-        m, fn = _mode_predictions(t, t.frequency_hz, h, q_mag[2])
+        h_noisy = None if noise is None else noisy_frf(h, noise)
+        m, fn = _mode_predictions(t, t.frequency_hz, h, q_mag[2], h_noisy)
         modes += m
         freqs += fn
     infl = tuple(parameter_influence(draws, modes, freqs)) if influence else ()

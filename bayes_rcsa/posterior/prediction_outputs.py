@@ -25,7 +25,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..errors import SetupError
+from ..errors import DataError, SetupError
 from ..io.atomic import atomic_path, atomic_write_text
 from ..params.growth import GrowthLaw
 from ..params.priors import PriorSet
@@ -37,6 +37,7 @@ from .predict import (
     MODE_REL_PROMINENCE,
     QUANTILE_KEYS,
     Prediction,
+    PredictiveNoise,
     predict,
     prediction_targets,
     quantile_dict,
@@ -45,6 +46,8 @@ from .report import fmt, fmt_interval, write_report
 
 __all__ = [
     "PredictionRun",
+    "INTERVAL_DEFINITIONS",
+    "posterior_status",
     "check_prediction_lengths",
     "contact_identifiability",
     "run_prediction",
@@ -66,6 +69,67 @@ MODE_RULE = (
     "peak magnitude = max |H| on the band's lines, dynamic stiffness = 1 / peak magnitude"
 )
 
+DEFAULT_NOISE_FLOOR = 0.01  # the likelihood's default (inference.problem), used when summary.json is absent
+INTERVAL_DEFINITIONS = {
+    "q05_hz..q95_hz": "credible interval of the MODEL's (noise-free) natural frequency: where the resonance of the "
+                      "identified model lies; narrower than the scatter of measured peaks",
+    "predictive_peak_q05_hz..predictive_peak_q95_hz": "posterior-predictive interval of the peak frequency a NEW "
+                      "hammer test would show: each draw's FRF plus simulated measurement noise of the fit's noise "
+                      "model (relative scale sigma_j, noise floor, coherence 1), the same natural-frequency rule; "
+                      "compare a new measurement with this one",
+}
+
+
+def posterior_status(posterior_path) -> dict:
+    """Convergence status of the fit behind ``posterior_path`` for the products' outputs.
+
+    Read from the sibling ``summary.json`` written by ``bayes-rcsa
+    identify`` (R-hat, ESS, tau, steps, warnings, noise floor); without it,
+    from the posterior file's ``converged`` attribute only.
+
+    Returns
+    -------
+    dict
+        ``{"converged": bool or None, "rhat_max", "ess_bulk_min", "tau_max",
+        "n_steps", "warnings": list of str, "noise_floor", "source"}``
+        (``None`` where unknown).
+    """
+    path = Path(posterior_path)
+    summary_path = path.parent / "summary.json"
+    out = {"converged": None, "rhat_max": None, "ess_bulk_min": None, "tau_max": None, "n_steps": None,
+           "warnings": [], "noise_floor": None, "source": None}
+    if summary_path.is_file():
+        try:
+            summary = json.loads(summary_path.read_text(encoding="utf-8"))
+        except ValueError as exc:
+            raise DataError(f"{summary_path}: not valid JSON ({exc})") from None
+        params = summary.get("parameters", {}) or {}
+        rhat = [p["rhat"] for p in params.values() if p.get("rhat") is not None]
+        ess = [p["ess_bulk"] for p in params.values() if p.get("ess_bulk") is not None]
+        tau = [t for t in (summary.get("tau") or {}).values() if t is not None]
+        out.update({
+            "converged": summary.get("converged"),
+            "rhat_max": max(rhat) if rhat else None,
+            "ess_bulk_min": min(ess) if ess else None,
+            "tau_max": max(tau) if tau else None,
+            "n_steps": summary.get("n_steps"),
+            "warnings": [str(w) for w in summary.get("warnings", [])],
+            "noise_floor": (summary.get("likelihood") or {}).get("noise_floor"),
+            "source": str(summary_path),
+        })
+    else:
+        from .draws import posterior_attributes, read_posterior
+
+        attrs = posterior_attributes(read_posterior(path))
+        if "converged" in attrs:
+            out["converged"] = bool(int(attrs["converged"])) if not isinstance(attrs["converged"], str) \
+                else attrs["converged"].lower() in ("true", "1")
+        out["source"] = str(path)
+    if out["converged"] is False:
+        out["warnings"] = ["the posterior's sampler did NOT converge: every interval below is unreliable"] + \
+            out["warnings"]
+    return out
+
 
 @dataclass(frozen=True)
 class PredictionRun:
@@ -82,7 +146,9 @@ class PredictionRun:
         physical parameters.
     meta : dict
         Setup, posterior file, seed, requested lengths, where the parameter
-        model came from (``parameter_model_source``) and notes.
+        model came from (``parameter_model_source``), notes, the posterior's
+        convergence status (``posterior_status``) and the predictive noise
+        model (``predictive_noise``).
     """
 
     prediction: Prediction
@@ -138,14 +204,20 @@ def run_prediction(setup, posterior_path, lengths: Sequence[float], directions: 
     max_draws : int or None
         Random subset of at most this many draws (``None``: all).
     seed : int
-        Seed of the generator that picks the subset.
+        Seed of the generators that pick the subset and simulate the
+        measurement noise of the predictive peak intervals.
     """
     draws_all = load_posterior(posterior_path, setup)
     lengths = [float(v) for v in lengths]
     check_prediction_lengths(draws_all, setup, lengths)
+    status = posterior_status(posterior_path)
+    # the subset keeps default_rng(seed) (earlier outputs reproduced draw for draw); the noise gets its own stream
     draws = draws_all.subset(max_draws, np.random.default_rng(seed))
+    rng_noise = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
+    floor = status["noise_floor"] if status["noise_floor"] is not None else DEFAULT_NOISE_FLOOR
+    noise = PredictiveNoise.from_draws(draws, floor, rng_noise)
     targets = prediction_targets(setup, lengths, directions, tool, frequency_hz, draws.fit_lengths)
-    prediction = predict(draws, setup.model(), targets)
+    prediction = predict(draws, setup.model(), targets, noise=noise)
     ident = contact_identifiability(draws)  # the same draws as the influence, so the report's ranges agree
     meta = {
         "setup": str(setup.path),
@@ -159,6 +231,12 @@ def run_prediction(setup, posterior_path, lengths: Sequence[float], directions: 
         "subset_seed": seed,
         "lengths": lengths,
         **draws.provenance(),
+        "posterior_status": status,
+        "predictive_noise": None if noise is None else {
+            "noise_floor": floor, "noise_floor_source": "summary.json" if status["noise_floor"] is not None
+            else f"default {DEFAULT_NOISE_FLOOR:g} (no summary.json beside the posterior)",
+            "scale_q05": float(np.quantile(noise.scale, 0.05)), "scale_q50": float(np.median(noise.scale)),
+            "scale_q95": float(np.quantile(noise.scale, 0.95)), "coherence": 1.0},
     }
     return PredictionRun(prediction, draws, ident, meta)
 
@@ -194,8 +272,10 @@ def frequencies_document(run: PredictionRun) -> dict:
               for n in pm.all_names if pm[n].role != "noise"}
     return {
         **run.meta,
+        "converged": run.meta["posterior_status"]["converged"],
         "natural_frequency_rule": NATURAL_FREQUENCY_RULE,
         "mode_rule": MODE_RULE,
+        "interval_definitions": INTERVAL_DEFINITIONS,
         "quantile_levels": dict(zip(QUANTILE_KEYS, (0.05, 0.25, 0.5, 0.75, 0.95))),
         "predictions": [m.as_dict() for m in p.modes],
         "contact_parameters": params,
@@ -260,13 +340,35 @@ def undetermined_statement(name: str, ident: dict, infl: dict | None) -> str | N
     return text
 
 
+def _predictive_interval(m) -> str:
+    pp = m.predictive_peak_hz
+    if pp is None or pp["q05"] is None:
+        return "—"
+    return f"[{fmt(pp['q05'], 6)}, {fmt(pp['q95'], 6)}]"
+
+
+def status_blocks(status: dict) -> list[tuple]:
+    """Report blocks stating the posterior's convergence (prominent warnings when it did not converge)."""
+    conv = status.get("converged")
+    word = {True: "yes", False: "NO", None: "unknown"}[conv if conv in (True, False) else None]
+    text = (f"Posterior converged: {word}; largest R-hat {fmt(status.get('rhat_max'), 4)}, smallest bulk ESS "
+            f"{fmt(status.get('ess_bulk_min'), 3)}, largest autocorrelation time {fmt(status.get('tau_max'), 3)} steps, "
+            f"{status.get('n_steps') if status.get('n_steps') is not None else '?'} steps (from {status.get('source')}).")
+    blocks: list[tuple] = [("p", text)]
+    if status.get("warnings"):
+        blocks.append(("h", 2, "Warnings from the identification" + (" — NOT CONVERGED" if conv is False else "")))
+        blocks.append(("ul", list(status["warnings"])))
+    return blocks
+
+
 def _table4(prediction: Prediction) -> tuple[list[str], list[list[str]]]:
     dominant = [m for m in prediction.modes if m.dominant]
     dirs = sorted({m.configuration.direction for m in dominant})
     lengths = sorted({m.configuration.clamping_length for m in dominant})
     head = ["clamping length (mm)"]
     for d in dirs:
-        head += [f"ω_n,{d} measured (Hz)", f"ω_n,{d} predicted median [90 %] (Hz)", f"error {d} (%)"]
+        head += [f"ω_n,{d} measured (Hz)", f"ω_n,{d} model median [90 % credible] (Hz)",
+                 f"new measured peak {d} [90 % predictive] (Hz)", f"error {d} (%)"]
     rows = []
     for length in lengths:
         row = [f"{length * 1e3:g}" + (" (fitted)" if any(m.fitted for m in dominant
@@ -274,7 +376,7 @@ def _table4(prediction: Prediction) -> tuple[list[str], list[list[str]]]:
         for d in dirs:
             ms = [m for m in dominant if m.configuration.clamping_length == length and m.configuration.direction == d]
             if not ms:
-                row += ["—", "—", "—"]
+                row += ["—", "—", "—", "—"]
                 continue
             m = ms[0]
             q = m.natural_frequency_hz
@@ -282,7 +384,7 @@ def _table4(prediction: Prediction) -> tuple[list[str], list[list[str]]]:
             if m.measured_hz is not None and q["q50"] is not None:
                 err = 100.0 * (q["q50"] - m.measured_hz) / m.measured_hz
             row += [fmt(m.measured_hz, 6) if m.has_measurement else "not measured", fmt_interval(q, digits=6),
-                    fmt(err, 3)]
+                    _predictive_interval(m), fmt(err, 3)]
         rows.append(row)
     return head, rows
 
@@ -298,18 +400,25 @@ def _blocks(run: PredictionRun, images: Sequence[str]) -> list[tuple]:
         ("p", "Parameter model taken from the " + str(meta.get("parameter_model_source", "posterior"))
               + (f" (model terms: {', '.join(meta['model_terms'])})" if meta.get("model_terms") else "") + ". "
               + " ".join(n if n.endswith(".") else n + "." for n in meta.get("parameter_model_notes", []))),
+        *status_blocks(meta.get("posterior_status", {})),
         ("h", 2, "Dominant natural frequency: measured vs predicted (cf. the reference paper's Table 4)"),
         ("table", *_table4(p)),
-        ("p", "Intervals are central posterior credible intervals. Natural-frequency rule: " + NATURAL_FREQUENCY_RULE + "."),
+        ("p", "Two intervals, for two questions. The model's 90 % credible interval says where the noise-free "
+              "natural frequency of the identified model lies. The 90 % predictive interval says where the peak of "
+              "a NEW hammer test would fall: each draw's FRF with simulated measurement noise of the fit's noise "
+              "model, the same rule applied; a measured value is to be compared with this one. "
+              "Natural-frequency rule: " + NATURAL_FREQUENCY_RULE + "."),
         ("h", 2, "All modes"),
     ]
-    head = ["length (mm)", "dir", "mode", "band (Hz)", "natural frequency median [90 %] (Hz)", "measured (Hz)",
+    head = ["length (mm)", "dir", "mode", "band (Hz)", "model natural frequency median [90 % credible] (Hz)",
+            "new measured peak [90 % predictive] (Hz)", "measured (Hz)",
             "peak |H| median [90 %] (m/N)", "dynamic stiffness median [90 %] (N/m)", "draws without peak"]
     rows = []
     for m in p.modes:
         c = m.configuration
         rows.append([f"{c.clamping_length * 1e3:g}", c.direction, f"{m.mode}{' (dominant)' if m.dominant else ''}",
                      f"{m.band_hz[0]:.0f}–{m.band_hz[1]:.0f}", fmt_interval(m.natural_frequency_hz, digits=6),
+                     _predictive_interval(m),
                      fmt(m.measured_hz, 6) if m.has_measurement else "—", fmt_interval(m.peak_magnitude, digits=3),
                      fmt_interval(m.dynamic_stiffness, digits=3), f"{100 * m.nan_fraction:.1f} %"])
     blocks.append(("table", head, rows))
