@@ -66,7 +66,7 @@ def test_far_length_preferred_and_realised_width_within_prediction(bench, capsys
     t = TargetEvaluator(parse_target(TARGET), d.parameters, setup.model(), setup, "x", "tool", None, d.values)(d.values)
     t = t[np.isfinite(t[:, 0]), 0]
     realised = float(np.quantile(t, 0.95) - np.quantile(t, 0.05))
-    lo, hi = c40["width_range_90"]
+    lo, hi = c40["width_interval_95"]
     assert lo <= realised <= hi, (realised, lo, hi)
 
 

@@ -98,8 +98,15 @@ class WidthEstimate:
     @property
     def width_range(self) -> tuple[float, float]:
         """5 % and 95 % quantiles of the width over the simulated measurements: the spread of the width a
-        real test may leave (the stated uncertainty of a single realised width, beyond ``mc_error``)."""
+        real test may leave (beyond ``mc_error``, which is the error of the *mean*)."""
         lo, hi = np.quantile(self.widths, [0.05, 0.95])
+        return float(lo), float(hi)
+
+    @property
+    def prediction_interval(self) -> tuple[float, float]:
+        """2.5 % and 97.5 % quantiles of the width over the simulated measurements: the stated 95 % interval
+        of the width that one real test will leave."""
+        lo, hi = np.quantile(self.widths, [0.025, 0.975])
         return float(lo), float(hi)
 
 

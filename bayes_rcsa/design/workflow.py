@@ -73,6 +73,7 @@ class CandidateResult:
             "clamping_length": c.clamping_length, "direction": c.direction, "tool": c.tool,
             "expected_width": e.expected_width, "mc_error": e.mc_error,
             "width_range_90": list(e.width_range),
+            "width_interval_95": list(e.prediction_interval),
             "expected_gain": current - e.expected_width,
             "relative_gain": (current - e.expected_width) / current if current > 0 else None,
             "method": e.method, "band_lo_hz": self.band_hz[0], "band_hi_hz": self.band_hz[1], "n_lines": self.n_lines,
@@ -143,19 +144,14 @@ class DesignResult:
 
 
 def posterior_attributes(path) -> dict:
-    """Attributes of a ``posterior.nc`` (method, tempering, growth law, ...)."""
+    """Attributes of a ``posterior.nc`` (method, tempering, growth law, ...), merged over its groups."""
     from ..inference.diagnostics import read_netcdf
 
     try:
         idata = read_netcdf(path)
     except Exception as exc:  # netCDF/HDF5 readers raise many unrelated types
         raise DataError(f"{path}: cannot read as an ArviZ InferenceData netCDF file ({exc})") from None
-    out: dict = {}
-    for group in ("posterior", "sample_stats", "constant_data", "observed_data", "log_likelihood"):
-        ds = getattr(idata, group, None)
-        if ds is not None:
-            out.update(dict(ds.attrs))
-    return out
+    return {k: v for group in idata.groups() for k, v in getattr(idata, group).attrs.items()}
 
 
 def noise_level(draws: PosteriorDraws, floor: float, tempering: float) -> E.NoiseLevel:
