@@ -142,13 +142,19 @@ def naive_sdm_radius(mx, my, cutting, speed, depth, m):
     return np.max(np.abs(np.linalg.eigvals(Phi)))
 
 
+CPU = {}  # case name -> (current CPU s, reference CPU s): the wall times on a shared machine vary with its load
+
+
 def timed(fn, runs):
     times = []
+    cpu = []
     result = None
     for _ in range(runs):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         result = fn()
         times.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    timed.cpu = statistics.median(cpu)
     return statistics.median(times), result
 
 
@@ -158,9 +164,9 @@ import sys, time, numpy as np
 from bayes_rcsa.stability import CuttingConditions, lobes_from_frf_draws
 d = np.load(sys.argv[1])
 cut = CuttingConditions(kt=790e6, kr=230e6, flutes=4, radial_immersion=0.95, milling="down", feed="y")
-t0 = time.perf_counter()
+t0, c0 = time.perf_counter(), time.process_time()
 res = lobes_from_frf_draws(d["gx"], d["gy"], d["f"], cut, d["speeds"], method="sdm")
-print(time.perf_counter() - t0)
+print(time.perf_counter() - t0, time.process_time() - c0)
 np.save(sys.argv[2], res.depth_limit_m)
 """
 
@@ -178,7 +184,9 @@ def run_old(gx, gy, f, speeds, tmp: Path):
     env = dict(os.environ, PYTHONPATH=str(tree))
     out = subprocess.run([sys.executable, "-c", _OLD_SCRIPT, str(data), str(tmp / "old_limits.npy")], cwd=tmp,
                          env=env, check=True, capture_output=True, text=True)
-    return float(out.stdout.strip().splitlines()[-1]), np.load(tmp / "old_limits.npy")
+    wall, cpu = (float(v) for v in out.stdout.strip().splitlines()[-1].split())
+    run_old.cpu = cpu
+    return wall, np.load(tmp / "old_limits.npy")
 
 
 def example_posterior(path, tmp: Path):
@@ -206,28 +214,34 @@ def example_cases(args, rows):
         f, gx, gy = common_frequency_grid(read_frf(EXAMPLE / "tip_x_30mm.csv"), read_frf(EXAMPLE / "tip_y_30mm.csv"))
         lobes_from_frf_draws(gx, gy, f, cut, speeds[:4], method="sdm")  # load the compiled kernel once
         t_new, res = timed(lambda: lobes_from_frf_draws(gx, gy, f, cut, speeds, method="sdm"), args.runs)
+        c_new, c_old = timed.cpu, float("nan")
         if args.skip_old:
             t_old, check = float("nan"), "old implementation skipped"
         else:
             t_old, old = run_old(gx[None], gy[None], f, speeds, tmp)
+            c_old = run_old.cpu
             ok = np.isfinite(old[0])
             check = f"median |new/old - 1| {np.median(np.abs(res.depth_limit_m[0][ok] / old[0][ok] - 1)):.1e}"
         rows.append(("SDM measured FRFs, 200 speeds", t_new, t_old, "old: full run", 20.0, check))
+        CPU["SDM measured FRFs, 200 speeds"] = (c_new, c_old)
 
         post, t_id = example_posterior(args.posterior, tmp)
         frf = posterior_frf_draws(EXAMPLE / "setup.toml", post, 0.030, 100, np.random.default_rng(0))
         t_new, res = timed(lambda: lobes_from_frf_draws(frf.frf_x, frf.frf_y, frf.frequency_hz, cut, speeds,
                                                         method="sdm"), 1)
+        c_new, c_old = timed.cpu, float("nan")
         if args.skip_old:
             t_old, check = float("nan"), "old implementation skipped"
         else:
             k = args.old_draws
             t_sub, old = run_old(frf.frf_x[:k], frf.frf_y[:k], frf.frequency_hz, speeds, tmp)
             t_old = t_sub * frf.n_draws / k
+            c_old = run_old.cpu * frf.n_draws / k
             ok = np.isfinite(old)
             check = f"median |new/old - 1| {np.median(np.abs(res.depth_limit_m[:k][ok] / old[ok] - 1)):.1e}"
         rows.append(("SDM 100 posterior draws x 200", t_new, t_old, f"old: {args.old_draws} draws, scaled", 60.0,
                      check + (f"; identify {t_id:.0f} s" if t_id else "")))
+        CPU["SDM 100 posterior draws x 200"] = (c_new, c_old)
 
 
 def main(argv=None) -> int:
@@ -238,9 +252,14 @@ def main(argv=None) -> int:
     ap.add_argument("--posterior", help="posterior.nc of the bundled example (default: run identify)")
     ap.add_argument("--old-draws", type=int, default=2, help="draws timed with the pre-issue-13 implementation")
     ap.add_argument("--skip-old", action="store_true", help="do not run the pre-issue-13 implementation")
+    ap.add_argument("--skip-naive", action="store_true", help="only the example cases (3 and 4)")
     args = ap.parse_args(argv)
 
     rows = []
+    if args.skip_naive:
+        example_cases(args, rows)
+        _print(args, rows)
+        return 0
     # 1. ZOA probabilistic lobes
     gx, gy = draws(500)
     speeds = np.linspace(5000, 30000, 400)
@@ -268,14 +287,20 @@ def main(argv=None) -> int:
     rows.append(("SDM 200 x 100 grid, 2 modes", t_sdm, t_naive_sdm, f"{args.naive_points} points x {sp.size * dp.size // args.naive_points}", 20.0, f"max |drho| {err:.1e} (naive = classic SDM; the difference is discretisation error)"))
 
     example_cases(args, rows)
+    _print(args, rows)
+    m = default_intervals(MX, MY, CUT, sp)
+    print(f"SDM intervals per tooth period: {m.min()}-{m.max()} (rule max(30, 30 f_max T) on the ladder 30*2^(j/2))")
+    return 0
+
+
+def _print(args, rows):
     print(f"stability lobes benchmark (median of {args.runs} runs; naive loop / old implementation timed as stated)")
     print(f"{'case':30s} {'current s':>12s} {'ref. s':>10s} {'ratio':>9s} {'budget s':>9s} {'ok':>4s}  reference / check")
     for name, t, tn, sub, budget, check in rows:
         ok = "yes" if t <= budget else "NO"
         print(f"{name:30s} {t:12.2f} {tn:10.1f} {tn / t:9.0f} {budget:9.1f} {ok:>4s}  {sub}; {check}")
-    m = default_intervals(MX, MY, CUT, sp)
-    print(f"SDM intervals per tooth period: {m.min()}-{m.max()} (rule max(30, 30 f_max T) on the ladder 30*2^(j/2))")
-    return 0
+    for name, (c_new, c_old) in CPU.items():
+        print(f"   CPU time, {name}: current {c_new:.1f} s, before issue 13 {c_old:.1f} s (ratio {c_old / c_new:.0f})")
 
 
 if __name__ == "__main__":
