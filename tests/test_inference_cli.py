@@ -73,6 +73,20 @@ def test_identify_writes_outputs(campaign_dir, tmp_path):
     draws = idata.posterior["k_xf"].values.ravel()
     assert np.quantile(draws, 0.05) == pytest.approx(s["parameters"]["k_xf"]["q05"], rel=1e-9)
 
+    # compressed (issue #14): every numeric variable zlib + shuffle; the pointwise log-likelihood in float32
+    import h5py
+
+    with h5py.File(out / "posterior.nc", "r") as f:
+        for path in ("posterior/k_xf", "sample_stats/lp", "log_likelihood/frf", "observed_data/frf_real"):
+            assert f[path].compression == "gzip" and f[path].shuffle, path
+        assert f["log_likelihood/frf"].dtype == np.float32 and f["posterior/k_xf"].dtype == np.float64
+        ll = f["log_likelihood/frf"]
+        assert ll.id.get_storage_size() < 0.8 * ll.size * 4  # compressed below its float32 size
+    assert idata.log_likelihood.attrs["stored_dtype"] == "float32"
+    from bayes_rcsa.posterior.draws import posterior_attributes
+
+    assert idata.attrs["method"] == "multi" and posterior_attributes(idata)["method"] == "multi"  # attributes kept
+
 
 def test_deterministic_cli(campaign_dir, tmp_path):
     out = tmp_path / "det"

@@ -10,6 +10,7 @@ one line naming the option, exit status 2, before anything is created.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 from pathlib import Path
 
@@ -17,8 +18,73 @@ from ..errors import SetupError
 
 __all__ = [
     "parse_float", "parse_float_list", "parse_frequency_grid", "positive_int", "nonnegative_int", "finite_float",
-    "sampler_int", "check_output_path", "check_arguments", "MAX_FREQUENCY_LINES",
+    "sampler_int", "check_output_path", "check_arguments", "MAX_FREQUENCY_LINES", "Summary", "add_force_argument",
+    "check_output_directory",
 ]
+
+
+@dataclasses.dataclass(frozen=True)
+class Summary:
+    """What a command reports when it has finished (printed by :func:`bayes_rcsa.cli.main.main`).
+
+    Attributes
+    ----------
+    human : str
+        One line for a person, printed on stderr as ``bayes-rcsa CMD: <human>``.
+    data : dict
+        JSON-serialisable facts (output paths, status, headline numbers), printed
+        on stdout as ONE JSON object when ``--json`` is given, and only then.
+        ``main`` adds ``"command"``.
+    warnings : tuple of str
+        Printed before ``human`` as ``bayes-rcsa CMD: warning: ...`` lines
+        (e.g. a posterior that did not converge) and added to ``data`` as
+        ``"warnings"``.
+    status : int
+        Exit status (0 = success).
+    """
+
+    human: str
+    data: dict
+    warnings: tuple[str, ...] = ()
+    status: int = 0
+
+
+def add_force_argument(parser, resumable: bool = False) -> None:
+    """``--force``: the one way every command is allowed to write into a non-empty output directory."""
+    parser.add_argument("--force", action="store_true",
+                        help="write into an existing non-empty output directory, replacing the files of an earlier "
+                             "run (default: refuse" + (", unless --resume" if resumable else "") + ")")
+
+
+def check_output_directory(path, force: bool = False, resume: bool = False, resumable: bool = False,
+                           option: str = "--out") -> Path:
+    """Refuse to write into an existing non-empty output directory unless ``force`` (or ``resume``).
+
+    The one rule of every command that writes a directory: a new or empty
+    directory is used; a non-empty one only with ``--force`` (replace the
+    earlier run's files) or, for resumable commands, ``--resume`` (continue
+    it).  Commands call this under :func:`bayes_rcsa.io.atomic.directory_lock`
+    so that the answer cannot change before they write.
+
+    Parameters
+    ----------
+    path : path-like, the output directory
+    force, resume : bool, the command's ``--force`` / ``--resume``
+    resumable : bool, the command has ``--resume`` (named in the message)
+    option : str, option named in the message
+
+    Raises
+    ------
+    SetupError
+        ``"--out DIR: exists and is not empty; use --force to replace its contents"``.
+    """
+    from ..io.atomic import directory_is_empty
+
+    path = Path(path)
+    if force or resume or directory_is_empty(path):
+        return path
+    raise SetupError(f"{option} {path}: exists and is not empty; use --force to replace its contents"
+                     + (" or --resume to continue the run in it" if resumable else ""))
 
 #: Upper bound on the lines of a --freq grid: 1e6 complex lines are already 16 MB per FRF.
 MAX_FREQUENCY_LINES = 1_000_000

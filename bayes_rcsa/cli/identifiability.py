@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
-from ._common import nonnegative_int, parse_float_list, positive_int, sampler_int
+from ._common import (Summary, add_force_argument, check_output_directory, nonnegative_int, parse_float_list,
+                      positive_int, sampler_int)
 
 __all__ = ["register", "run"]
 
@@ -55,10 +55,11 @@ def register(subparsers) -> None:
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--no-posteriors", action="store_true", help="do not write each fit's posterior.nc and summary.json")
     p.add_argument("--quiet", action="store_true", help="no progress output on stderr")
+    add_force_argument(p)
     p.set_defaults(func=run)
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> Summary:
     from ..inference.sampler import SamplerSettings
     from ..io.atomic import directory_lock, new_output_directory
     from ..io.setup import load_setup
@@ -75,12 +76,19 @@ def run(args: argparse.Namespace) -> int:
         progress=not args.quiet,
     )
     with directory_lock(args.out):
+        check_output_directory(args.out, args.force)  # before hours of sampling, not after
         study = run_study(setup, lengths, settings, seed=args.seed, verbose=not args.quiet)
         with new_output_directory(args.out):
             write_study(study, args.out, plots=not args.no_plots, posteriors=not args.no_posteriors, seed=args.seed)
     if not args.quiet:
         for line in study.document["findings"]:
             print(line, file=sys.stderr)
-    print(json.dumps({"identifiability": str(args.out / "identifiability.json"),
-                      "report": str(args.out / "identifiability.md")}))
-    return 0
+    fits = study.document["fits"]
+    not_converged = [f["name"] for f in fits if not f.get("converged", True)]
+    return Summary(
+        f"{len(fits)} fit(s){'' if not not_converged else f', {len(not_converged)} NOT converged'}; "
+        f"results in {args.out}",
+        {"out": str(args.out), "identifiability": str(args.out / "identifiability.json"),
+         "report": str(args.out / "identifiability.md"), "fits_not_converged": not_converged},
+        warnings=tuple(f"fit {n} did not converge: its verdicts are not reliable" for n in not_converged),
+    )

@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 from pathlib import Path
 
 from ..errors import SetupError
-from ._common import finite_float, nonnegative_int, positive_int, sampler_int
+from ._common import (Summary, add_force_argument, check_output_directory, finite_float, nonnegative_int,
+                      positive_int, sampler_int)
 
 __all__ = ["register", "run"]
 
@@ -69,6 +68,7 @@ def register(subparsers) -> None:
                    help="cap on sampler steps; reaching it is reported as not converged "
                         "(default: [sampler] max_steps or 20000)")
     p.add_argument("--resume", action="store_true", help="continue the run checkpointed in DIR/chain.h5")
+    add_force_argument(p, resumable=True)
     p.add_argument("--walkers", type=positive_int, default=None, metavar="N",
                    help="number of walkers (even; default max(32, 4 x parameters))")
     p.add_argument("--band", type=_band, default=None, metavar="LO,HI",
@@ -87,7 +87,7 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args) -> Summary:
     from ..inference.identify import identify, write_outputs
     from ..inference.problem import IdentificationOptions, build_problem_from_setup
     from ..inference.sampler import SamplerSettings
@@ -131,16 +131,18 @@ def run(args) -> int:
         if missing:
             raise SetupError(f"--spindle-uncertainty {args.spindle_uncertainty}: no samples for direction(s) "
                              f"{missing}; the file has {spindle_samples.directions}")
-    with directory_lock(args.out), new_output_directory(args.out):
+    with directory_lock(args.out), new_output_directory(
+            check_output_directory(args.out, args.force, args.resume, resumable=bayesian)):
         result = identify(problem, seed=args.seed, settings=settings,
                           checkpoint_path=ckpt if bayesian else None, resume=args.resume,
                           spindle_samples=spindle_samples)
         write_outputs(result, args.out, plots=not args.no_plots)
     s = result.summary
-    if not args.quiet:
-        status = "converged" if s["converged"] else "NOT converged"
-        print(f"identify ({s['method']}): {status}; results in {args.out}", file=sys.stderr)
-        for w in s.get("warnings", []):
-            print(f"warning: {w}", file=sys.stderr)
-    print(json.dumps({"converged": s["converged"], "summary": str(args.out / "summary.json")}))
-    return 0
+    status = "converged" if s["converged"] else "NOT converged"
+    return Summary(
+        f"{s['method']}: {status}; results in {args.out}",
+        {"out": str(args.out), "method": s["method"], "converged": bool(s["converged"]),
+         "summary": str(args.out / "summary.json"),
+         "posterior": str(args.out / "posterior.nc") if bayesian else None},
+        warnings=tuple(s.get("warnings", [])),
+    )

@@ -2,9 +2,14 @@
 
 Every sub-command lives in its own module in this package and exposes
 ``register(subparsers)``, which adds its parser and sets ``func`` to a
-callable ``run(args) -> int``.  Errors derived from
-:class:`bayes_rcsa.errors.BayesRCSAError` (and unreadable files) are printed
-as one line on stderr with exit status 2, without a traceback.
+callable ``run(args)`` returning a :class:`~bayes_rcsa.cli._common.Summary`
+(or, for commands not converted yet, an exit status ``int``).  ``main``
+prints a Summary the same way for every command: its warnings and ONE human
+line on stderr (``bayes-rcsa CMD: ...``) and, with ``--json`` (before or
+after the command name), ONE JSON object on stdout and nothing else there.
+Errors derived from :class:`bayes_rcsa.errors.BayesRCSAError` (and
+unreadable files) are printed as one line on stderr with exit status 2,
+without a traceback.
 """
 
 from __future__ import annotations
@@ -12,15 +17,20 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
+import json
 import re
 import sys
+import textwrap
 import warnings
 
 from .. import __version__
 from ..errors import BayesRCSAError
-from ._common import check_arguments
+from ._common import Summary, check_arguments
 
-__all__ = ["main", "build_parser", "COMMANDS"]
+__all__ = ["main", "build_parser", "COMMANDS", "HelpFormatter", "HELP_WIDTH"]
+
+#: Columns of every --help text (descriptions, option help, preformatted lists).
+HELP_WIDTH = 100
 
 # Order of appearance in --help; each name is a module of bayes_rcsa.cli.
 COMMANDS = (
@@ -56,13 +66,48 @@ class _OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
 
 
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """One help layout for every command, wrapped to :data:`HELP_WIDTH` columns.
+
+    Descriptions are kept as written where they are preformatted lists (a line
+    that starts with spaces, or a blank line between paragraphs), but every
+    line is wrapped to the width, continuing with the line's own indentation
+    (plus two columns for a ``name   text`` list entry, so the text column
+    stays aligned).  A one-paragraph description is filled like argparse's
+    default.  Option help is wrapped by argparse itself.
+    """
+
+    def __init__(self, prog, indent_increment=2, max_help_position=30, width=None):
+        super().__init__(prog, indent_increment, max_help_position, width=HELP_WIDTH if width is None else width)
+
+    def _fill_text(self, text, width, indent):
+        text = textwrap.dedent(text).strip("\n")
+        if "\n" not in text.strip():
+            return textwrap.fill(" ".join(text.split()), width, initial_indent=indent, subsequent_indent=indent)
+        out = []
+        for line in text.splitlines():
+            if len(line) + len(indent) <= width or not line.strip():
+                out.append(indent + line)
+                continue
+            lead = len(line) - len(line.lstrip())
+            # "  name         text": continue under the text column
+            m = re.match(r"^(\s*\S+\s{2,})", line)
+            hang = len(m.group(1)) if m and lead > 0 else lead
+            out.extend(textwrap.wrap(line.strip(), width, initial_indent=indent + " " * lead,
+                                     subsequent_indent=indent + " " * hang))
+        return "\n".join(out)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _OneLineParser(
         prog="bayes-rcsa",
         description="Bayesian receptance coupling for tool-point FRFs, tool-holder contact identification "
         "and chatter stability.",
+        formatter_class=HelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"bayes-rcsa {__version__}")
+    parser.add_argument("--json", action="store_true", dest="json_global",
+                        help="print the closing summary of the command as one JSON object on stdout")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_OneLineParser)
     sub.required = True
     for name in COMMANDS:
@@ -73,6 +118,12 @@ def build_parser() -> argparse.ArgumentParser:
                 continue  # sub-command not part of this build
             raise
         module.register(sub)
+    for p in sub.choices.values():
+        # the same layout everywhere, whatever formatter_class a command asked for
+        p.formatter_class = HelpFormatter
+        if "--json" not in p._option_string_actions:
+            p.add_argument("--json", action="store_true",
+                           help="print the closing summary as one JSON object on stdout (nothing else goes there)")
     return parser
 
 
@@ -99,7 +150,10 @@ def main(argv: list[str] | None = None) -> int:
 def _run(args) -> int:
     try:
         check_arguments(args)
-        return int(args.func(args) or 0)
+        result = args.func(args)
+        if isinstance(result, Summary):
+            return _report(args, result)
+        return int(result or 0)  # a command that prints its own closing lines
     except BayesRCSAError as exc:
         print(f"bayes-rcsa {args.command}: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
@@ -109,6 +163,17 @@ def _run(args) -> int:
     except KeyboardInterrupt:
         print(f"bayes-rcsa {args.command}: interrupted", file=sys.stderr)
         return 130
+
+
+def _report(args, summary: Summary) -> int:
+    """Print ``summary``: warnings and one line on stderr; with --json one JSON object on stdout."""
+    for w in summary.warnings:
+        print(f"bayes-rcsa {args.command}: warning: {' '.join(str(w).split())}", file=sys.stderr)
+    print(f"bayes-rcsa {args.command}: {' '.join(summary.human.split())}", file=sys.stderr)
+    if getattr(args, "json", False) or getattr(args, "json_global", False):
+        data = {"command": args.command, **summary.data, "warnings": list(summary.warnings)}
+        print(json.dumps(data, default=str, allow_nan=False))
+    return summary.status
 
 
 if __name__ == "__main__":  # pragma: no cover

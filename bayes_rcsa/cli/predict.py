@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import json
-import sys
-import warnings
 from pathlib import Path
 
-from ..errors import DataWarning, SetupError
-from ._common import nonnegative_int, parse_float_list, parse_frequency_grid
+from ..errors import SetupError
+from ._common import (Summary, add_force_argument, check_output_directory, nonnegative_int, parse_float_list,
+                      parse_frequency_grid)
 
 __all__ = ["register", "run"]
 
@@ -53,11 +51,14 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the draw subset (default 0)")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    add_force_argument(p)
+    p.add_argument("--quiet", action="store_true", help="no progress output on stderr")
     p.set_defaults(func=run)
 
 
-def run(args: argparse.Namespace) -> int:
-    from ..io.atomic import directory_lock, new_output_directory
+def run(args: argparse.Namespace) -> Summary:
+    from ..io.atomic import directory_lock, directory_is_empty, new_output_directory
+    from ..io.progress import Heartbeat
     from ..io.setup import load_setup
     from ..posterior.prediction_outputs import run_prediction, write_prediction_outputs
 
@@ -75,17 +76,31 @@ def run(args: argparse.Namespace) -> int:
         if bad or not directions:
             raise SetupError(f"--directions {args.directions!r}: expected a comma-separated list of x and y")
     freq = parse_frequency_grid(args.freq) if args.freq is not None else None
-    result = run_prediction(setup, args.posterior, lengths, directions, args.tool, freq,
-                            max_draws=None if args.max_draws == 0 else args.max_draws, seed=args.seed)
-    with directory_lock(args.out), new_output_directory(args.out):
+    if not args.force and not directory_is_empty(args.out):
+        check_output_directory(args.out)  # refused before the prediction is computed (checked again under the lock)
+    with Heartbeat(f"predict: {len(lengths)} clamping length(s)", enabled=not args.quiet):
+        result = run_prediction(setup, args.posterior, lengths, directions, args.tool, freq,
+                                max_draws=None if args.max_draws == 0 else args.max_draws, seed=args.seed)
+    with directory_lock(args.out), new_output_directory(check_output_directory(args.out, args.force)):
         write_prediction_outputs(result, args.out, plots=not args.no_plots)
     # the posterior, not the (possibly edited) setup, defines the model: say where they differ
-    for note in result.meta.get("parameter_model_notes", []):
-        if note.startswith("warning:"):
-            warnings.warn(note.removeprefix("warning:").strip(), DataWarning, stacklevel=1)
+    warns = [note.removeprefix("warning:").strip() for note in result.meta.get("parameter_model_notes", [])
+             if note.startswith("warning:")]
     n_nan = sum(1 for m in result.prediction.modes if m.nan_fraction > 0)
     if n_nan:
-        print(f"warning: {n_nan} mode(s) have draws without a resonance inside the mode band "
-              "(see nan_fraction in frequencies.json)", file=sys.stderr)
-    print(json.dumps({"frequencies": str(args.out / "frequencies.json"), "report": str(args.out / "report.md")}))
-    return 0
+        warns.append(f"{n_nan} mode(s) have draws without a resonance inside the mode band "
+                     "(see nan_fraction in frequencies.json)")
+    # the fit behind the posterior: a prediction from an unconverged fit says so
+    status = result.meta.get("posterior_status") or {}
+    converged = status.get("converged")
+    if converged is False:
+        warns.append(f"the posterior {args.posterior} did not converge; these intervals are not reliable")
+    n_pred = len(result.prediction.modes)
+    return Summary(
+        f"{n_pred} mode interval(s) at {len(lengths)} clamping length(s) from {result.draws.n_draws} draws; "
+        f"results in {args.out}",
+        {"out": str(args.out), "frequencies": str(args.out / "frequencies.json"),
+         "report": str(args.out / "report.md"), "n_draws": int(result.draws.n_draws),
+         "posterior_converged": converged},
+        warnings=tuple(warns),
+    )

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from ..errors import SetupError
-from ._common import parse_float, parse_frequency_grid
+from ._common import Summary, add_force_argument, parse_float, parse_frequency_grid
 
 ORDER = 20
 
@@ -30,10 +31,11 @@ def register(subparsers) -> None:
     p.add_argument("--out", required=True, metavar="FILE",
                    help="output FRF file, written atomically; the suffix chooses the format (.csv, or .uff/.unv "
                         "for a universal file dataset 58)")
+    add_force_argument(p)
     p.set_defaults(func=run, out_kind="file")
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> Summary:
     from ..io import load_setup
     from ..io.writers import frf_writer_for, write_frf
     from ..model import FRF, Configuration
@@ -46,6 +48,8 @@ def run(args: argparse.Namespace) -> int:
     if cx < 0 or ct < 0:
         raise SetupError("--cx/--ctheta: expected damping >= 0")
     frf_writer_for(args.out)  # refuse an unknown output type before computing anything
+    if Path(args.out).exists() and not args.force:
+        raise SetupError(f"--out {args.out}: exists; use --force to replace it")
     freq = parse_frequency_grid(args.freq) if args.freq is not None else None
     setup = load_setup(args.setup, load_data=False, load_spindle=True)
     tool = args.tool
@@ -64,4 +68,10 @@ def run(args: argparse.Namespace) -> int:
         f"k_xf={kx!r} N/m k_thetaM={kt!r} N*m/rad c_xf={cx!r} N*s/m c_thetaM={ct!r} N*m*s/rad",
     ]
     write_frf(args.out, FRF(freq, h, source=args.out), comments=comments)
-    return 0
+    i_peak = int(abs(h).argmax())
+    return Summary(
+        f"wrote {args.out} ({freq.size} lines, {freq[0]:g}-{freq[-1]:g} Hz; largest |h| {abs(h[i_peak]):.3g} m/N "
+        f"at {freq[i_peak]:g} Hz)",
+        {"out": str(args.out), "n_lines": int(freq.size), "peak_hz": float(freq[i_peak]),
+         "peak_abs_m_per_n": float(abs(h[i_peak]))},
+    )

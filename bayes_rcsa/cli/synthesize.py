@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
-from ._common import nonnegative_int
+from ._common import Summary, add_force_argument, check_output_directory, nonnegative_int
 
 
 def register(subparsers) -> None:
@@ -21,10 +21,10 @@ def register(subparsers) -> None:
         "byte-identical files.  DIR is written atomically.",
     )
     p.add_argument("config", metavar="CONFIG", help="bench configuration TOML file")
-    p.add_argument("--out", required=True, metavar="DIR", help="output directory (must be new or empty unless --force)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory (new or empty unless --force)")
     p.add_argument("--seed", type=nonnegative_int, default=None, metavar="N",
                    help="seed of the measurement noise (default: [noise] seed of CONFIG, else 0)")
-    p.add_argument("--force", action="store_true", help="replace an existing non-empty DIR (after success only)")
+    add_force_argument(p)
     p.add_argument("--artifact", action="store_true",
                    help="instead of the tool-point campaign, write standard-artifact hammer tests of the bench's "
                         "spindle (artifact.toml, h11/h12/h21/h22 per direction, the true flange receptance) for "
@@ -32,7 +32,7 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> Summary:
     import numpy as np
 
     from pathlib import Path
@@ -41,9 +41,7 @@ def run(args: argparse.Namespace) -> int:
     from ..io.atomic import directory_lock
     from ..synthetic import generate_campaign, load_bench_config, write_campaign
 
-    out = Path(args.out)
-    if out.exists() and not args.force and (not out.is_dir() or any(out.iterdir())):
-        raise SetupError(f"--out {out}: exists and is not an empty directory; use --force to replace it")
+    check_output_directory(Path(args.out), args.force)  # before anything is generated
     config = load_bench_config(args.config)
     seed = config.seed if args.seed is None else args.seed
     if seed < 0:
@@ -54,16 +52,17 @@ def run(args: argparse.Namespace) -> int:
         tests = generate_artifact_tests(config, default_bench_artifact(), np.random.default_rng(seed))
         with directory_lock(args.out):
             path = write_artifact_tests(tests, args.out, overwrite=args.force, seed=seed)
-        print(f"wrote {len(tests.frfs)} artifact FRFs, the true flange receptances and {path.name} to "
-              f"{path.parent} (seed {seed})")
-        return 0
+        return Summary(f"wrote {len(tests.frfs)} artifact FRFs, the true flange receptances and {path.name} to "
+                       f"{path.parent} (seed {seed})",
+                       {"out": str(path.parent), "artifact": str(path), "n_frfs": len(tests.frfs), "seed": seed})
     campaign = generate_campaign(config, np.random.default_rng(seed))
     campaign = dataclasses.replace(campaign, truth={**campaign.truth, "seed": seed})
     with directory_lock(args.out):
         setup_path = write_campaign(campaign, args.out, overwrite=args.force)
     effects = ", ".join(f"{k}={v:g}" for k, v in campaign.truth["hidden_effects"].items()) or "none"
-    print(
+    return Summary(
         f"wrote {len(campaign.measurements)} tool-point FRFs, {len(campaign.spindle)} spindle file(s), "
-        f"{setup_path.name} and truth.json to {setup_path.parent} (seed {seed}; hidden effects: {effects})"
+        f"{setup_path.name} and truth.json to {setup_path.parent} (seed {seed}; hidden effects: {effects})",
+        {"out": str(setup_path.parent), "setup": str(setup_path), "n_measurements": len(campaign.measurements),
+         "seed": seed, "hidden_effects": dict(campaign.truth["hidden_effects"])},
     )
-    return 0

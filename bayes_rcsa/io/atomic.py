@@ -16,8 +16,21 @@ from ..errors import SetupError
 
 __all__ = [
     "atomic_path", "atomic_write_text", "atomic_write_bytes", "begin_directory",
-    "directory_lock", "new_output_directory", "clean_stale_temporaries", "pid_alive",
+    "directory_lock", "new_output_directory", "clean_stale_temporaries", "pid_alive", "directory_is_empty",
 ]
+
+#: Name of the lock file when it has to live inside the output directory (see :func:`directory_lock`).
+_INNER_LOCK = ".bayes-rcsa.lock"
+
+
+def directory_is_empty(path) -> bool:
+    """Whether ``path`` does not exist or is a directory holding nothing but this package's lock file."""
+    path = Path(path)
+    if not path.exists():
+        return True
+    if not path.is_dir():
+        return False
+    return all(p.name == _INNER_LOCK for p in path.iterdir())
 
 
 def _umask() -> int:
@@ -138,7 +151,7 @@ def _lock_file(out_dir: Path) -> Path:
     # When the parent is not writable (``--out .`` in a home directory) but the directory is,
     # the lock lives inside it; every process decides the same way, so they meet on one file.
     if not os.access(out_dir.parent, os.W_OK) and out_dir.is_dir() and os.access(out_dir, os.W_OK):
-        return out_dir / ".bayes-rcsa.lock"
+        return out_dir / _INNER_LOCK
     return out_dir.parent / f".{out_dir.name}.lock"
 
 
