@@ -252,22 +252,35 @@ def test_spindle_rotation_term_is_passive_reciprocal_and_closes_the_gap(tmp_path
 
 
 def test_spindle_error_moves_the_file_towards_the_true_spindle(tmp_path_factory):
-    from bayes_rcsa.params.terms.spindle_error import fit_flange_modal_model
+    from scipy.optimize import least_squares
+
+    from bayes_rcsa.params.terms.spindle_error import add_support_stiffness
     from bayes_rcsa.synthetic import exported_spindle_receptance, true_spindle_receptance
 
-    cfg = default_bench_config(hidden_effects={"spindle_error": 0.15})
+    cfg = default_bench_config(hidden_effects={"spindle_error": 0.15})  # file bearings 15 % stiffer
     f = np.arange(500.0, 3501.0, 2.0)
     exported = exported_spindle_receptance(cfg, "x", f).block
     truth = true_spindle_receptance(cfg, "x", f).block
-    m = fit_flange_modal_model(f, exported)
-    assert m.w2.size >= 1
-    w = 2 * np.pi * f
-    corrected = exported + m.modal_part(w, np.array([[1 / 1.15]]))[0] - m.modal_part(w, 1.0)[0] + m.c0 * (1.15 - 1)
-    # the translational receptance (what dominates the tool point) gets much closer to the truth
-    assert _rel(corrected[:, 0, 0], truth[:, 0, 0]) < 0.6 * _rel(exported[:, 0, 0], truth[:, 0, 0])
-    # softer bearings lower the first spindle mode: the peak of |h| moves down
-    i0, i1 = np.argmax(np.abs(exported[:150, 0, 0])), np.argmax(np.abs(corrected[:150, 0, 0]))
-    assert f[i1] <= f[i0]
+
+    def corrected(x):
+        return add_support_stiffness(exported[None], np.array([[x[0] * 1e7]]), np.array([[x[1] * 1e5]]))[0]
+
+    def res(x):
+        c = corrected(x)
+        return np.concatenate([((c[:, i, j] - truth[:, i, j]) / np.linalg.norm(truth[:, i, j])).view(float)
+                               for i, j in ((0, 0), (0, 1), (1, 1))])
+
+    best = corrected(least_squares(res, [0.0, 0.0]).x)
+    # the translational receptance (what dominates the tool point) was 99 % off; the support change
+    # brings it within 2 % (measured), the cross term within 4 %
+    assert _rel(best[:, 0, 0], truth[:, 0, 0]) < 0.05 < 0.5 < _rel(exported[:, 0, 0], truth[:, 0, 0])
+    assert _rel(best[:, 0, 1], truth[:, 0, 1]) < 0.1
+    # softer real bearings: a negative translational support change
+    assert least_squares(res, [0.0, 0.0]).x[0] < 0
+    # the Woodbury form equals the explicit inverse
+    dk = np.array([[-3e6]]), np.array([[2e4]])
+    explicit = np.linalg.inv(np.linalg.inv(exported) + np.diag([-3e6, 2e4]))
+    assert np.allclose(add_support_stiffness(exported[None], *dk)[0], explicit, rtol=1e-9, atol=0)
 
 
 def test_spindle_error_term_on_stacked_lines(tmp_path_factory):
@@ -276,11 +289,11 @@ def test_spindle_error_term_on_stacked_lines(tmp_path_factory):
     term = make_term("spindle_error")
     ctx = _context(model, configs)
     s = np.concatenate([model.spindle_receptance(c.direction).interpolate(FREQ) for c in configs])[None]
-    out = term.spindle({"bearing_stiffness_scale": np.array([1.0, 0.8, 1.25])}, s, ctx)
+    v = {"spindle_support_dk_u": np.array([0.0, -5e6, 5e6]), "spindle_support_dk_psi": np.array([0.0, 1e4, -1e4])}
+    out = term.spindle(v, s, ctx)
     assert out.shape == (3,) + s.shape[1:]
     assert np.array_equal(out[0], s[0])
     assert np.allclose(out[1:, :, 0, 1], out[1:, :, 1, 0], rtol=1e-9)  # reciprocal
-    # x and y lines use their own direction's modal model: the x block of set 1 equals a pure-x evaluation
-    ctx_x = _context(model, configs[:1])
-    out_x = term.spindle({"bearing_stiffness_scale": np.array([0.8])}, s[:, : FREQ.size], ctx_x)
-    assert np.allclose(out[1, : FREQ.size], out_x[0], rtol=1e-12)
+    assert np.all(_passive(out[1:]) <= 1e-12 * np.abs(out).max())
+    # a softer support makes the flange more compliant at low frequency
+    assert np.abs(out[1, 0, 0, 0]) > np.abs(s[0, 0, 0, 0])

@@ -17,9 +17,12 @@ do not constrain costs nothing and gains nothing.
 Decision
 --------
 * A candidate is *supported* when ``criterion > LN_BF_NAME`` (= ln 100,
-  "decisive" on Jeffreys' scale) **and** it removes at least
-  ``MIN_GAP_REDUCTION`` (10 %) of the baseline's RMS relative residual on
-  the fitted lines.
+  "decisive" on Jeffreys' scale), it does not increase the baseline's RMS
+  relative residual on the fitted lines, **and** none of its parameters sits on a prior bound
+  other than its baseline (:func:`edge_parameters`: then the term is used
+  as a surrogate outside its physical range, e.g. a resonator at the edge
+  of the frequency range with the largest damping allowed standing in for
+  a broadband spindle change).
 * The winner is the supported candidate with the largest criterion; the
   runner-up and the margin (difference of criteria) are reported.
 * Candidates whose criterion is within ``LN_BF_CONFOUNDED`` (= ln 10) of
@@ -38,12 +41,16 @@ import numpy as np
 from .fit import ModelFit, fit_variant
 from .screen import ScoreResult, embed_baseline
 
-__all__ = ["LN_BF_NAME", "LN_BF_CONFOUNDED", "MIN_GAP_REDUCTION", "Refit", "refit_candidate", "decide",
+__all__ = ["LN_BF_NAME", "LN_BF_CONFOUNDED", "MIN_GAP_REDUCTION", "Refit", "refit_candidate", "decide", "edge_parameters",
            "separating_test", "gap"]
 
 LN_BF_NAME = math.log(100.0)
 LN_BF_CONFOUNDED = math.log(10.0)
-MIN_GAP_REDUCTION = 0.1
+#: Fraction of the fitted-line gap a named effect must remove.  0: the gap need only not grow.  (A rule of
+#: 10-20 % refused true effects whose misfit is close to the noise floor: the bench's spindle_error leaves a
+#: gap of 0.023 against 0.020 from noise alone, and its correct term removes most of the excess but only
+#: 9 % of the gap; the whitened-residual criterion already measures the misfit reduction.)
+MIN_GAP_REDUCTION = 0.0
 
 
 def gap(measured: np.ndarray, predicted: np.ndarray) -> float:
@@ -90,21 +97,47 @@ def refit_candidate(baseline: ModelFit, problem, score: ScoreResult) -> Refit:
     return Refit(score.effect, score, fit, float(crit), gap(lik.data, fit.model_frf()))
 
 
+def edge_parameters(fit: ModelFit, effect: str, rel: float = 0.01) -> list[str]:
+    """Parameters of ``effect`` whose MAP lies on a prior bound that is not their baseline.
+
+    Such a fit uses the term as a surrogate outside its physical range (e.g. a
+    resonator at the edge of the frequency range with the largest damping
+    allowed, standing in for a broadband change); it is not a credible name.
+    """
+    pm = fit.problem.parameters
+    bounds = fit.problem.priors.optimisation_bounds()
+    out = []
+    for j, name in enumerate(pm.names):
+        p = pm[name]
+        if p.term != effect:
+            continue
+        lo, hi = bounds[j]
+        u = fit.theta[j]
+        with np.errstate(divide="ignore"):
+            base = float(fit.problem.priors[name].to_sampling(p.baseline)) if p.baseline is not None else np.nan
+        for b in (lo, hi):
+            if abs(u - b) <= rel * (hi - lo) and not abs(base - b) <= rel * (hi - lo):
+                out.append(name)
+    return out
+
+
 def decide(refits: list[Refit], gap_before: float) -> dict:
     """Winner, runner-up, margin and confounded candidates (see the module docstring)."""
     ranked = sorted(refits, key=lambda r: -r.criterion)
-    supported = [r for r in ranked if r.criterion > LN_BF_NAME and r.gap <= (1 - MIN_GAP_REDUCTION) * gap_before]
+    edges = {r.effect: edge_parameters(r.fit, r.effect) for r in ranked}
+    supported = [r for r in ranked if r.criterion > LN_BF_NAME and r.gap <= (1 - MIN_GAP_REDUCTION) * gap_before
+                 and not edges[r.effect]]
     if not supported:
         best = ranked[0] if ranked else None
         return {"named": None, "runner_up": best.effect if best else None,
-                "margin": None, "confounded_with": [], "ranked": ranked}
+                "margin": None, "confounded_with": [], "ranked": ranked, "edge_parameters": edges}
     win = supported[0]
     others = [r for r in ranked if r is not win]
     runner = others[0] if others else None
     confounded = [r.effect for r in supported[1:] if win.criterion - r.criterion < LN_BF_CONFOUNDED]
     return {"named": win.effect, "runner_up": runner.effect if runner else None,
             "margin": (win.criterion - runner.criterion) if runner else None,
-            "confounded_with": confounded, "ranked": ranked}
+            "confounded_with": confounded, "ranked": ranked, "edge_parameters": edges}
 
 
 #: What separates two kinds of explanation (by the kinds of the two terms).
