@@ -67,7 +67,8 @@ class SDMMethod:
 
         fits = []
         for d in range(n_draws):  # each draw needs its own modal fit
-            fits.append(tuple(_fit(f, g[d], options.max_modes, fits[-1][k] if fits else None, f"draw {d} {c}")
+            fits.append(tuple(_fit(f, g[d], options.max_modes, fits[-1][k] if fits else None,
+                                   fits[0][k] if fits else None, f"draw {d} {c}")
                               for k, (g, c) in enumerate(((gx, "X"), (gy, "Y")))))
             report(fit_share * (d + 1) / n_draws)
         pairs = [(fx.model, fy.model) for fx, fy in fits]
@@ -84,12 +85,13 @@ class SDMMethod:
         return MethodResult(lim, fits, info, limits_at)
 
 
-def _fit(f, g, max_modes, previous, source):
+def _fit(f, g, max_modes, previous, first, source):
     """Modal fit of one draw: refined from the previous draw's fit (posterior draws differ little), with the
-    full BIC search when there is no previous fit or the refit is clearly worse than it."""
+    full BIC search when there is no previous fit or the refit is clearly worse than the first draw's full
+    fit (compared with the first, not the previous one, so that a slow drift cannot accumulate)."""
     if previous is not None:
         fit = refit_modal_model(f, g, previous, source=source)
-        if fit.rms_relative <= 1.5 * previous.rms_relative + 1e-3:
+        if fit.rms_relative <= 1.5 * first.rms_relative + 1e-3:
             return fit
     return fit_modal_model(f, g, max_modes=max_modes, source=source)
 
