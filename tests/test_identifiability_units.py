@@ -13,13 +13,17 @@ import pytest
 
 from bayes_rcsa.params.priors import LogNormal, LogUniform, Normal, PriorSet, Uniform
 from bayes_rcsa.posterior.identifiability import (
+    COMBINATION_RATIO,
     combination_name,
+    conditional_width,
     contraction,
     fisher_information,
+    fmt_contraction,
     log_space,
     parameter_identifiability,
     prior_moments,
     ridge_analysis,
+    stiffness_ridge,
     transfer_errors,
     verdict,
 )
@@ -50,7 +54,72 @@ def test_verdict_thresholds():
     assert verdict(0.7, None) == "weakly identified"
     assert verdict(0.995, None) == "identified"
     assert verdict(0.995, "upper") == "weakly identified"
+    assert verdict(0.995, None, 5.0, "k_thetaM") == "identified only in combination with k_thetaM"
+    assert verdict(0.995, None, 1.2, "k_thetaM") == "identified"
+    # a weak or bound-held verdict is not upgraded by a ridge
+    assert verdict(0.7, None, 5.0, "k_thetaM") == "weakly identified"
     assert verdict(float("nan"), None) == "not identified"
+
+
+def test_conditional_width_of_a_gaussian_ridge_matches_the_closed_form():
+    # Independent reference: for a bivariate normal, Var(a | b) = s_a^2 (1 - rho^2), so the ratio of the
+    # marginal to the conditional sd is 1/sqrt(1 - rho^2) = 5.03 at rho = -0.98.
+    rho, sa, sb = -0.98, 0.02, 0.5
+    cov = [[sa**2, rho * sa * sb], [rho * sa * sb, sb**2]]
+    z = np.random.default_rng(5).multivariate_normal([6.0, 5.5], cov, 200_000)
+    w = conditional_width(z[:, 0], z[:, 1])
+    # 2e5 draws: the sample correlation is within ~1e-4 of rho, the ratio within ~0.5 %
+    assert w["correlation"] == pytest.approx(rho, abs=1e-3)
+    assert w["width_ratio"] == pytest.approx(1 / math.sqrt(1 - rho**2), rel=0.01)
+    assert w["conditional_sd"] == pytest.approx(sa * math.sqrt(1 - rho**2), rel=0.01)
+    # the conditional sd really is the spread of a at (nearly) fixed b
+    near = np.abs(z[:, 1] - 5.5) < 0.01
+    assert np.std(z[near, 0]) == pytest.approx(w["conditional_sd"], rel=0.05)
+
+
+def test_ridge_verdict_is_identified_only_in_combination():
+    # Both stiffnesses contracted far beyond 99 %, but along a ridge (rho = 0.99, ratio 7.1): each is
+    # pinned only together with the other.  Independent ones are simply identified.
+    priors = PriorSet({"k_xf": LogUniform(1e5, 1e9), "k_thetaM": LogUniform(1e3, 1e8)})
+    rng = np.random.default_rng(6)
+    cov = np.array([[1e-4, 0.99 * 1e-4], [0.99 * 1e-4, 1e-4]])
+    out = parameter_identifiability(rng.multivariate_normal([6.25, 5.65], cov, 20_000), priors)
+    assert out["k_xf"]["verdict"] == "identified only in combination with k_thetaM"
+    assert out["k_thetaM"]["verdict"] == "identified only in combination with k_xf"
+    assert out["k_xf"]["width_ratio"] == pytest.approx(1 / math.sqrt(1 - 0.99**2), rel=0.05)
+    assert out["k_xf"]["width_ratio"] > COMBINATION_RATIO
+    # prior sd of log10 k over 4 decades is 4/sqrt(12) = 1.155; posterior sd 0.01
+    assert out["k_xf"]["prior_to_posterior_width"] == pytest.approx(115.5, rel=0.02)
+    out = parameter_identifiability(rng.multivariate_normal([6.25, 5.65], np.diag([1e-4, 1e-4]), 20_000), priors)
+    assert out["k_xf"]["verdict"] == out["k_thetaM"]["verdict"] == "identified"
+    assert out["k_xf"]["width_ratio"] == pytest.approx(1.0, abs=0.01)
+
+
+def test_stiffness_ridge_names_the_tradeoff_in_physical_terms():
+    # A single-length-like ridge: log k_xf sd 0.001 decades, log k_thetaM sd 0.04 decades, rho = -0.98.
+    # Reference values from the bivariate normal: regression shift of log kt per +1 sd of log kx is
+    # rho * 0.04 = -0.0392 decades (-8.6 %); conditional sd of log kt 0.04 * sqrt(1 - 0.98^2) = 0.00796
+    # decades (1.85 %); the best determined direction (1, 1) in standardised coordinates is
+    # log kx / 0.001 + log kt / 0.04, i.e. k_xf^1 * k_thetaM^0.025, with sd sqrt(1 - 0.98) * 0.001 decades.
+    rho, sx, st = -0.98, 0.001, 0.04
+    cov = [[sx**2, rho * sx * st], [rho * sx * st, st**2]]
+    z = np.random.default_rng(7).multivariate_normal([6.25, 5.65], cov, 200_000)
+    r = stiffness_ridge(z[:, 0], z[:, 1])
+    # 2e5 draws: sample sds and correlation within ~0.3 %
+    assert r["tradeoff_pct"] == pytest.approx(100 * (10 ** (rho * st) - 1), rel=0.02)
+    assert r["conditional_pct"]["k_thetaM"] == pytest.approx(100 * (10 ** (st * math.sqrt(1 - rho**2)) - 1), rel=0.02)
+    assert r["stiff"]["combination"] == "k_xf^1 * k_thetaM^0.025"
+    assert r["stiff"]["sd_decades"] == pytest.approx(math.sqrt(1 + rho) * sx, rel=0.05)
+    assert r["sloppy"]["combination"] == "k_xf^1 * k_thetaM^-0.025"
+    assert "goes with k_thetaM -8.6 %" in r["statement"] and "k_thetaM would be known to ±1.8" in r["statement"]
+
+
+def test_contractions_are_printed_as_percentages_or_width_ratios():
+    assert fmt_contraction(0.78593) == "78.6 %"
+    # 1 - 3.9e-8: posterior sd = prior sd * sqrt(3.9e-8) -> width ratio 1/sqrt(3.9e-8) = 5064
+    assert fmt_contraction(1 - 3.9e-8) == "prior width / posterior width = 5.1e3"
+    assert "1 - " not in fmt_contraction(1 - 3.9e-8)
+    assert fmt_contraction(float("nan")) == "—"
 
 
 def test_one_sided_posterior_is_weakly_identified_despite_high_contraction():

@@ -15,12 +15,17 @@ DESCRIPTION = """\
 Fit every selected measured clamping length alone (the literature method: one constant contact) and all
 of them together (growth law), with identical priors, and report per parameter and per fit:
 
-  contraction   1 - Var_post/Var_prior in the sampled coordinate (log10 k, g), with the verdict
-                'identified' (>= 0.99 and not held by a prior bound), 'weakly identified' (>= 0.5,
-                or the posterior runs into a prior bound: the data give only a one-sided bound) or
-                'not identified' (< 0.5)
-  ridge         posterior correlations and the eigen-decomposition of the covariance in log space
-                (stiff and sloppy combinations of k_xf, k_thetaM, (1+g), ...)
+  contraction   (Var_prior - Var_post)/Var_prior in the sampled coordinate (log10 k, g), printed as a
+                percentage or, above 99.9 %, as 'prior width / posterior width = 3.2e3'
+  verdict       'identified' (contraction >= 99 % and not held by a prior bound), 'identified
+                only in combination with k_thetaM' (resp. k_xf: identified, but the marginal
+                posterior width is >= 3 x the width at a fixed partner stiffness, a ridge),
+                'weakly identified' (>= 50 %, or the posterior runs into a prior bound: the
+                data give only a one-sided bound) or 'not identified' (< 50 %)
+  ridge         posterior correlations, marginal / conditional widths of k_xf and k_thetaM, the
+                stiff (determined) and sloppy (free) combinations of the two in physical terms,
+                and the eigen-decomposition of the covariance of all contact parameters in log
+                space (k_xf, k_thetaM, (1+g), ...)
   Fisher        eigenvalues and condition number of the Fisher information at the MAP point
   transfer      each fit's predicted natural frequencies at the other measured lengths vs the
                 measurements, with 90 % intervals (cf. the reference paper's Tables 5-7)

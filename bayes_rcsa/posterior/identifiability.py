@@ -21,7 +21,27 @@ they pinned the parameter down completely.  The verdict is
     prior above that bound, and the prior's upper limit, not the data, ends
     the posterior;
 ``identified``
-    everything else.
+    everything else, unless the parameter is pinned only together with its
+    partner stiffness (``k_xf`` with ``k_thetaM`` and vice versa): if its
+    marginal posterior width is at least :data:`COMBINATION_RATIO` times its
+    width at a fixed value of the partner, the verdict is ``identified only
+    in combination with k_thetaM`` (resp. ``k_xf``).
+
+Marginal and conditional widths
+-------------------------------
+For a pair of parameters with posterior covariance ``S`` (sampling
+coordinates, i.e. ``log10 k`` for log-scale priors) the marginal standard
+deviation of ``a`` is ``sqrt(S_aa)`` and its conditional standard deviation
+at fixed ``b`` is ``sqrt(S_aa - S_ab^2 / S_bb)``; their ratio is
+``1 / sqrt(1 - rho^2)`` with ``rho`` the posterior correlation.  A ratio near
+1 means the data fix ``a`` on its own; a ratio of 5 (``|rho| = 0.98``) means
+the posterior is a ridge: what the data fix is a combination of ``a`` and
+``b`` (the *stiff* direction), while ``a`` and ``b`` separately slide along
+the *sloppy* direction.  A single clamping length typically gives such a
+ridge between ``k_xf`` and ``k_thetaM`` (one natural frequency per
+direction, two stiffnesses); two lengths with the growth law separate them.
+The ratio is invariant to the scale of each coordinate, so it is the same
+in ``log10`` or ``ln`` coordinates.
 
 Ridges
 ------
@@ -58,13 +78,18 @@ from ..errors import SetupError
 __all__ = [
     "IDENTIFIED_FROM",
     "NOT_IDENTIFIED_BELOW",
+    "COMBINATION_RATIO",
+    "PARTNERS",
     "BOUND_TAIL",
     "VERDICT_RULE",
     "prior_moments",
     "prior_cdf",
     "contraction",
     "verdict",
+    "conditional_width",
+    "fmt_contraction",
     "parameter_identifiability",
+    "stiffness_ridge",
     "log_space",
     "ridge_analysis",
     "fisher_information",
@@ -75,11 +100,19 @@ __all__ = [
 IDENTIFIED_FROM = 0.99
 NOT_IDENTIFIED_BELOW = 0.5
 BOUND_TAIL = 0.05
+#: Marginal / conditional posterior width from which a parameter counts as fixed only together with its partner.
+#: 3 means the partner explains 8/9 of its posterior variance (|rho| >= 0.943).  Single-length fits on the
+#: synthetic bench give 3.5-6 (|rho| 0.96-0.99), two-length fits with the growth law 1.0-1.5.
+COMBINATION_RATIO = 3.0
+#: The partner of each stiffness in the ridge check: one natural frequency per direction pins a combination of both.
+PARTNERS = {"k_xf": "k_thetaM", "k_thetaM": "k_xf"}
 VERDICT_RULE = (
-    f"contraction = 1 - Var_post/Var_prior in the sampling coordinate; 'not identified' if contraction < "
-    f"{NOT_IDENTIFIED_BELOW}; 'weakly identified' if contraction < {IDENTIFIED_FROM} or the posterior 95 % (5 %) "
+    f"contraction = (Var_prior - Var_post)/Var_prior in the sampling coordinate (shown as a percentage, or as prior width / "
+    f"posterior width when above 99.9 %); 'not identified' if contraction < {100 * NOT_IDENTIFIED_BELOW:g} %; "
+    f"'weakly identified' if contraction < {100 * IDENTIFIED_FROM:g} % or the posterior 95 % (5 %) "
     f"quantile lies in the top (bottom) {100 * BOUND_TAIL:g} % of the prior mass next to a finite prior bound; "
-    f"'identified' otherwise"
+    f"'identified only in combination with <partner>' if otherwise identified but its marginal posterior width is "
+    f">= {COMBINATION_RATIO:g} x its width at a fixed value of the partner stiffness; 'identified' otherwise"
 )
 _FD_STEP = 1e-4  # decades: central differences of an analytic model; round-off ~1e-12 relative
 
@@ -138,13 +171,72 @@ def contraction(samples, prior, rng: np.random.Generator | None = None) -> float
     return float(1.0 - np.var(x, ddof=1) / var_prior) if x.size > 1 else float("nan")
 
 
-def verdict(c: float, bound: str | None) -> str:
-    """Verdict from a contraction and the bound (``"lower"``/``"upper"``/``None``) holding the posterior."""
+def verdict(c: float, bound: str | None, width_ratio: float | None = None, partner: str | None = None) -> str:
+    """Verdict of one parameter.
+
+    Parameters
+    ----------
+    c : float
+        Contraction.
+    bound : {"lower", "upper", "both"} or None
+        The finite prior bound holding the posterior.
+    width_ratio : float, optional
+        Marginal / conditional posterior width given ``partner``
+        (:func:`conditional_width`).
+    partner : str, optional
+        Name of the partner parameter.
+    """
     if not np.isfinite(c) or c < NOT_IDENTIFIED_BELOW:
         return "not identified"
     if bound is not None or c < IDENTIFIED_FROM:
         return "weakly identified"
+    if partner is not None and width_ratio is not None and width_ratio >= COMBINATION_RATIO:
+        return f"identified only in combination with {partner}"
     return "identified"
+
+
+def conditional_width(a, b) -> dict:
+    """Marginal and conditional posterior width of ``a`` given ``b``.
+
+    Parameters
+    ----------
+    a, b : (n,) posterior draws of two coordinates (e.g. ``log10 k_xf`` and ``log10 k_thetaM``)
+
+    Returns
+    -------
+    dict with ``correlation``, ``marginal_sd``, ``conditional_sd``
+    (``sqrt(Var a - Cov(a, b)^2 / Var b)``, same unit as ``a``) and
+    ``width_ratio`` (``marginal_sd / conditional_sd = 1 / sqrt(1 - rho^2)``;
+    ``inf`` for a perfect ridge).
+    """
+    a = np.asarray(a, dtype=float).ravel()
+    b = np.asarray(b, dtype=float).ravel()
+    cov = np.cov(a, b)
+    sa, sb = math.sqrt(cov[0, 0]), math.sqrt(cov[1, 1])
+    rho = float(cov[0, 1] / (sa * sb)) if sa > 0 and sb > 0 else 0.0
+    rho = max(-1.0, min(1.0, rho))  # round-off of a perfect ridge only
+    one_minus = 1.0 - rho * rho
+    return {"correlation": rho, "marginal_sd": sa, "conditional_sd": sa * math.sqrt(one_minus),
+            "width_ratio": 1.0 / math.sqrt(one_minus) if one_minus > 0 else float("inf")}
+
+
+def fmt_contraction(c) -> str:
+    """A contraction for text: ``78.6 %`` or, above 99.9 %, ``prior width / posterior width = 3.2e3``.
+
+    Parameters
+    ----------
+    c : float
+        ``1 - Var_post / Var_prior``; its width ratio is ``1 / sqrt(1 - c)``.
+    """
+    if c is None or not np.isfinite(c):
+        return "—"
+    if c < 0.999:
+        return f"{100.0 * c:.1f} %"
+    if c >= 1.0:
+        return "prior width / posterior width = inf"
+    text = f"{1.0 / math.sqrt(1.0 - c):.2g}"
+    mant, _, exp = text.partition("e")
+    return f"prior width / posterior width = {mant + 'e' + str(int(exp)) if exp else mant}"  # 5.1e3, not 5.1e+03
 
 
 def _bound(samples: np.ndarray, prior) -> str | None:
@@ -173,23 +265,36 @@ def parameter_identifiability(theta: np.ndarray, priors, rng: np.random.Generato
     dict of name to dict with ``contraction``, ``verdict``, ``bound``
     (``None``, ``"lower"``, ``"upper"`` or ``"both"``: the finite prior
     bound(s) the posterior reaches), ``prior_sd``, ``posterior_sd`` (sampling
-    coordinate) and the posterior ``q05``/``q50``/``q95`` in physical units.
+    coordinate), ``prior_to_posterior_width`` (``prior_sd / posterior_sd``),
+    the posterior ``q05``/``q50``/``q95`` in physical units and, for the
+    stiffnesses of :data:`PARTNERS` when both are sampled, ``partner``,
+    ``correlation``, ``conditional_sd`` and ``width_ratio`` (marginal /
+    conditional width given the partner, :func:`conditional_width`).
     """
     theta = np.atleast_2d(np.asarray(theta, dtype=float))
+    names = list(priors.names)
     out = {}
-    for j, name in enumerate(priors.names):
+    for j, name in enumerate(names):
         p = priors[name]
         x = theta[:, j]
         _, var_prior = prior_moments(p, rng)
         c = contraction(x, p, rng)
         b = _bound(x, p)
         q = np.quantile(np.asarray(p.to_physical(x), dtype=float), [0.05, 0.5, 0.95])
+        partner = PARTNERS.get(name) if PARTNERS.get(name) in names else None
+        cond = conditional_width(x, theta[:, names.index(partner)]) if partner is not None and x.size > 2 else None
+        post_sd = float(np.std(x, ddof=1)) if x.size > 1 else float("nan")
         out[name] = {
             "contraction": c,
-            "verdict": verdict(c, b),
+            "verdict": verdict(c, b, cond["width_ratio"] if cond else None, partner),
             "bound": b,
             "prior_sd": math.sqrt(var_prior),
-            "posterior_sd": float(np.std(x, ddof=1)) if x.size > 1 else float("nan"),
+            "posterior_sd": post_sd,
+            "prior_to_posterior_width": math.sqrt(var_prior) / post_sd if post_sd > 0 else float("inf"),
+            "partner": partner,
+            "correlation": cond["correlation"] if cond else None,
+            "conditional_sd": cond["conditional_sd"] if cond else None,
+            "width_ratio": cond["width_ratio"] if cond else None,
             "q05": float(q[0]),
             "q50": float(q[1]),
             "q95": float(q[2]),
@@ -285,6 +390,67 @@ def ridge_analysis(z: np.ndarray, names: Sequence[str]) -> dict:
         "stiff": entry(0),
         "sloppy": entry(lam.size - 1),
     }
+
+
+def _pct(decades: float) -> float:
+    """A log10 standard deviation as a relative change in per cent (``10^sd - 1``)."""
+    return 100.0 * (10.0 ** decades - 1.0)
+
+
+def stiffness_ridge(log_kx, log_kt, names: Sequence[str] = ("k_xf", "k_thetaM")) -> dict:
+    """What the data fix about two stiffnesses, in physical terms.
+
+    Parameters
+    ----------
+    log_kx, log_kt : (n,) posterior draws of ``log10 k_xf`` (N/m) and ``log10 k_thetaM`` (N m/rad)
+    names : the two parameter names
+
+    Returns
+    -------
+    dict with
+    ``correlation``;
+    ``stiff`` and ``sloppy``: the best and least determined products of
+    powers of the two (largest power 1), from the eigenvectors of their
+    correlation matrix (scale-free: the standardised log coordinates), with
+    ``sd_pct``, one posterior standard deviation of that product as a
+    relative change (%);
+    ``marginal_pct``: ``{name: posterior sd (%)}``;
+    ``conditional_pct``: ``{name: posterior sd at a fixed partner (%)}``;
+    ``tradeoff_pct``: the change of the second stiffness (%) that goes,
+    along the posterior's regression line, with a one-sd increase of the
+    first;
+    ``statement``: one sentence.
+    """
+    z = np.column_stack([np.asarray(log_kx, dtype=float).ravel(), np.asarray(log_kt, dtype=float).ravel()])
+    cov = np.cov(z, rowvar=False)
+    sd = np.sqrt(np.diag(cov))
+    rho = float(cov[0, 1] / (sd[0] * sd[1])) if sd[0] > 0 and sd[1] > 0 else 0.0
+    rho = max(-1.0, min(1.0, rho))  # round-off of a perfect ridge only
+    cond = sd * math.sqrt(1.0 - rho * rho)
+    # In the standardised coordinates u_i = log k_i / sd_i the covariance is [[1, rho], [rho, 1]], with
+    # eigenvectors (1, 1) (variance 1 + rho) and (1, -1) (variance 1 - rho); in raw log10 coordinates
+    # the eigenvectors would only say which stiffness has the larger spread.
+    dirs = [(np.array([1.0, 1.0]), 1.0 + rho), (np.array([1.0, -1.0]), 1.0 - rho)]
+    dirs.sort(key=lambda d: d[1])
+
+    def entry(u, var):
+        v = u / sd if np.all(sd > 0) else u  # back to log10 coordinates: a product of powers
+        w = v / np.max(np.abs(v))  # largest power 1
+        # sd of w . log k, in decades: w = v / max|v| and v . log k has standardised variance `var`
+        dec = math.sqrt(max(var, 0.0)) / float(np.max(np.abs(v)))
+        return {"combination": combination_name(w, names), "sd_decades": dec, "sd_pct": _pct(dec),
+                "vector": w.tolist()}
+
+    stiff, sloppy = entry(*dirs[0]), entry(*dirs[1])
+    trade = _pct(rho * sd[1])  # regression: E[log kt | log kx + sd_x] - E[log kt] = rho sd_t
+    text = (f"corr(log {names[0]}, log {names[1]}) = {rho:+.2f}; the data fix {stiff['combination']} to "
+            f"±{stiff['sd_pct']:.2g} % (1 sd); along the posterior, {names[0]} +{_pct(sd[0]):.2g} % (its sd) goes with "
+            f"{names[1]} {trade:+.2g} %; at a fixed {names[0]}, {names[1]} would be known to ±{_pct(cond[1]):.2g} %, "
+            f"on its own it is known to ±{_pct(sd[1]):.2g} %")
+    return {"correlation": rho, "stiff": stiff, "sloppy": sloppy,
+            "marginal_pct": {names[0]: _pct(sd[0]), names[1]: _pct(sd[1])},
+            "conditional_pct": {names[0]: _pct(cond[0]), names[1]: _pct(cond[1])},
+            "tradeoff_pct": trade, "statement": text + "."}
 
 
 # -- Fisher information ---------------------------------------------------------

@@ -29,14 +29,17 @@ from ..io.atomic import atomic_write_text
 from .draws import CONTACT_NAMES, PosteriorDraws, draws_from_result
 from .identifiability import (
     BOUND_TAIL,
+    COMBINATION_RATIO,
     IDENTIFIED_FROM,
     NOT_IDENTIFIED_BELOW,
     VERDICT_RULE,
     fisher_information,
+    fmt_contraction,
     length_key,
     log_space,
     parameter_identifiability,
     ridge_analysis,
+    stiffness_ridge,
     transfer_errors,
 )
 from .predict import PredictionTarget, predict
@@ -90,13 +93,6 @@ class Study:
 
     fits: tuple
     document: dict
-
-
-def fmt_contraction(c) -> str:
-    """A contraction for text: ``0.78593``, or ``1 - 3.1e-08`` when it is too close to 1 to show."""
-    if c is None or not np.isfinite(c):
-        return "—"
-    return f"{c:.5f}" if c < 0.999 else f"1 - {1.0 - c:.2g}"
 
 
 def _mm(length: float) -> str:
@@ -179,17 +175,20 @@ def analyse_fit(spec: FitSpec, result, rng: np.random.Generator) -> FitAnalysis:
     fisher = fisher_information(problem.likelihood, theta_map, contact, result.tempering)
     transfer = transfer_errors(result.summary["natural_frequencies"])
     influence = _influence(draws, problem, rng)
+    ik = contact.index("k_xf"), contact.index("k_thetaM")
+    stiff_ridge = stiffness_ridge(z[:, ik[0]], z[:, ik[1]])
     statements = []
+    for name, p in params.items():
+        p["value_quoted"] = p["verdict"] == "identified"
+        p["unit"] = problem.parameters.unit(name)
     for name in contact:
         p = params[name]
-        p["value_quoted"] = p["verdict"] == "identified"
-        s = undetermined_statement(name, p, influence.get(name))
-        if s:
-            statements.append(s)
-    for name, p in params.items():
-        p.setdefault("value_quoted", p["verdict"] == "identified")
-        p["unit"] = problem.parameters.unit(name)
-    ik = contact.index("k_xf"), contact.index("k_thetaM")
+        if p["verdict"].startswith("identified only in combination"):
+            statements.append(_combination_statement(name, p, stiff_ridge))
+        else:
+            s = undetermined_statement(name, p, influence.get(name))
+            if s:
+                statements.append(s)
     entry = {
         "name": spec.name,
         "method": spec.method,
@@ -202,6 +201,7 @@ def analyse_fit(spec: FitSpec, result, rng: np.random.Generator) -> FitAnalysis:
         "parameters": params,
         "correlation": {"names": labels, "matrix": ridge["correlation"]},
         "corr_log_k": ridge["correlation"][ik[0]][ik[1]],
+        "stiffness_ridge": stiff_ridge,
         "ridge": {k: ridge[k] for k in ("names", "eigenvalues", "sd", "eigenvectors", "stiff", "sloppy")},
         "fisher": {k: fisher[k] for k in ("names", "eigenvalues", "eigenvectors", "stiff", "sloppy", "matrix")},
         "condition_number": fisher["condition_number"],
@@ -213,6 +213,17 @@ def analyse_fit(spec: FitSpec, result, rng: np.random.Generator) -> FitAnalysis:
         "warnings": list(result.summary.get("warnings", [])),
     }
     return FitAnalysis(spec, result, draws, entry)
+
+
+def _combination_statement(name: str, p: dict, ridge: dict) -> str:
+    """Plain-language sentence for a stiffness the data fix only together with its partner."""
+    from .report import fmt
+
+    unit = f" {p['unit']}" if p.get("unit") else ""
+    return (f"{name} is identified only in combination with {p['partner']}: its 90 % posterior range "
+            f"[{fmt(p['q05'])}, {fmt(p['q95'])}]{unit} is {p['width_ratio']:.2g} times wider than its range at a fixed "
+            f"{p['partner']} (corr {p['correlation']:+.2f}); no value is quoted for it on its own. "
+            f"{ridge['statement']}")
 
 
 def _error_by_length(entry: dict) -> dict:
@@ -239,11 +250,11 @@ def _findings(fits: Sequence[FitAnalysis]) -> tuple[dict, list[str]]:
         e = f.entry
         r = e["ridge"]
         c = e["parameters"]
-        line = (f"{e['name']} ({', '.join(_mm(l) for l in e['lengths'])} mm): contraction k_xf "
-                f"{fmt_contraction(c['k_xf']['contraction'])} ({c['k_xf']['verdict']}), k_thetaM "
-                f"{fmt_contraction(c['k_thetaM']['contraction'])} "
-                f"({c['k_thetaM']['verdict']}); corr(log k_xf, log k_thetaM) = {e['corr_log_k']:+.2f}; "
-                f"stiff combination {r['stiff']['combination']} (sd {r['stiff']['sd']:.2g} decades), sloppy "
+        sr = e["stiffness_ridge"]
+        line = (f"{e['name']} ({', '.join(_mm(l) for l in e['lengths'])} mm): "
+                + "; ".join(f"{n} {c[n]['verdict']} (contraction {fmt_contraction(c[n]['contraction'])}, marginal / "
+                            f"conditional width {_ratio(c[n].get('width_ratio'))})" for n in ("k_xf", "k_thetaM"))
+                + f"; {sr['statement'][:-1]}; over all contact parameters the least determined direction is "
                 f"{r['sloppy']['combination']} (sd {r['sloppy']['sd']:.2g} decades); Fisher condition number "
                 f"{e['condition_number']:.3g}")
         t = comp["mean_transfer_error_pct"][e["name"]]
@@ -260,10 +271,13 @@ def _findings(fits: Sequence[FitAnalysis]) -> tuple[dict, list[str]]:
             lines.append(f"{name}: contraction {fmt_contraction(mc)} from all lengths together vs at most "
                          f"{fmt_contraction(best)} from one length "
                          f"({'higher' if mc > best else 'not higher'} with several lengths).")
-        ridged = [s.entry["name"] for s in singles if abs(s.entry["corr_log_k"]) > 0.7]
+        ridged = [s.entry["name"] for s in singles
+                  if max(s.entry["parameters"][n].get("width_ratio") or 0.0 for n in ("k_xf", "k_thetaM"))
+                  >= COMBINATION_RATIO]
         if ridged:
-            lines.append(f"Single-length fits with a stiffness ridge (|corr(log k_xf, log k_thetaM)| > 0.7): "
-                         f"{', '.join(ridged)}: one clamping length fixes a combination of the two stiffnesses, not each.")
+            lines.append(f"Single-length fits with a stiffness ridge (marginal width >= {COMBINATION_RATIO:g} x the width "
+                         f"at a fixed partner stiffness): {', '.join(ridged)}: one clamping length fixes a combination "
+                         f"of the two stiffnesses, not each.")
     return comp, lines
 
 
@@ -313,6 +327,11 @@ def study_document(setup, fits: Sequence[FitAnalysis], settings, seed: int) -> d
 
 
 # -- outputs ------------------------------------------------------------------------
+
+
+def _ratio(r) -> str:
+    """A marginal / conditional width ratio for text."""
+    return "—" if r is None else ("inf" if not np.isfinite(r) else f"{r:.2g}")
 
 
 def _q(x) -> dict:
@@ -375,7 +394,8 @@ def _table_rows(study: Study) -> list[tuple]:
         for n in f.entry["parameters"]:
             if n not in names and not n.startswith("sigma_"):
                 names.append(n)
-    head += [f"{n} contraction / verdict" for n in names] + ["corr(log k_xf, log k_θM)", "Fisher condition number"]
+    head += [f"{n} contraction / verdict" for n in names] + [
+        "k_xf, k_θM marginal / conditional width", "corr(log k_xf, log k_θM)", "Fisher condition number"]
     rows = []
     for f in fits:
         e = f.entry
@@ -383,7 +403,8 @@ def _table_rows(study: Study) -> list[tuple]:
         for n in names:
             p = e["parameters"].get(n)
             row.append("—" if p is None else f"{fmt_contraction(p['contraction'])} / {p['verdict']}")
-        row += [f"{e['corr_log_k']:+.3f}", fmt(e["condition_number"], 3)]
+        row += [", ".join(_ratio(e["parameters"][n].get("width_ratio")) for n in ("k_xf", "k_thetaM")),
+                f"{e['corr_log_k']:+.3f}", fmt(e["condition_number"], 3)]
         rows.append(row)
     blocks += [("h", 2, "Contraction and verdicts"), ("table", head, rows),
                ("p", "Verdict rule: " + VERDICT_RULE + ". Noise scales are in identifiability.json.")]
@@ -412,6 +433,8 @@ def _table_rows(study: Study) -> list[tuple]:
         blocks.append(("p", f"{f.spec.name}:"))
         blocks.append(("table", [""] + c["names"],
                        [[n] + [f"{v:+.3f}" for v in row] for n, row in zip(c["names"], c["matrix"])]))
+    blocks.append(("h", 2, "The two stiffnesses: what the data fix"))
+    blocks.append(("ul", [f"{f.spec.name}: {f.entry['stiffness_ridge']['statement']}" for f in fits]))
     blocks.append(("h", 2, "Ridges: stiff and sloppy combinations"))
     rows = []
     for f in fits:
