@@ -74,12 +74,13 @@ def test_far_length_preferred_and_realised_width_within_prediction(bench, capsys
 def test_third_length_not_worth_it_after_25_and_40(bench, capsys):
     out = bench["tmp"] / "d2540"
     rc, stdout, err = _design(capsys, [bench["setup"], "--posterior", bench["post2540"], "--candidates",
-                                      "0.027,0.030,0.035", "--target", TARGET, "--out", out])
+                                      "0.027,0.030,0.035", "--target", TARGET, "--out", out, "--json"])
     assert rc == 0, err
     doc = json.loads((out / "design.json").read_text())
     assert doc["worth_it"] is False
     assert doc["relative_gain"] < WORTH_IT_FRACTION
-    assert "not worth it" in json.loads(stdout)["verdict"]
+    assert "not worth it" in json.loads(stdout)["verdict"]  # --json: one object on stdout
+    assert "not worth it" in err  # the one human line on stderr
 
 
 def test_importance_and_laplace_agree_when_weights_do_not_collapse(bench):

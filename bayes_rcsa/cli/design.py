@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from ..errors import SetupError
-from ._common import nonnegative_int, parse_float, parse_float_list, positive_int
+from ._common import (Summary, add_force_argument, check_output_directory, nonnegative_int, parse_float,
+                      parse_float_list, positive_int)
 
 __all__ = ["register", "run"]
 
@@ -59,6 +59,7 @@ def register(subparsers) -> None:
     cut.add_argument("--radial-immersion", default=None, metavar="R", help="radial depth / diameter in (0, 1]")
     cut.add_argument("--milling", choices=("down", "up"), default="down", help="down (climb) or up milling")
     p.add_argument("--no-plots", action="store_true", help="skip design.png")
+    add_force_argument(p)
     p.set_defaults(func=run)
 
 
@@ -76,15 +77,17 @@ def _cutting(args, target):
                                                                               positive=True), milling=args.milling)
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> Summary:
     from ..design.outputs import write_design_outputs
     from ..design.targets import parse_candidates, parse_target
     from ..design.workflow import run_design, run_planning
-    from ..io.atomic import directory_lock, new_output_directory
+    from ..io.atomic import directory_is_empty, directory_lock, new_output_directory
     from ..io.setup import load_setup
     from ..posterior.growth_prior import feasible_growth_law
 
     setup = load_setup(args.setup)
+    if not args.force and not directory_is_empty(args.out):
+        check_output_directory(args.out)  # refused before the design is computed (checked again under the lock)
     if args.posterior is not None:
         if not args.posterior.is_file():
             raise SetupError(f"--posterior {args.posterior}: no such file (posterior.nc written by 'bayes-rcsa identify')")
@@ -107,9 +110,14 @@ def run(args: argparse.Namespace) -> int:
         lengths = None if args.candidates is None else parse_float_list(args.candidates, "--candidates", positive=True)
         noise = 0.02 if args.noise_scale is None else parse_float(str(args.noise_scale), "--noise-scale", positive=True)
         result = run_planning(setup, lengths, args.truths, args.seed, noise)
-    with directory_lock(args.out), new_output_directory(args.out):
+    with directory_lock(args.out), new_output_directory(check_output_directory(args.out, args.force)):
         write_design_outputs(result, args.out, plots=not args.no_plots)
     doc = result.as_dict()
-    print(json.dumps({"design": str(args.out / "design.json"), "best": doc["best"]["test"],
-                      "verdict": doc.get("verdict", f"measure {doc['best']['test']}")}))
-    return 0
+    verdict = doc.get("verdict", f"measure {doc['best']['test']} (no-data plan)")
+    warns = tuple(n for n in doc.get("notes", []) if "collapsed" in n or n.startswith("warning:"))
+    return Summary(
+        f"{verdict}; results in {args.out}",
+        {"out": str(args.out), "design": str(args.out / "design.json"), "best": doc["best"]["test"],
+         "worth_it": doc.get("worth_it"), "verdict": verdict},
+        warnings=warns,
+    )
