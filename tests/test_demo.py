@@ -8,6 +8,7 @@ contact, so the demo's numbers can be scored, not just produced.
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -24,12 +25,20 @@ def demo_out(tmp_path_factory):
 
 
 def test_demo_writes_every_report(demo_out):
-    for rel in ("index.html", "identify/summary.json", "identify/posterior.nc", "identify/corner.png",
+    for rel in ("index.html", "report.html", "identify/summary.json", "identify/posterior.nc", "identify/corner.png",
                 "predict/frequencies.json", "predict/report.html", "predict/frf_bands.png",
                 "lobes/lobes.json", "lobes/lobes.png", "lobes/p_stable.npz"):
         assert (demo_out / rel).stat().st_size > 0, rel
     html = (demo_out / "index.html").read_text()
     assert "First tool-point natural frequency" in html and "lobes/lobes.png" in html
+    assert 'href="report.html"' in html and "True" not in html and "False" not in html
+    report = (demo_out / "report.html").read_text()
+    # self-contained: every figure embedded, nothing fetched from next to the page
+    srcs = re.findall(r'<img[^>]* src="([^"]*)"', report)
+    assert len(srcs) >= 6 and all(s.startswith("data:image/png;base64,") for s in srcs)
+    for section in ("Sampler convergence", "Identified parameters", "Corner plot", "FRF bands around each mode",
+                    "predictive 90 % interval of a new measured peak", "Stability lobes", "recommended operating point"):
+        assert section in report, section
 
 
 def test_demo_predictions_are_scored_against_the_bench_truth(demo_out):

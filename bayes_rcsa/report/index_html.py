@@ -39,9 +39,11 @@ def demo_index_html(summary: dict, freqs: dict, lobes: dict) -> str:
             continue
         measured = p.get("measured_hz")
         err = "" if measured is None else f"{100 * (p['q50_hz'] - measured) / measured:+.2f} %"
+        lo, hi = p.get("predictive_peak_q05_hz"), p.get("predictive_peak_q95_hz")
+        pred = "&mdash;" if lo is None or hi is None else f"{lo:.1f} &ndash; {hi:.1f}"
         rows.append(
             f"<tr><td>{p['clamping_length'] * 1e3:.1f}</td><td>{html.escape(p['direction'])}</td>"
-            f"<td>{p['q05_hz']:.1f} &ndash; {p['q95_hz']:.1f}</td><td>{p['q50_hz']:.1f}</td>"
+            f"<td>{p['q05_hz']:.1f} &ndash; {p['q95_hz']:.1f}</td><td>{p['q50_hz']:.1f}</td><td>{pred}</td>"
             f"<td>{'' if measured is None else f'{measured:.1f}'}</td><td>{err}</td></tr>"
         )
     stiff = []
@@ -65,14 +67,17 @@ def demo_index_html(summary: dict, freqs: dict, lobes: dict) -> str:
 td,th{{border:1px solid #999;padding:3px 8px;text-align:right}}img{{max-width:100%}}</style></head><body>
 <h1>bayes_rcsa demo: ER32 collet + 7.94 mm end mill</h1>
 <p>Contact identified from the 25 mm and 40 mm hammer tests (x and y); 30 mm and 35 mm are held out.
-Sampler converged: <b>{summary.get('converged')}</b>. Warnings: <ul>{warnings}</ul></p>
+Sampler converged: <b>{_yes_no(summary.get('converged'))}</b>. Warnings: <ul>{warnings}</ul></p>
 <h2>Contact stiffness, 90 % credible intervals</h2>
 <table><tr><th>clamping (mm)</th><th>k<sub>xf</sub> (N/m)</th><th>k<sub>&theta;M</sub> (N m/rad)</th></tr>
 {''.join(stiff)}</table>
 <h2>First tool-point natural frequency</h2>
-<table><tr><th>clamping (mm)</th><th>dir</th><th>90 % interval (Hz)</th><th>median (Hz)</th><th>measured (Hz)</th><th>error</th></tr>
+<table><tr><th>clamping (mm)</th><th>dir</th><th>model 90 % credible interval (Hz)</th><th>model median (Hz)</th><th>new measured peak, 90 % predictive interval (Hz)</th><th>measured (Hz)</th><th>error</th></tr>
 {''.join(rows)}</table>
-<p><a href="predict/report.html">prediction report</a> &middot; <a href="identify/summary.json">identify/summary.json</a>
+<p>The model interval is where the noise-free natural frequency of the identified model lies; a measured peak is
+noisy and is to be compared with the predictive interval of a new measurement.</p>
+<p><b><a href="report.html">the full report (report.html, self-contained)</a></b> &middot;
+<a href="predict/report.html">prediction report</a> &middot; <a href="identify/summary.json">identify/summary.json</a>
 &middot; <a href="predict/frequencies.json">predict/frequencies.json</a> &middot; <a href="lobes/lobes.json">lobes/lobes.json</a></p>
 <img src="predict/frf_bands.png" alt="FRF bands"><img src="predict/natural_frequencies.png" alt="natural frequencies">
 <h2>Stability lobes at 30 mm, case b (95 % immersion, feed y)</h2>
@@ -81,6 +86,10 @@ Sampler converged: <b>{summary.get('converged')}</b>. Warnings: <ul>{warnings}</
 <h2>Sampler</h2><img src="identify/trace.png" alt="trace"><img src="identify/corner.png" alt="corner">
 </body></html>
 """
+
+
+def _yes_no(b) -> str:
+    return "unknown" if b is None else ("yes" if b else "NO")
 
 
 def write_demo_index(out) -> Path:

@@ -1,0 +1,44 @@
+"""``bayes-rcsa report``: one self-contained HTML report from the output directories of the other commands."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ..errors import SetupError
+from ._common import Summary, check_output_path, nonnegative_int
+
+DESCRIPTION = """\
+Build ONE self-contained HTML file (figures embedded, no external files) from the output directories of
+identify, predict, identifiability, discrepancy, design and lobes; each directory's kind is recognised by
+the files in it, and a 'bayes-rcsa demo' directory stands for its sub-directories.
+
+Sections: setup (geometry drawing with the clamping length; which parameters were sampled and which fixed),
+sampler convergence (R-hat, ESS, autocorrelation time, steps; warnings shown prominently), identified
+parameters, corner plot, FRF bands against the measurements in magnitude and phase around each mode,
+natural frequencies with both the model's credible interval and the predictive interval of a new measured
+peak, identifiability, discrepancy findings, stability lobes with the P(stable) map and the recommended
+point, and the design recommendation.  The zoomed FRF bands need the setup and posterior files the predict
+run names.
+"""
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("report", help="one self-contained HTML report from run directories",
+                              description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("runs", nargs="+", type=Path, metavar="RUN_DIR", help="output directory of a bayes-rcsa command")
+    p.add_argument("--out", type=Path, required=True, metavar="FILE", help="the HTML file to write")
+    p.add_argument("--title", default=None, help="page title (default: 'bayes_rcsa report')")
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the draws behind the FRF bands (default 0)")
+    p.add_argument("--force", action="store_true", help="replace an existing FILE (default: refuse)")
+    p.set_defaults(func=run, out_kind="file")
+
+
+def run(args: argparse.Namespace) -> Summary:
+    from ..report import write_report_html
+
+    out = check_output_path(args.out, "--out", kind="file")
+    if out.exists() and not args.force:
+        raise SetupError(f"--out {out}: exists; use --force to replace it")
+    path = write_report_html(args.runs, out, seed=args.seed, title=args.title)
+    return Summary(f"wrote {path}", {"report": str(path), "runs": [str(r) for r in args.runs]})

@@ -1,0 +1,341 @@
+"""One self-contained HTML report from the outputs of identify, predict, identifiability, discrepancy, design and lobes.
+
+:func:`build_report` reads the run directories (:mod:`.runs`), turns their
+JSON documents into the template's context (numbers formatted for people,
+booleans as words) and renders ``templates/report.html.j2`` with Jinja2.
+Every figure is embedded as a PNG data URI, so the page can be mailed or
+archived alone.  The tables show the numbers of the JSON files (rounded to
+the digits printed), nothing recomputed; the figures that need the model
+(geometry, zoomed FRF bands) are drawn from the setup and posterior files
+the predict run names, and are left out with a note when those files are
+not found.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from ..errors import DataError
+from ..io.atomic import atomic_write_text
+from . import figures as F
+from .runs import RunDir, collect_runs
+
+__all__ = ["build_report", "write_report_html", "num", "yes_no", "FRF_DRAWS"]
+
+FRF_DRAWS = 200  # posterior draws behind the zoomed FRF bands (5-95 % quantiles stable to ~1/sqrt(200 * 0.05))
+ZOOM_LINES = 161  # lines of a mode's zoom window
+
+
+def num(x, digits: int = 4) -> str:
+    """A number for people: ``digits`` significant digits, no exponent between 1e-3 and 1e6; ``—`` if missing."""
+    if x is None or isinstance(x, bool):
+        return "—" if x is None else yes_no(x)
+    x = float(x)
+    if not math.isfinite(x):
+        return "—"
+    if x == 0:
+        return "0"
+    if 1e-3 <= abs(x) < 1e6:
+        decimals = max(digits - 1 - int(math.floor(math.log10(abs(x)))), 0)
+        return f"{x:.{decimals}f}"
+    return f"{x:.{digits - 1}e}"
+
+
+def yes_no(b) -> str:
+    """``yes``/``no`` for a boolean, ``unknown`` for ``None``."""
+    return "unknown" if b is None else ("yes" if b else "no")
+
+
+def _mm(length_m) -> str:
+    return num(1e3 * float(length_m), 4)
+
+
+# -- sections ------------------------------------------------------------------
+
+
+def _identify_section(run: RunDir) -> dict:
+    s = run.document
+    params = s.get("parameters", {}) or {}
+    tau = s.get("tau", {}) or {}
+    conv_rows = [{"name": n, "rhat": num(p.get("rhat"), 4), "ess_bulk": num(p.get("ess_bulk"), 4),
+                  "ess_tail": num(p.get("ess_tail"), 4), "tau": num(tau.get(n), 4),
+                  "rhat_bad": p.get("rhat") is not None and p["rhat"] >= 1.01} for n, p in params.items()]
+    par_rows = [{"name": n, "unit": p.get("unit", ""), "q05": num(p.get("q05"), 5), "q50": num(p.get("q50"), 5),
+                 "q95": num(p.get("q95"), 5), "mean": num(p.get("mean"), 5), "sd": num(p.get("sd"), 3)}
+                for n, p in params.items()]
+    corner = run.file("corner.png")
+    trace = run.file("trace.png")
+    return {
+        "path": str(run.path),
+        "method": s.get("method"),
+        "converged": s.get("converged"),
+        "converged_word": yes_no(s.get("converged")),
+        "stop_reason": s.get("stop_reason"),
+        "facts": [("converged", yes_no(s.get("converged"))), ("steps", num(s.get("n_steps"), 6)),
+                  ("burn-in", num(s.get("burn_in"), 6)), ("thinning", num(s.get("thin"), 4)),
+                  ("walkers", num(s.get("n_walkers"), 4)), ("draws", num(s.get("n_draws"), 6)),
+                  ("acceptance fraction", num(s.get("acceptance_fraction"), 3)),
+                  ("likelihood tempering β", num((s.get("likelihood") or {}).get("tempering"), 3))],
+        "conv_rows": conv_rows,
+        "par_rows": par_rows,
+        "warnings": [str(w) for w in s.get("warnings", [])],
+        "corner": F.png_data_uri(corner) if corner else None,
+        "trace": F.png_data_uri(trace) if trace else None,
+    }
+
+
+def _describe_prior(d: dict) -> str:
+    if not d:
+        return "—"
+    dist = d.get("distribution", "?")
+    if "lo" in d and "hi" in d:
+        return f"{dist} on [{num(d['lo'], 4)}, {num(d['hi'], 4)}]"
+    return dist + " " + ", ".join(f"{k} = {num(v) if isinstance(v, (int, float)) else v}"
+                                   for k, v in d.items() if k != "distribution")
+
+
+def _parameter_model_rows(pm) -> list[dict]:
+    rows = []
+    for n in pm.all_names:
+        p = pm[n]
+        rows.append({"name": n, "role": p.role, "status": "sampled" if p.sampled else "fixed",
+                     "value": _describe_prior(p.prior.describe()) if p.sampled else num(p.value, 5),
+                     "unit": pm.unit(n)})
+    return rows
+
+
+class _Posteriors(dict):
+    """posterior.nc path -> PosteriorDraws, each file read once per report."""
+
+    def get_draws(self, path):
+        from ..posterior.draws import load_posterior
+
+        key = str(Path(path).resolve())
+        if key not in self:
+            self[key] = load_posterior(path)
+        return self[key]
+
+
+def _setup_section(predict_run: RunDir | None, identify_run: RunDir | None, posteriors: _Posteriors) -> dict:
+    """Geometry drawing and the sampled/fixed parameters (from the posterior's parameter model)."""
+    out: dict = {"notes": [], "geometry": None, "parameter_rows": [], "setup": None, "posterior": None}
+    posterior = None
+    if predict_run is not None and predict_run.document.get("posterior"):
+        posterior = Path(predict_run.document["posterior"])
+    if (posterior is None or not posterior.is_file()) and identify_run is not None:
+        posterior = identify_run.path / "posterior.nc"
+    if posterior is not None and posterior.is_file():
+        pm = posteriors.get_draws(posterior).parameters
+        out["parameter_rows"] = _parameter_model_rows(pm)
+        out["posterior"] = str(posterior)
+    elif identify_run is not None:  # summary.json only: the same facts without the model object
+        s = identify_run.document
+        out["parameter_rows"] = ([{"name": n, "role": "", "status": "sampled", "value": _describe_prior(d),
+                                   "unit": (s.get("parameters", {}).get(n) or {}).get("unit", "")}
+                                  for n, d in (s.get("priors") or {}).items()]
+                                 + [{"name": n, "role": "", "status": "fixed", "value": num(v, 5), "unit": ""}
+                                    for n, v in (s.get("fixed_parameters") or {}).items()])
+    setup_path = predict_run.document.get("setup") if predict_run is not None else None
+    if setup_path and Path(setup_path).is_file():
+        from ..io.setup import load_setup
+
+        setup = load_setup(setup_path, load_data=False, load_spindle=False)
+        out["setup"] = str(setup_path)
+        out["name"] = setup.name
+        lengths = predict_run.document.get("fit_lengths") or predict_run.document.get("lengths") or []
+        tool = next(iter(setup.tools.values()))
+        cl = float(lengths[0]) if lengths else float(sum(setup.feasible_range) / 2)
+        out["geometry"] = F.geometry_figure(setup.holder, tool, cl, tuple(setup.feasible_range))
+        out["geometry_length"] = _mm(cl)
+    else:
+        out["notes"].append("geometry drawing left out: no predict run naming a readable setup file was given")
+    return out
+
+
+def _zoom_windows(modes: list[dict]) -> None:
+    """Set each mode's zoom window: wide enough for its predictive interval, a few % of its frequency."""
+    for m in modes:
+        c = m.get("q50_hz") or 0.5 * (m["band_lo_hz"] + m["band_hi_hz"])
+        lo_p = m.get("predictive_peak_q05_hz") or m.get("q05_hz") or c
+        hi_p = m.get("predictive_peak_q95_hz") or m.get("q95_hz") or c
+        half = max(4.0 * (hi_p - lo_p), 0.015 * c)
+        m["zoom_lo_hz"] = max(c - half, m["band_lo_hz"])
+        m["zoom_hi_hz"] = min(c + half, m["band_hi_hz"])
+
+
+def _frf_figures(run: RunDir, posteriors: _Posteriors, seed: int = 0) -> tuple[list[str], list[str]]:
+    """Zoomed |H| and phase bands of every predicted configuration (needs its setup and posterior)."""
+    doc = run.document
+    setup_path, posterior = doc.get("setup"), doc.get("posterior")
+    if not (setup_path and Path(setup_path).is_file() and posterior and Path(posterior).is_file()):
+        return [], [f"zoomed FRF bands left out: setup {setup_path} or posterior {posterior} not found"]
+    from ..io.setup import load_setup
+    from ..model.assembly import Configuration
+    from ..posterior.predict import predictive_frf
+
+    setup = load_setup(setup_path)
+    draws = posteriors.get_draws(posterior).subset(FRF_DRAWS, np.random.default_rng(seed))
+    model = setup.model()
+    groups: dict = {}
+    for p in doc.get("predictions", []):
+        groups.setdefault((p["clamping_length"], p["direction"], p["tool"]), []).append(dict(p))
+    uris = []
+    for (length, d, tool), modes in groups.items():
+        _zoom_windows(modes)
+        f = np.unique(np.concatenate([np.linspace(m["zoom_lo_hz"], m["zoom_hi_hz"], ZOOM_LINES) for m in modes]))
+        cfg = Configuration(float(length), d, tool)
+        h = predictive_frf(draws, model, cfg, f)
+        meas = next((m.frf for m in setup.measurements if m.configuration.direction == d and m.configuration.tool == tool
+                     and abs(m.configuration.clamping_length - length) < 1e-7), None)
+        uris.append(F.frf_zoom_figure(f"{_mm(length)} mm, {d}", f, h, modes, meas))
+    return uris, []
+
+
+def _predict_section(run: RunDir, posteriors: _Posteriors, seed: int) -> dict:
+    doc = run.document
+    rows = []
+    for p in doc.get("predictions", []):
+        rows.append({
+            "length": _mm(p["clamping_length"]), "direction": p["direction"], "mode": p["mode"],
+            "dominant": yes_no(p.get("dominant")), "fitted": yes_no(p.get("fitted")) if "fitted" in p else "not measured",
+            "measured": num(p.get("measured_hz"), 6),
+            "model_q05": num(p.get("q05_hz"), 6), "model_q50": num(p.get("q50_hz"), 6), "model_q95": num(p.get("q95_hz"), 6),
+            "pred_q05": num(p.get("predictive_peak_q05_hz"), 6), "pred_q95": num(p.get("predictive_peak_q95_hz"), 6),
+            "in_model": yes_no(p.get("measured_in_90")) if "measured_hz" in p else "—",
+            "in_pred": yes_no(p.get("measured_in_predictive_90")) if "measured_hz" in p else "—",
+        })
+    status = doc.get("posterior_status") or {}
+    frf, notes = _frf_figures(run, posteriors, seed)
+    images = [F.png_data_uri(p) for p in (run.file("natural_frequencies.png"),) if p]
+    ident_rows = []
+    for name, e in (doc.get("identifiability") or {}).items():
+        ratio = e.get("prior_to_posterior_width")
+        ident_rows.append({"name": name, "verdict": e.get("verdict", "—"),
+                           "width_ratio": num(ratio, 3) if ratio is not None else "—",
+                           "partner": e.get("partner") or "—", "correlation": num(e.get("correlation"), 3),
+                           "q05": num(e.get("q05"), 5), "q95": num(e.get("q95"), 5)})
+    return {"path": str(run.path), "rows": rows, "status": status,
+            "status_converged": yes_no(status.get("converged")),
+            "interval_definitions": doc.get("interval_definitions") or {}, "frf": frf, "notes": notes,
+            "images": images, "ident_rows": ident_rows, "verdict_rule": doc.get("verdict_rule"),
+            "noise": doc.get("predictive_noise")}
+
+
+def _lobes_section(run: RunDir) -> dict:
+    doc = run.document
+    rec = doc.get("recommended")
+    facts = []
+    if rec:
+        facts = [("spindle speed (rpm)", num(rec.get("spindle_speed_rpm"), 5)),
+                 ("axial depth (mm)", num(1e3 * rec["depth_m"], 4) if rec.get("depth_m") is not None else "—"),
+                 ("P(stable)", num(rec.get("p_stable"), 3)),
+                 ("P(stable) in the speed/depth neighbourhood", num(rec.get("p_stable_neighbourhood"), 3)),
+                 ("binding limit", str(rec.get("binding_limit", "—")))]
+    images = [F.png_data_uri(p) for p in (run.file("lobes.png"),) if p]
+    npz = run.file("p_stable.npz")
+    if npz:
+        with np.load(npz) as z:
+            images.append(F.p_stable_figure(z["spindle_speed_rpm"], z["depth_m"], z["p_stable"],
+                                            float(doc.get("level", 0.95)), rec))
+    src = doc.get("source") or {}
+    return {"path": str(run.path), "recommended": rec, "facts": facts, "images": images,
+            "level": num(doc.get("level"), 3), "method": doc.get("method"), "n_draws": doc.get("n_draws"),
+            "warnings": [str(w) for w in doc.get("warnings", [])],
+            "clamping": _mm(src["clamping_length_m"]) if src.get("clamping_length_m") else None,
+            "cutting": doc.get("cutting") or {}}
+
+
+def _images(run: RunDir, names: Sequence[str]) -> list[str]:
+    return [F.png_data_uri(p) for p in (run.file(n) for n in names) if p]
+
+
+def _identifiability_section(run: RunDir) -> dict:
+    doc = run.document
+    return {"path": str(run.path), "findings": [str(f) for f in doc.get("findings", [])],
+            "images": _images(run, ("forest.png", "corner_overlay.png"))}
+
+
+def _discrepancy_section(run: RunDir) -> dict:
+    d = run.document
+    rows = [{"key": k, "before": num(v, 3), "after": num((d.get("frequency_error_pct_after") or {}).get(k), 3)}
+            for k, v in (d.get("frequency_error_pct_before") or {}).items()]
+    return {"path": str(run.path), "adequate": yes_no(d.get("adequate")), "named": d.get("named_effect") or "none",
+            "confounded": ", ".join(d.get("confounded_with") or []) or "none",
+            "gap_before": num(100 * d["gap_before"], 3) if d.get("gap_before") is not None else "—",
+            "gap_after": num(100 * d["gap_after"], 3) if d.get("gap_after") is not None else "—",
+            "runner_up": d.get("runner_up") or "—", "rows": rows,
+            "reasons": [str(r) for r in ((d.get("detection") or {}).get("reasons") or [])],
+            "images": _images(run, ("frf_before_after.png", "frequency_errors.png", "stiffness_before_after.png"))}
+
+
+def _design_section(run: RunDir) -> dict:
+    d = run.document
+    best = d.get("best") or {}
+    return {"path": str(run.path), "verdict": d.get("verdict", "—"), "worth_it": yes_no(d.get("worth_it")),
+            "target": d.get("target", "—"), "unit": d.get("unit", ""), "best": best.get("test", "—"),
+            "current_width": num(d.get("current_width"), 4), "expected_width": num(best.get("expected_width"), 4),
+            "mc_error": num(best.get("mc_error"), 2), "images": _images(run, ("design.png",))}
+
+
+# -- assembly ------------------------------------------------------------------
+
+
+def build_report(paths: Sequence, seed: int = 0, title: str | None = None) -> str:
+    """The report's HTML text from run directories ``paths``.
+
+    Parameters
+    ----------
+    paths : sequence of path-like
+        Output directories of identify, predict, identifiability,
+        discrepancy, design and lobes (any subset; a demo directory expands
+        to its sub-directories).
+    seed : int
+        Seed of the draw subset behind the zoomed FRF bands.
+    title : str, optional
+
+    Raises
+    ------
+    DataError
+        No run directory, an unreadable or malformed output file.
+    """
+    import jinja2
+
+    runs = collect_runs(paths)
+    by_kind: dict[str, list[RunDir]] = {}
+    for r in runs:
+        by_kind.setdefault(r.kind, []).append(r)
+    first = lambda k: by_kind.get(k, [None])[0]  # noqa: E731
+    posteriors = _Posteriors()
+    try:
+        ctx = {
+            "title": title or "bayes_rcsa report",
+            "runs": [(r.kind, str(r.path)) for r in runs],
+            "setup": _setup_section(first("predict"), first("identify"), posteriors),
+            "identify": [_identify_section(r) for r in by_kind.get("identify", [])],
+            "predict": [_predict_section(r, posteriors, seed) for r in by_kind.get("predict", [])],
+            "identifiability": [_identifiability_section(r) for r in by_kind.get("identifiability", [])],
+            "discrepancy": [_discrepancy_section(r) for r in by_kind.get("discrepancy", [])],
+            "lobes": [_lobes_section(r) for r in by_kind.get("lobes", [])],
+            "design": [_design_section(r) for r in by_kind.get("design", [])],
+        }
+    except (KeyError, TypeError) as exc:
+        raise DataError(f"an output file lacks an expected entry ({exc!r}); was it written by this bayes_rcsa?") from None
+    env = jinja2.Environment(loader=jinja2.PackageLoader("bayes_rcsa.report", "templates"),
+                             autoescape=jinja2.select_autoescape(["html", "j2"]), undefined=jinja2.StrictUndefined,
+                             trim_blocks=True, lstrip_blocks=True)
+    return env.get_template("report.html.j2").render(**ctx)
+
+
+def write_report_html(paths: Sequence, out, seed: int = 0, title: str | None = None) -> Path:
+    """Build the report (everything validated first) and write it atomically to ``out``; returns the path."""
+    text = build_report(paths, seed=seed, title=title)
+    out = Path(out)
+    if out.parent and not out.parent.exists():
+        out.parent.mkdir(parents=True)
+    atomic_write_text(out, text)
+    return out
+

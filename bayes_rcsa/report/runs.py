@@ -1,0 +1,112 @@
+"""Output directories of the sub-commands: which kind each one is, and its documents.
+
+A run directory is recognised by the files the sub-command writes (never by
+its name):
+
+=================  ===========================================
+kind               files
+=================  ===========================================
+identify           ``summary.json`` + ``posterior.nc``
+predict            ``frequencies.json``
+lobes              ``lobes.json`` (+ ``p_stable.npz``, ``lobes.png``)
+identifiability    ``identifiability.json``
+discrepancy        ``discrepancy.json``
+design             ``design.json``
+=================  ===========================================
+
+A directory holding none of them but sub-directories that do (the output of
+``bayes-rcsa demo``) stands for those sub-directories.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+from ..errors import DataError
+
+__all__ = ["RunDir", "KINDS", "detect_kind", "collect_runs"]
+
+# kind -> the file that identifies it (and is loaded as its document)
+KINDS = {
+    "identify": "summary.json",
+    "predict": "frequencies.json",
+    "lobes": "lobes.json",
+    "identifiability": "identifiability.json",
+    "discrepancy": "discrepancy.json",
+    "design": "design.json",
+}
+
+
+@dataclass(frozen=True)
+class RunDir:
+    """One output directory of a sub-command.
+
+    Attributes
+    ----------
+    kind : str
+        One of :data:`KINDS`.
+    path : Path
+    document : dict
+        The parsed main JSON file (:data:`KINDS` ``[kind]``).
+    """
+
+    kind: str
+    path: Path
+    document: dict
+
+    def file(self, name: str) -> Path | None:
+        """``path / name`` if it exists, else ``None``."""
+        p = self.path / name
+        return p if p.is_file() else None
+
+
+def detect_kind(path) -> str | None:
+    """Kind of the run directory ``path`` (``None`` if it is none of :data:`KINDS`)."""
+    path = Path(path)
+    if (path / "summary.json").is_file() and (path / "posterior.nc").is_file():
+        return "identify"
+    for kind, name in KINDS.items():
+        if kind != "identify" and (path / name).is_file():
+            return kind
+    return None
+
+
+def _load(kind: str, path: Path) -> RunDir:
+    f = path / KINDS[kind]
+    try:
+        doc = json.loads(f.read_text(encoding="utf-8"))
+    except ValueError as exc:
+        raise DataError(f"{f}: not valid JSON ({exc})") from None
+    if not isinstance(doc, dict):
+        raise DataError(f"{f}: expected a JSON object, got {type(doc).__name__}")
+    return RunDir(kind, path, doc)
+
+
+def collect_runs(paths: Sequence) -> list[RunDir]:
+    """The run directories named by ``paths`` (a demo directory expands to its sub-directories).
+
+    Raises
+    ------
+    DataError
+        A path that is not a directory, holds no output of a sub-command, or
+        a malformed JSON file.
+    """
+    runs: list[RunDir] = []
+    for p in paths:
+        p = Path(p)
+        if not p.is_dir():
+            raise DataError(f"{p}: not a directory (expected the output directory of a bayes-rcsa command)")
+        kind = detect_kind(p)
+        if kind is not None:
+            runs.append(_load(kind, p))
+            continue
+        found = [(detect_kind(c), c) for c in sorted(p.iterdir()) if c.is_dir()]
+        found = [(k, c) for k, c in found if k is not None]
+        if not found:
+            raise DataError(f"{p}: no output of a bayes-rcsa command found (expected one of "
+                            f"{', '.join(sorted(set(KINDS.values()) | {'posterior.nc'}))} here or in a sub-directory)")
+        runs += [_load(k, c) for k, c in found]
+    return runs
