@@ -247,3 +247,42 @@ def test_plots_store_the_numbers_they_draw(tmp_path):
     nums = forest_plot(panels, tmp_path / "f.png")
     assert read_plot_numbers(tmp_path / "f.png") == json.loads(json.dumps(nums))
     assert nums["panels"][0]["rows"][0]["fits"]["f1"]["q50"] == 3.0
+
+
+def test_noisy_frf_has_the_likelihood_noise_model():
+    """Simulated test noise: circular complex Gaussian, E|r|^2 = s^2 (|h|^2 + (eps max|h|)^2), per draw's own s."""
+    from bayes_rcsa.posterior.predict import PredictiveNoise, noisy_frf
+
+    f = np.linspace(800.0, 1200.0, 41)
+    h0 = sdof(f, 1000.0, 0.03, 1e7)
+    n = 20000
+    scale = np.where(np.arange(n) % 2 == 0, 0.02, 0.05)  # two noise levels, alternating draws
+    noise = PredictiveNoise(scale, 0.01, np.random.default_rng(7))
+    h = np.broadcast_to(h0, (n, f.size))
+    r = noisy_frf(h, noise) - h
+    floor2 = (0.01 * np.max(np.abs(h0))) ** 2
+    for s, rows in ((0.02, r[0::2]), (0.05, r[1::2])):
+        expected = s**2 * (np.abs(h0) ** 2 + floor2)
+        # 10000 draws: the mean of |r|^2 (exponential) has relative s.e. 1 %; 5 % is 5 s.e.
+        assert np.allclose(np.mean(np.abs(rows) ** 2, axis=0) / expected, 1.0, atol=0.05)
+        # circular: E[r^2] = 0 and E[r] = 0 (s.e. of both ~1 % of E|r|^2 resp. sqrt(E|r|^2 / n))
+        assert np.all(np.abs(np.mean(rows**2, axis=0)) < 0.05 * expected)
+        assert np.all(np.abs(np.mean(rows, axis=0)) < 5 * np.sqrt(expected / rows.shape[0]))
+
+
+def test_predictive_noise_picks_one_fitted_noise_scale_per_draw():
+    from bayes_rcsa.posterior.predict import PredictiveNoise
+
+    assert PredictiveNoise.from_draws(_draws(50), 0.01, np.random.default_rng(0)) is None  # no noise scales
+    growth = GrowthLaw(0.025, 0.040, 0.5)
+    priors = {"k_xf": LogUniform(1e5, 1e8), "k_thetaM": LogUniform(1e4, 1e7), "g_xf": Uniform(0.0, 0.5),
+              "g_thetaM": Uniform(0.0, 0.5), "sigma_0": LogUniform(1e-4, 10.0), "sigma_1": LogUniform(1e-4, 10.0)}
+    pm = ParameterModel.from_priors(growth, priors, {"c_xf": 10.0, "c_thetaM": 5e-4}, n_measurements=2)
+    n = 4000
+    v = {k: val for k, val in _draws(n).values.items()}
+    v["sigma_0"], v["sigma_1"] = np.full(n, 0.01), np.full(n, 0.03)
+    noise = PredictiveNoise.from_draws(PosteriorDraws(pm, v, "multi", (0.025, 0.040)), 0.02, np.random.default_rng(1))
+    assert noise.floor == 0.02 and noise.scale.shape == (n,)
+    assert set(np.unique(noise.scale)) == {0.01, 0.03}
+    # uniform pick: binomial s.e. of the share is 0.8 %; 4 s.e.
+    assert abs(np.mean(noise.scale == 0.01) - 0.5) < 0.032
