@@ -190,7 +190,7 @@ def test_predictions_carry_the_posterior_status_and_a_wider_predictive_interval(
     held_out = [e for e in fr["predictions"] if e["dominant"] and abs(e["clamping_length"] - 0.030) < 1e-9]
     assert len(held_out) == 1 and held_out[0]["fitted"] is False
     # reduced version of benchmarks/predictive_coverage.py: the held-out NOISY measured peak lies in the
-    # predictive 90 % interval (38 of 40 cases in the benchmark; see docs/predictions.md)
+    # predictive 90 % interval (72 of 80 held-out cases in the benchmark; see docs/predictions.md)
     assert held_out[0]["measured_in_predictive_90"] is True
 
 

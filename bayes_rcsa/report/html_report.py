@@ -31,9 +31,12 @@ ZOOM_LINES = 161  # lines of a mode's zoom window
 
 
 def num(x, digits: int = 4) -> str:
-    """A number for people: ``digits`` significant digits, no exponent between 1e-3 and 1e6; ``—`` if missing."""
+    """A number for people: ``digits`` significant digits, trailing zeros dropped, no exponent between
+    1e-3 and 1e6, integers as integers; ``—`` if missing."""
     if x is None or isinstance(x, bool):
         return "—" if x is None else yes_no(x)
+    if isinstance(x, (int, np.integer)):
+        return str(int(x))
     x = float(x)
     if not math.isfinite(x):
         return "—"
@@ -41,8 +44,12 @@ def num(x, digits: int = 4) -> str:
         return "0"
     if 1e-3 <= abs(x) < 1e6:
         decimals = max(digits - 1 - int(math.floor(math.log10(abs(x)))), 0)
-        return f"{x:.{decimals}f}"
-    return f"{x:.{digits - 1}e}"
+        text = f"{x:.{decimals}f}"
+        return text.rstrip("0").rstrip(".") if "." in text else text
+    mantissa, exponent = f"{x:.{digits - 1}e}".split("e")
+    if "." in mantissa:
+        mantissa = mantissa.rstrip("0").rstrip(".")
+    return f"{mantissa}e{int(exponent):+03d}"
 
 
 def yes_no(b) -> str:
