@@ -23,6 +23,10 @@ and prints the analogues of the paper's tables:
   points whose stable/unstable verdict differs
   (:func:`bayes_rcsa.stability.limits_disagreement`), for the Bayesian sets
   as the median and 90 % interval over posterior draws (probabilistic lobes).
+  Lobes by the zero-order approximation (the paper used the semi-discretisation
+  method; ``bayes_rcsa.stability`` has both, see docs/stability.md), on a grid
+  of 5000-30000 rpm and 60 depths up to twice the deepest measured-FRF limit
+  (the paper used the 75 points of its cutting tests per case).
 
 Run::
 
@@ -106,7 +110,7 @@ def table3(results: dict) -> dict:
             qx = np.quantile(kx[:, j], [0.05, 0.5, 0.95])
             qt = np.quantile(kt[:, j], [0.05, 0.5, 0.95])
             out[label][float(length)] = (qx, qt)
-            rows.append([label, f"{length * 1e3:g}", _interval(qx, 1e-6), _interval(qt, 1e-5)])
+            rows.append([label, f"{length * 1e3:g}", _interval(qx, 1e-6, "{:.4g}"), _interval(qt, 1e-5)])
     _table(head, rows)
     return out
 
