@@ -62,10 +62,23 @@ def runs(tmp_path_factory):
         "recommended": rec, "level": 0.95, "method": "zoa", "n_draws": 50, "warnings": [],
         "source": {"clamping_length_m": 0.03}, "cutting": {"flutes": 4, "kt_pa": 7.9e8, "kr_pa": 2.3e8,
                                                           "radial_immersion": 0.95, "milling": "down"}}))
+    # discrepancy and design documents with the keys the report reads (shapes of discrepancy.json / design.json)
+    (root / "discrepancy").mkdir()
+    disc = {"adequate": False, "named_effect": "tip_mass", "confounded_with": ["fluted_section"], "runner_up": "fluted_section",
+            "gap_before": 0.0834, "gap_after": 0.0121, "frequency_error_pct_before": {"30 mm x": 1.234},
+            "frequency_error_pct_after": {"30 mm x": -0.0567}, "detection": {"reasons": ["residuals correlated"]}}
+    (root / "discrepancy" / "discrepancy.json").write_text(json.dumps(disc))
+    (root / "design").mkdir()
+    design = {"mode": "posterior", "target": "dominant natural frequency at 30 mm", "unit": "Hz", "worth_it": True,
+              "current_width": 2.345, "verdict": "measure 35 mm x", "best": {"test": "35 mm x", "expected_width": 1.234,
+                                                                         "mc_error": 0.012}}
+    (root / "design" / "design.json").write_text(json.dumps(design))
     out = root / "report.html"
-    assert main(["report", str(root / "identify"), str(root / "predict"), str(lobes), "--out", str(out)]) == 0
+    assert main(["report", str(root / "identify"), str(root / "predict"), str(lobes), str(root / "discrepancy"),
+                 str(root / "design"), "--out", str(out)]) == 0
     return {"root": root, "html": out, "summary": json.loads((root / "identify" / "summary.json").read_text()),
-            "freqs": json.loads((root / "predict" / "frequencies.json").read_text()), "rec": rec}
+            "freqs": json.loads((root / "predict" / "frequencies.json").read_text()), "rec": rec, "disc": disc,
+            "design": design}
 
 
 class _Tables(HTMLParser):
@@ -153,6 +166,23 @@ def _check_tables(p: _Tables, runs) -> None:
     assert _close(rec["spindle speed (rpm)"], runs["rec"]["spindle_speed_rpm"], 5)
     assert _close(rec["axial depth (mm)"], 1e3 * runs["rec"]["depth_m"], 4)
     assert _close(rec["P(stable)"], runs["rec"]["p_stable"], 3)
+    disc = dict((r[0], r[1]) for r in p.tables["discrepancy-facts-1"])
+    d = runs["disc"]
+    assert disc["model adequate"] == "no" and disc["named missing effect"] == d["named_effect"]
+    assert _close(disc["mismatch before (%)"], 100 * d["gap_before"], 3)
+    assert _close(disc["mismatch after (%)"], 100 * d["gap_after"], 3)
+    err = p.tables["discrepancy-errors-1"][1]
+    assert _close(err[1], d["frequency_error_pct_before"]["30 mm x"], 3)
+    assert _close(err[2], d["frequency_error_pct_after"]["30 mm x"], 3)
+    des = dict((r[0], r[1]) for r in p.tables["design-table-1"])
+    g = runs["design"]
+    assert des["best next test"] == g["best"]["test"] and des["worth it"] == "yes"
+    assert _close(des["current 90 % width (Hz)"], g["current_width"], 4)
+    assert _close(des["expected 90 % width after it (Hz)"], g["best"]["expected_width"], 4)
+    ident = {r[0]: r for r in p.tables["identifiability-table-1"][1:]}
+    for name, e in runs["freqs"]["identifiability"].items():
+        assert ident[name][1] == e["verdict"]
+        assert _close(ident[name][2], e.get("prior_to_posterior_width"), 3)
 
 
 def test_tables_hold_the_numbers_of_the_json_files(runs):
