@@ -104,6 +104,11 @@ def edge_parameters(fit: ModelFit, effect: str, rel: float = 0.01) -> list[str]:
     resonator at the edge of the frequency range with the largest damping
     allowed, standing in for a broadband change); it is not a credible name.
     """
+    from ..params.terms import get_term
+
+    # bounds that are physical limits rather than a chosen range (a term may declare them, e.g. the
+    # restored fraction of a rotation is at most 1); a MAP there is a legitimate answer
+    physical = getattr(get_term(effect), "physical_bounds", {})
     pm = fit.problem.parameters
     bounds = fit.problem.priors.optimisation_bounds()
     out = []
@@ -113,11 +118,15 @@ def edge_parameters(fit: ModelFit, effect: str, rel: float = 0.01) -> list[str]:
             continue
         lo, hi = bounds[j]
         u = fit.theta[j]
+        prior = fit.problem.priors[name]
         with np.errstate(divide="ignore"):
-            base = float(fit.problem.priors[name].to_sampling(p.baseline)) if p.baseline is not None else np.nan
+            base = float(prior.to_sampling(p.baseline)) if p.baseline is not None else np.nan
         for b in (lo, hi):
-            if abs(u - b) <= rel * (hi - lo) and not abs(base - b) <= rel * (hi - lo):
-                out.append(name)
+            if abs(u - b) > rel * (hi - lo) or abs(base - b) <= rel * (hi - lo):
+                continue
+            if any(np.isclose(float(prior.to_physical(b)), v, rtol=1e-9, atol=1e-12) for v in physical.get(name, ())):
+                continue
+            out.append(name)
     return out
 
 

@@ -58,6 +58,9 @@ class SpindleRotationOmitted(ModelTerm):
 
     name = "spindle_rotation_omitted"
     kind = "spindle"
+    #: Prior bounds that are physical limits (all of the rocking restored), not a chosen range: the
+    #: discrepancy workflow accepts a fit there (bench magnitude 1 = translation-only file).
+    physical_bounds = {"rotation_restored": (0.0, 1.0)}
     description = ("the spindle file lacks its rotational receptances (only translation was measured): the flange "
                    "is softer in rotation than the file says")
 
