@@ -103,7 +103,6 @@ def test_single_length_verdicts_name_the_ridge_and_no_verdict_contradicts_its_wi
             p = f["parameters"][name]
             assert p["partner"] == partner and p["width_ratio"] > 3.5, (f["name"], name, p["width_ratio"])
             assert p["verdict"] == f"identified only in combination with {partner}", (f["name"], name)
-            assert p["value_quoted"] is False
         assert any("identified only in combination" in s for s in f["statements"])
     # Every fit (multi included): a verdict says "identified" only where the width ratio is below the
     # threshold, and "only in combination" only where it is above it.

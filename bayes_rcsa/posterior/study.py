@@ -179,7 +179,8 @@ def analyse_fit(spec: FitSpec, result, rng: np.random.Generator) -> FitAnalysis:
     stiff_ridge = stiffness_ridge(z[:, ik[0]], z[:, ik[1]])
     statements = []
     for name, p in params.items():
-        p["value_quoted"] = p["verdict"] == "identified"
+        # a ridge parameter's marginal median and interval are honest numbers; the verdict says what they mean
+        p["value_quoted"] = p["verdict"] == "identified" or p["verdict"].startswith("identified only in combination")
         p["unit"] = problem.parameters.unit(name)
     for name in contact:
         p = params[name]
@@ -222,8 +223,8 @@ def _combination_statement(name: str, p: dict, ridge: dict) -> str:
     unit = f" {p['unit']}" if p.get("unit") else ""
     return (f"{name} is identified only in combination with {p['partner']}: its 90 % posterior range "
             f"[{fmt(p['q05'])}, {fmt(p['q95'])}]{unit} is {p['width_ratio']:.2g} times wider than its range at a fixed "
-            f"{p['partner']} (corr {p['correlation']:+.2f}); no value is quoted for it on its own. "
-            f"{ridge['statement']}")
+            f"{p['partner']} (corr {p['correlation']:+.2f}); what the data fix is {ridge['stiff']['combination']} "
+            f"(±{ridge['stiff']['sd_pct']:.2g} %, 1 sd).")
 
 
 def _error_by_length(entry: dict) -> dict:
@@ -248,15 +249,12 @@ def _findings(fits: Sequence[FitAnalysis]) -> tuple[dict, list[str]]:
     lines = []
     for f in fits:
         e = f.entry
-        r = e["ridge"]
         c = e["parameters"]
         sr = e["stiffness_ridge"]
         line = (f"{e['name']} ({', '.join(_mm(l) for l in e['lengths'])} mm): "
-                + "; ".join(f"{n} {c[n]['verdict']} (contraction {fmt_contraction(c[n]['contraction'])}, marginal / "
+                + "; ".join(f"{n} {c[n]['verdict']} ({_contraction_text(c[n]['contraction'])}, marginal / "
                             f"conditional width {_ratio(c[n].get('width_ratio'))})" for n in ("k_xf", "k_thetaM"))
-                + f"; {sr['statement'][:-1]}; over all contact parameters the least determined direction is "
-                f"{r['sloppy']['combination']} (sd {r['sloppy']['sd']:.2g} decades); Fisher condition number "
-                f"{e['condition_number']:.3g}")
+                + f"; {sr['statement'][:-1]}; Fisher condition number {e['condition_number']:.3g}")
         t = comp["mean_transfer_error_pct"][e["name"]]
         if t is not None:
             line += f"; mean |error| of the median natural frequency at the lengths not fitted {t:.3g} %"
@@ -268,9 +266,9 @@ def _findings(fits: Sequence[FitAnalysis]) -> tuple[dict, list[str]]:
         for name in ("k_xf", "k_thetaM"):
             best = max(s.entry["parameters"][name]["contraction"] for s in singles)
             mc = m["parameters"][name]["contraction"]
-            lines.append(f"{name}: contraction {fmt_contraction(mc)} from all lengths together vs at most "
-                         f"{fmt_contraction(best)} from one length "
-                         f"({'higher' if mc > best else 'not higher'} with several lengths).")
+            lines.append(f"{name}: {_contraction_text(mc)} from all lengths together vs at best "
+                         f"{_contraction_text(best)} from one length "
+                         f"({'more' if mc > best else 'not more'} contraction with several lengths).")
         ridged = [s.entry["name"] for s in singles
                   if max(s.entry["parameters"][n].get("width_ratio") or 0.0 for n in ("k_xf", "k_thetaM"))
                   >= COMBINATION_RATIO]
@@ -327,6 +325,12 @@ def study_document(setup, fits: Sequence[FitAnalysis], settings, seed: int) -> d
 
 
 # -- outputs ------------------------------------------------------------------------
+
+
+def _contraction_text(c) -> str:
+    """``contraction 78.6 %`` or ``prior width / posterior width = 5.1e3``."""
+    text = fmt_contraction(c)
+    return text if text.startswith("prior") else f"contraction {text}"
 
 
 def _ratio(r) -> str:
@@ -394,7 +398,7 @@ def _table_rows(study: Study) -> list[tuple]:
         for n in f.entry["parameters"]:
             if n not in names and not n.startswith("sigma_"):
                 names.append(n)
-    head += [f"{n} contraction / verdict" for n in names] + [
+    head += [f"{n} verdict (contraction)" for n in names] + [
         "k_xf, k_θM marginal / conditional width", "corr(log k_xf, log k_θM)", "Fisher condition number"]
     rows = []
     for f in fits:
@@ -402,7 +406,7 @@ def _table_rows(study: Study) -> list[tuple]:
         row = [e["name"], ", ".join(_mm(l) for l in e["lengths"])]
         for n in names:
             p = e["parameters"].get(n)
-            row.append("—" if p is None else f"{fmt_contraction(p['contraction'])} / {p['verdict']}")
+            row.append("—" if p is None else f"{p['verdict']} ({_contraction_text(p['contraction'])})")
         row += [", ".join(_ratio(e["parameters"][n].get("width_ratio")) for n in ("k_xf", "k_thetaM")),
                 f"{e['corr_log_k']:+.3f}", fmt(e["condition_number"], 3)]
         rows.append(row)
@@ -424,7 +428,8 @@ def _table_rows(study: Study) -> list[tuple]:
                 else:
                     row.append(fmt(p["q50"]) if p["value_quoted"] else "not quoted")
             rows.append(row)
-    blocks += [("h", 2, "Posterior values (physical units; medians quoted only for identified parameters)"),
+    blocks += [("h", 2, "Posterior values (physical units; medians quoted for parameters identified alone or in "
+                        "combination)"),
                ("table", head, rows)]
 
     blocks.append(("h", 2, "Posterior correlations of the contact parameters (log space)"))
