@@ -46,7 +46,8 @@ def _run(path, seed=0, **kw):
 @pytest.mark.parametrize("effect", ["contact_damping", "fluted_section"])
 def test_hidden_effect_is_named_and_the_gap_halves(tmp_path_factory, effect):
     path, _ = _campaign(tmp_path_factory, {effect: True})
-    r = _run(path)
+    # two refits keep the test short: both effects rank first in the score test at this seed
+    r = _run(path, n_refit=2)
     assert r["adequate"] is False
     assert r["named_effect"] == effect or effect in r["confounded_with"]
     assert r["gap_after"] <= 0.5 * r["gap_before"]
@@ -83,7 +84,7 @@ def test_tip_mass_named_by_the_cli_with_amended_setup(tmp_path_factory, tmp_path
 @pytest.mark.parametrize("seed", [0, 1])
 def test_clean_data_names_nothing(tmp_path_factory, seed):
     path, _ = _campaign(tmp_path_factory, {}, seed)
-    r = _run(path, seed)
+    r = _run(path, seed, n_refit=2)
     assert r["adequate"] is True
     assert r["named_effect"] is None and r["confounded_with"] == []
     assert all(c["criterion"] is None or c["criterion"] < np.log(100) for c in r["candidates"])
