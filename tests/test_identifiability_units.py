@@ -15,6 +15,7 @@ from bayes_rcsa.params.priors import LogNormal, LogUniform, Normal, PriorSet, Un
 from bayes_rcsa.posterior.identifiability import (
     COMBINATION_RATIO,
     combination_name,
+    combination_statement,
     conditional_width,
     contraction,
     fisher_information,
@@ -90,6 +91,10 @@ def test_ridge_verdict_is_identified_only_in_combination():
     assert out["k_xf"]["width_ratio"] > COMBINATION_RATIO
     # prior sd of log10 k over 4 decades is 4/sqrt(12) = 1.155; posterior sd 0.01
     assert out["k_xf"]["prior_to_posterior_width"] == pytest.approx(115.5, rel=0.02)
+    text = combination_statement("k_xf", out["k_xf"], "N/m")
+    assert text.startswith("k_xf is identified only in combination with k_thetaM: its 90 % posterior range [")
+    assert f"is {out['k_xf']['width_ratio']:.2g} times wider than its range at a fixed k_thetaM" in text
+    assert "not each alone" in text and "contraction" not in text
     out = parameter_identifiability(rng.multivariate_normal([6.25, 5.65], np.diag([1e-4, 1e-4]), 20_000), priors)
     assert out["k_xf"]["verdict"] == out["k_thetaM"]["verdict"] == "identified"
     assert out["k_xf"]["width_ratio"] == pytest.approx(1.0, abs=0.01)

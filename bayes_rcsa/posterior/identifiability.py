@@ -87,6 +87,7 @@ __all__ = [
     "contraction",
     "verdict",
     "conditional_width",
+    "combination_statement",
     "fmt_contraction",
     "parameter_identifiability",
     "stiffness_ridge",
@@ -237,6 +238,31 @@ def fmt_contraction(c) -> str:
     text = f"{1.0 / math.sqrt(1.0 - c):.2g}"
     mant, _, exp = text.partition("e")
     return f"prior width / posterior width = {mant + 'e' + str(int(exp)) if exp else mant}"  # 5.1e3, not 5.1e+03
+
+
+def combination_statement(name: str, ident: Mapping, unit: str = "", ridge: Mapping | None = None) -> str:
+    """Plain-language sentence for a parameter identified only in combination with its partner.
+
+    Parameters
+    ----------
+    name : str
+    ident : mapping
+        Its entry of :func:`parameter_identifiability` (``verdict``,
+        ``partner``, ``width_ratio``, ``correlation``, ``q05``, ``q95``).
+    unit : str
+        Physical unit of ``q05``/``q95``.
+    ridge : mapping, optional
+        :func:`stiffness_ridge` of the pair: names the combination the data fix.
+    """
+    from .report import fmt
+
+    text = (f"{name} is identified only in combination with {ident['partner']}: its 90 % posterior range "
+            f"[{fmt(ident['q05'])}, {fmt(ident['q95'])}]{' ' + unit if unit else ''} is {ident['width_ratio']:.2g} "
+            f"times wider than its range at a fixed {ident['partner']} (posterior correlation "
+            f"{ident['correlation']:+.2f})")
+    if ridge is not None:
+        return text + f"; what the data fix is {ridge['stiff']['combination']} (±{ridge['stiff']['sd_pct']:.2g} %, 1 sd)."
+    return text + f"; the data fix a combination of {name} and {ident['partner']}, not each alone."
 
 
 def _bound(samples: np.ndarray, prior) -> str | None:

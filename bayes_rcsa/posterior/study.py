@@ -30,6 +30,7 @@ from .draws import CONTACT_NAMES, PosteriorDraws, draws_from_result
 from .identifiability import (
     BOUND_TAIL,
     COMBINATION_RATIO,
+    combination_statement,
     IDENTIFIED_FROM,
     NOT_IDENTIFIED_BELOW,
     VERDICT_RULE,
@@ -185,7 +186,7 @@ def analyse_fit(spec: FitSpec, result, rng: np.random.Generator) -> FitAnalysis:
     for name in contact:
         p = params[name]
         if p["verdict"].startswith("identified only in combination"):
-            statements.append(_combination_statement(name, p, stiff_ridge))
+            statements.append(combination_statement(name, p, p["unit"], stiff_ridge))
         else:
             s = undetermined_statement(name, p, influence.get(name))
             if s:
@@ -214,17 +215,6 @@ def analyse_fit(spec: FitSpec, result, rng: np.random.Generator) -> FitAnalysis:
         "warnings": list(result.summary.get("warnings", [])),
     }
     return FitAnalysis(spec, result, draws, entry)
-
-
-def _combination_statement(name: str, p: dict, ridge: dict) -> str:
-    """Plain-language sentence for a stiffness the data fix only together with its partner."""
-    from .report import fmt
-
-    unit = f" {p['unit']}" if p.get("unit") else ""
-    return (f"{name} is identified only in combination with {p['partner']}: its 90 % posterior range "
-            f"[{fmt(p['q05'])}, {fmt(p['q95'])}]{unit} is {p['width_ratio']:.2g} times wider than its range at a fixed "
-            f"{p['partner']} (corr {p['correlation']:+.2f}); what the data fix is {ridge['stiff']['combination']} "
-            f"(±{ridge['stiff']['sd_pct']:.2g} %, 1 sd).")
 
 
 def _error_by_length(entry: dict) -> dict:
