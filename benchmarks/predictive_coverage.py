@@ -17,7 +17,7 @@ cases per replicate; they share the posterior, so they are not
 independent, and the Clopper-Pearson interval, which assumes they are, is
 somewhat optimistic).
 
-Run:  python benchmarks/predictive_coverage.py [--replicates 30] [--step 8]
+Run:  python benchmarks/predictive_coverage.py [--replicates 40] [--step 8]   (about 15-20 min)
 (tests/test_report_predictive.py runs a reduced version and asserts.)
 """
 
@@ -100,7 +100,7 @@ def replicate(seed: int, step_hz: float, settings: SamplerSettings, max_draws: i
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--replicates", type=int, default=30)
+    ap.add_argument("--replicates", type=int, default=40)
     ap.add_argument("--step", type=float, default=8.0, help="frequency line spacing of the campaigns, Hz")
     ap.add_argument("--first-seed", type=int, default=3000)
     args = ap.parse_args()
