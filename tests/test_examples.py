@@ -34,7 +34,7 @@ def _run(name: str, **kwargs):
 
 
 def test_forward_model_example_brackets_the_true_frequencies(capsys):
-    out = _run("forward_model.py")
+    out = _run("forward_model.py", quick=True)
     assert sorted(out) == [0.025, 0.030, 0.035, 0.040]
     for length, (lo, mid, hi) in out.items():
         # the example scatters the stiffness around the bench's true law, so its 5-95 % range of the
