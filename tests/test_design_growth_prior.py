@@ -97,3 +97,21 @@ def test_far_length_coverage_from_one_length_and_fitted_length_unchanged(tmp_pat
         np.testing.assert_allclose(np.nanquantile(after, [0.05, 0.5, 0.95]),
                                    np.nanquantile(before, [0.05, 0.5, 0.95]), rtol=1e-12)
     assert sum(hits) >= 4, hits
+
+
+def test_predict_carries_the_growth_prior_of_a_single_length_fit(tmp_path):
+    """`predict` from a 25-mm-only posterior: honest width at 40 mm, unchanged at 25 mm, and it says why (issue #11)."""
+    from bayes_rcsa.posterior.prediction_outputs import run_prediction
+
+    cfg, setup_path = campaign(11, tmp_path / "c")
+    _, posterior = fit(setup_path, (0.025,), tmp_path / "f", 11)
+    run = run_prediction(load_setup(setup_path), posterior, [0.025, 0.040], directions=["x"], max_draws=400, seed=3)
+    assert any("growth factors" in n for n in run.meta["parameter_model_notes"])
+    assert run.draws.parameters["g_xf"].sampled and run.draws.parameters.growth == FEASIBLE
+    dominant = {round(m.configuration.clamping_length, 6): m.natural_frequency_hz
+                for m in run.prediction.modes if m.dominant}
+    w25 = dominant[0.025]["q95"] - dominant[0.025]["q05"]
+    w40 = dominant[0.040]["q95"] - dominant[0.040]["q05"]
+    # growth of up to Q = 50 % in stiffness moves the 40-mm mode by tens of Hz; the 25-mm fit pins its own
+    # mode to a few Hz.  A constant-stiffness transfer would give w40 ~ w25.
+    assert w40 > 5 * w25, (w25, w40)
