@@ -53,6 +53,11 @@ def test_summary_is_one_stderr_line_and_json_only_on_request(example, tmp_path, 
         assert cap.out.count("\n") == 1
         assert doc["command"] == "simulate" and doc["n_lines"] == 121 and doc["warnings"] == []
         assert doc["out"].endswith(".csv") and cap.err.count("\n") == 1
+    # a failure: the one error line, and with --json the error as the one JSON object
+    assert main(["--json", "simulate", str(example), *SIM, "--kx", "-1", "--out", str(tmp_path / "d.csv")]) == 2
+    cap = capsys.readouterr()
+    assert json.loads(cap.out) == {"command": "simulate", "error": cap.err.split(": error: ", 1)[1].strip()}
+    assert cap.err.count("\n") == 1 and not (tmp_path / "d.csv").exists()
 
 
 def test_summary_warnings_and_status_and_commands_returning_an_int(capsys):

@@ -155,14 +155,24 @@ def _run(args) -> int:
             return _report(args, result)
         return int(result or 0)  # a command that prints its own closing lines
     except BayesRCSAError as exc:
-        print(f"bayes-rcsa {args.command}: error: {' '.join(str(exc).split())}", file=sys.stderr)
-        return 2
+        return _error(args, " ".join(str(exc).split()))
     except (FileNotFoundError, IsADirectoryError, NotADirectoryError, FileExistsError, PermissionError) as exc:
-        print(f"bayes-rcsa {args.command}: error: {exc.strerror or exc}: {exc.filename}", file=sys.stderr)
-        return 2
+        return _error(args, f"{exc.strerror or exc}: {exc.filename}")
     except KeyboardInterrupt:
         print(f"bayes-rcsa {args.command}: interrupted", file=sys.stderr)
         return 130
+
+
+def _wants_json(args) -> bool:
+    return bool(getattr(args, "json", False) or getattr(args, "json_global", False))
+
+
+def _error(args, message: str) -> int:
+    """The one error line on stderr (and, with --json, ``{"command", "error"}`` on stdout); exit status 2."""
+    print(f"bayes-rcsa {args.command}: error: {message}", file=sys.stderr)
+    if _wants_json(args):
+        print(json.dumps({"command": args.command, "error": message}))
+    return 2
 
 
 def _report(args, summary: Summary) -> int:
@@ -170,7 +180,7 @@ def _report(args, summary: Summary) -> int:
     for w in summary.warnings:
         print(f"bayes-rcsa {args.command}: warning: {' '.join(str(w).split())}", file=sys.stderr)
     print(f"bayes-rcsa {args.command}: {' '.join(summary.human.split())}", file=sys.stderr)
-    if getattr(args, "json", False) or getattr(args, "json_global", False):
+    if _wants_json(args):
         data = {"command": args.command, **summary.data, "warnings": list(summary.warnings)}
         print(json.dumps(data, default=str, allow_nan=False))
     return summary.status
