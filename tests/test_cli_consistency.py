@@ -110,6 +110,18 @@ def test_existing_outputs_are_refused_without_force_everywhere(example, tmp_path
     assert (out / "setup.toml").is_file() and not (out / "earlier.txt").exists()
 
 
+def test_identify_force_removes_the_earlier_runs_results(example, tmp_path, capsys):
+    out = _occupied(tmp_path / "run")
+    (out / "posterior.nc").write_text("posterior of an earlier Bayesian run")
+    argv = ["identify", str(example), "--method", "deterministic", "--lengths", "0.025", "--no-plots", "--out", str(out)]
+    assert main(argv) == 2 and "use --force" in capsys.readouterr().err
+    assert main([*argv, "--force", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["method"] == "deterministic" and doc["posterior"] is None
+    # the deterministic run has no posterior: the stale one is gone, the user's own file is kept
+    assert sorted(p.name for p in out.iterdir()) == ["earlier.txt", "summary.json"]
+
+
 def main_err(argv, capsys) -> str:
     assert main(argv) == 2
     return capsys.readouterr().err

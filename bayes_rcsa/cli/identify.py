@@ -29,6 +29,10 @@ The likelihood band, noise model and priors can be tuned in the setup's [likelih
 """
 
 
+#: Files of an identify run, removed by --force before a new run (other files in --out are left alone).
+EARLIER_OUTPUTS = ("summary.json", "posterior.nc", "chain.h5", "chain.mirror.h5", "trace.png", "corner.png", "frf.png")
+
+
 def _lengths(text: str) -> tuple[float, ...]:
     vals = tuple(float(v) for v in _numbers(text, "clamping lengths in m, e.g. 0.025,0.040"))
     if not vals or not all(v > 0 for v in vals):
@@ -133,6 +137,11 @@ def run(args) -> Summary:
                              f"{missing}; the file has {spindle_samples.directions}")
     with directory_lock(args.out), new_output_directory(
             check_output_directory(args.out, args.force, args.resume, resumable=bayesian)):
+        if args.force and not args.resume:
+            # an earlier run's results must not survive beside the new ones (a deterministic rerun writes no
+            # posterior.nc, and predict would read the old one)
+            for name in EARLIER_OUTPUTS:
+                (args.out / name).unlink(missing_ok=True)
         result = identify(problem, seed=args.seed, settings=settings,
                           checkpoint_path=ckpt if bayesian else None, resume=args.resume,
                           spindle_samples=spindle_samples)
