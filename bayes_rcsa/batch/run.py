@@ -236,7 +236,7 @@ def run_batch(jobs: Sequence[SetupJob], out_dir, run_command: Callable[[list[str
     -------
     BatchResult
     """
-    out_dir = Path(out_dir)
+    out_dir = Path(out_dir).absolute()  # workers (on other machines, too) need no knowledge of our cwd
     root = out_dir / "setups"
     root.mkdir(parents=True, exist_ok=True)
     rows: dict[str, dict] = {}
