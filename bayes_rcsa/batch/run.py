@@ -37,13 +37,10 @@ from typing import Callable, Sequence
 
 from ..io.atomic import atomic_write_text
 from .manifest import SetupJob
+from .threads import THREAD_VARIABLES, limit_threads
 
-__all__ = ["run_setup", "run_batch", "BatchResult", "limit_threads", "KILL_HOOK_ENV", "THREAD_VARIABLES"]
-
-#: Environment variables that cap the BLAS/OpenMP thread pools of a worker at one thread: N workers on N cores
-#: otherwise start N x cores threads that fight for the cores (numpy's BLAS reads them when it is first imported).
-THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS",
-                    "NUMEXPR_NUM_THREADS", "NUMBA_NUM_THREADS")
+__all__ = ["run_setup", "run_batch", "BatchResult", "limit_threads", "KILL_HOOK_ENV", "THREAD_VARIABLES",
+           "WORKER_START"]
 
 #: Fault injection for the tests: ``NAME:STEP`` makes the worker running setup NAME kill itself (SIGKILL)
 #: just before STEP, as the kernel's out-of-memory killer would.
@@ -51,12 +48,6 @@ KILL_HOOK_ENV = "BAYES_RCSA_BATCH_KILL"
 
 _RESULT = "result.json"
 _STARTED = ".started"
-
-
-def limit_threads() -> None:
-    """One BLAS/OpenMP thread per worker process (effective before numpy is imported in the process)."""
-    for name in THREAD_VARIABLES:
-        os.environ[name] = "1"
 
 
 def _read_json(path: Path):
@@ -117,7 +108,7 @@ def _step_error(log: Path, start: int) -> str:
     return (errors or lines or ["no message"])[-1]
 
 
-def run_setup(job: SetupJob, setup_dir, run_command: Callable[[list[str]], int]) -> dict:
+def run_setup(job: SetupJob, setup_dir, run_command: Callable[[list[str]], int], kill_hook: str = "") -> dict:
     """Run one setup's commands into ``setup_dir`` (cleared first) and write its ``result.json``.
 
     Runs in a worker process.  Output of the commands goes to
@@ -131,6 +122,9 @@ def run_setup(job: SetupJob, setup_dir, run_command: Callable[[list[str]], int])
         ``run_command(argv) -> exit status``: :func:`bayes_rcsa.cli.main.main`,
         passed in by the command line (the same code path as typing the
         commands by hand).
+    kill_hook : str
+        Fault injection for the tests (:data:`KILL_HOOK_ENV` of the calling
+        process): ``"NAME:STEP"`` SIGKILLs this worker before STEP of setup NAME.
 
     Returns
     -------
@@ -148,10 +142,9 @@ def run_setup(job: SetupJob, setup_dir, run_command: Callable[[list[str]], int])
     log = d / "log.txt"
     t0 = time.monotonic()
     status, failed_step, error = "done", None, None
-    kill = os.environ.get(KILL_HOOK_ENV, "")
     with open(log, "w", encoding="utf-8") as fh, contextlib.redirect_stderr(fh), contextlib.redirect_stdout(fh):
         for step in job.steps:
-            if kill == f"{job.name}:{step}":
+            if kill_hook == f"{job.name}:{step}":
                 fh.flush()
                 os.kill(os.getpid(), signal.SIGKILL)
             argv = job.argv(step, d)
@@ -202,10 +195,16 @@ def finished_row(job: SetupJob, setup_dir: Path) -> dict | None:
     return doc["row"]
 
 
+#: Module the fork server of the local pool imports first (thread caps, then the heavy imports once).
+WORKER_START = "bayes_rcsa.batch.worker_start"
+
+
 def _local_pool(workers: int) -> cf.Executor:
-    # spawn: fresh interpreters whose BLAS starts single-threaded (a forked child inherits the parent's pools)
-    return cf.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                  initializer=limit_threads)
+    # forkserver: workers are forked from a clean server process (not from this one, whose BLAS pools and
+    # threads a forked child would inherit) that has capped the BLAS threads and imported the package once
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload([WORKER_START])
+    return cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=limit_threads)
 
 
 def _lost_row(job: SetupJob, why: str) -> dict:
@@ -261,8 +260,14 @@ def run_batch(jobs: Sequence[SetupJob], out_dir, run_command: Callable[[list[str
         if progress is not None:
             progress(n_done, n_total, rows[job.name])
 
+    # read here, not in the worker: local workers are forked from a server started with an earlier environment
+    kill_hook = os.environ.get(KILL_HOOK_ENV, "")
+
+    def submit(ex, job):
+        return ex.submit(run_setup, job, str(root / job.name), run_command, kill_hook)
+
     def submit_all(ex, batch):
-        return {ex.submit(run_setup, job, str(root / job.name), run_command): job for job in batch}
+        return {submit(ex, job): job for job in batch}
 
     queue = list(todo)
     while queue:
@@ -290,7 +295,7 @@ def run_batch(jobs: Sequence[SetupJob], out_dir, run_command: Callable[[list[str
                 continue
             with _local_pool(1) as solo:
                 try:
-                    finish(job, solo.submit(run_setup, job, str(root / job.name), run_command).result())
+                    finish(job, submit(solo, job).result())
                 except cf.BrokenExecutor:
                     finish(job, _lost_row(job, "worker process died (killed or out of memory); rerun the batch "
                                                "to retry this setup"))

@@ -1,0 +1,20 @@
+"""Start-up of the local worker processes: one BLAS thread, then the heavy imports, once.
+
+The batch's local pool forks its workers from a fork server that imports this
+module first (``multiprocessing`` forkserver preload): the thread caps are in
+the environment before numpy loads its BLAS, and numpy, the model, the
+sampler and the plotting stack are imported once in the server instead of
+once per worker process.  Nothing here may import numpy before the caps are
+set.
+"""
+
+from bayes_rcsa.batch.threads import limit_threads
+
+limit_threads()
+
+import bayes_rcsa.batch.run  # noqa: E402,F401  (numpy, the I/O layer)
+import bayes_rcsa.cli.main  # noqa: E402,F401  (every command's module)
+import bayes_rcsa.inference.identify  # noqa: E402,F401  (emcee, the likelihood)
+import bayes_rcsa.inference.diagnostics as _diagnostics  # noqa: E402
+
+_diagnostics._az()  # arviz and xarray: the slowest import of all
