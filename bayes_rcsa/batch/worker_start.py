@@ -13,8 +13,9 @@ from bayes_rcsa.batch.threads import limit_threads
 limit_threads()
 
 import bayes_rcsa.batch.run  # noqa: E402,F401  (numpy, the I/O layer)
-import bayes_rcsa.cli.main  # noqa: E402,F401  (every command's module)
 import bayes_rcsa.inference.identify  # noqa: E402,F401  (emcee, the likelihood)
+import bayes_rcsa.posterior.prediction_outputs  # noqa: E402,F401  (predict)
+import bayes_rcsa.stability.probabilistic  # noqa: E402,F401  (lobes)
 import bayes_rcsa.inference.diagnostics as _diagnostics  # noqa: E402
 
 _diagnostics._az()  # arviz and xarray: the slowest import of all
