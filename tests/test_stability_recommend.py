@@ -203,3 +203,23 @@ def test_flute_length_of_the_example_tool_limits_posterior_mode():
     tool = next(iter(setup.tools.values()))
     # the example's fluted segment (diameter_ratio 0.8) is 30 mm long, the shank follows
     assert flute_length(tool) == pytest.approx(0.03)
+
+
+def test_progress_bar_draws_only_for_long_jobs_and_ends_its_line():
+    import io
+
+    from bayes_rcsa.stability.progress import ProgressBar, format_seconds
+
+    quiet = io.StringIO()
+    bar = ProgressBar("job", stream=quiet, quiet_seconds=60.0)
+    bar(0.5)
+    bar.close()
+    assert quiet.getvalue() == ""  # a short job prints nothing
+    out = io.StringIO()
+    bar = ProgressBar("job", stream=out, quiet_seconds=0.0, interval=0.0)
+    bar(0.25)
+    bar(0.5)
+    bar.close()
+    text = out.getvalue()
+    assert "job [" in text and " 50 %" in text and text.endswith("\n") and text.count("\n") == 1
+    assert format_seconds(12) == "12 s" and format_seconds(600) == "10.0 min" and format_seconds(7200) == "2.0 h"
