@@ -65,7 +65,8 @@ def test_tip_mass_named_by_the_cli_with_amended_setup(tmp_path_factory, tmp_path
     code = cli_main.main(["discrepancy", str(path), "--out", str(out), "--lengths", "0.025,0.040", "--seed", "0",
                           "--candidates", "tip_mass,fluted_section,contact_damping"])
     assert code == 0
-    assert capsys.readouterr().out.strip().startswith("named tip_mass")
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("bayes-rcsa discrepancy: named tip_mass")  # the one closing line
     r = json.loads((out / "discrepancy.json").read_text())
     assert REQUIRED_KEYS <= set(r)
     assert r["named_effect"] == "tip_mass" and r["gap_after"] <= 0.5 * r["gap_before"]
@@ -99,6 +100,12 @@ def _cli(argv, monkeypatch, capsys):
 
 def test_cli_bad_input_one_line_exit_2_nothing_written(tmp_path_factory, tmp_path, monkeypatch, capsys):
     path, _ = _campaign(tmp_path_factory, {}, 5)
+    occupied = tmp_path / "occupied"
+    occupied.mkdir()
+    (occupied / "earlier.txt").write_text("x")
+    code, err = _cli([str(path), "--out", str(occupied)], monkeypatch, capsys)
+    assert code == 2 and len(err) == 1 and "use --force" in err[0]
+    assert [p.name for p in occupied.iterdir()] == ["earlier.txt"]
     out = tmp_path / "o"
     code, err = _cli([str(path), "--out", str(out), "--candidates", "tip_mass,flying_saucer"], monkeypatch, capsys)
     assert code == 2 and len(err) == 1 and "flying_saucer" in err[0] and "tip_mass" in err[0]
@@ -114,7 +121,7 @@ def test_cli_bad_input_one_line_exit_2_nothing_written(tmp_path_factory, tmp_pat
     narrow.write_text(text + "\n[likelihood]\nband = [850.0, 862.0]\n")
     code, err = _cli([str(narrow), "--out", str(out), "--lengths", "0.025"], monkeypatch, capsys)
     assert code == 2 and len(err) == 1 and "lines" in err[0] and not out.exists()
-    assert sorted(p.name for p in tmp_path.iterdir()) == []  # no temporary or lock files left either
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["occupied"]  # no temporary or lock files left either
 
 
 # -- pure detection functions ---------------------------------------------------

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from ..errors import SetupError
-from ._common import nonnegative_int, parse_float_list, positive_int
+from ._common import Summary, add_force_argument, check_output_directory, nonnegative_int, parse_float_list, positive_int
 
 __all__ = ["register", "run"]
 
@@ -33,7 +33,7 @@ def register(subparsers) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("setup", type=Path, metavar="SETUP", help="setup file (TOML)")
-    p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (new or empty unless --force)")
+    p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
     p.add_argument("--lengths", default=None, metavar="L1,L2,...",
                    help="clamping lengths to fit in m, e.g. 0.025,0.040 (default: all measured; the others are "
                         "held out and predicted)")
@@ -42,19 +42,18 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=nonnegative_int, default=0, help="random seed (default 0)")
     p.add_argument("--refit", type=positive_int, default=3, metavar="N", help="candidates refitted after screening (default 3)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    p.add_argument("--force", action="store_true", help="replace an existing non-empty DIR (after success only)")
+    add_force_argument(p)
     p.add_argument("--verbose", action="store_true", help="one progress line per step on stderr")
     p.set_defaults(func=run)
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> Summary:
     from ..discrepancy.workflow import DiscrepancyOptions, run_discrepancy, validate, write_discrepancy
     from ..io.atomic import directory_lock
     from ..io.setup import load_setup
 
     out = Path(args.out)
-    if out.exists() and not args.force and (not out.is_dir() or any(out.iterdir())):
-        raise SetupError(f"--out {out}: exists and is not an empty directory; use --force to replace it")
+    check_output_directory(out, args.force)  # before anything is computed
     lengths = tuple(parse_float_list(args.lengths, "--lengths", positive=True)) if args.lengths is not None else None
     cands = None
     if args.candidates is not None:
@@ -66,16 +65,20 @@ def run(args: argparse.Namespace) -> int:
     validate(setup, options)  # bad candidates, too few lines: refused before anything is written
     say = (lambda s: print(f"bayes-rcsa discrepancy: {s}", file=sys.stderr)) if args.verbose else None
     with directory_lock(out):
+        check_output_directory(out, args.force)
         result = run_discrepancy(setup, options, progress=say)
-        write_discrepancy(result, out, plots=not args.no_plots, overwrite=args.force)
+        files = write_discrepancy(result, out, plots=not args.no_plots, overwrite=args.force)
     r = result.report
+    gap = f"gap {100 * r['gap_before']:.1f} % -> {100 * r['gap_after']:.1f} %"
     if r["named_effect"]:
         extra = f" (confounded with {', '.join(r['confounded_with'])})" if r["confounded_with"] else ""
-        print(f"named {r['named_effect']}{extra}: gap {100 * r['gap_before']:.1f} % -> {100 * r['gap_after']:.1f} %; "
-              f"wrote {out}/discrepancy.json and {out}/setup.amended.toml")
+        human = f"named {r['named_effect']}{extra}: {gap}; wrote {out}/discrepancy.json and setup.amended.toml"
     elif r["adequate"]:
-        print(f"model adequate, nothing named (gap {100 * r['gap_before']:.1f} %); wrote {out}/discrepancy.json")
+        human = f"model adequate, nothing named (gap {100 * r['gap_before']:.1f} %); wrote {out}/discrepancy.json"
     else:
-        print(f"model inadequate and no known effect explains it: statistical discrepancy added "
-              f"(gap {100 * r['gap_before']:.1f} % -> {100 * r['gap_after']:.1f} %); wrote {out}/discrepancy.json")
-    return 0
+        human = f"model inadequate and no known effect explains it: statistical discrepancy added ({gap}); " \
+                f"wrote {out}/discrepancy.json"
+    data = {"out": str(out), "files": [str(f) for f in files], "adequate": r["adequate"],
+            "named_effect": r["named_effect"], "confounded_with": r["confounded_with"],
+            "gap_before": r["gap_before"], "gap_after": r["gap_after"]}
+    return Summary(human, data)
