@@ -99,3 +99,22 @@ def test_predict_cli_says_when_the_setup_disagrees_with_the_posterior(fitted, tm
     assert len(lines) == 1 and lines[0].startswith("bayes-rcsa predict: warning:") and "posterior" in lines[0], err
     doc = json.loads((out / "frequencies.json").read_text())
     assert doc["parameter_model_source"] == "posterior"
+
+
+def test_lobes_cli_records_the_posterior_provenance_and_status(fitted, tmp_path, capsys):
+    from bayes_rcsa.cli.main import main
+
+    setup_path, posterior, _ = fitted
+    out = tmp_path / "lobes"
+    rc = main(["lobes", str(setup_path), "--posterior", str(posterior), "--clamping-length", "0.030",
+               "--flutes", "4", "--kt", "790e6", "--kr", "230e6", "--immersion", "0.7", "--speeds", "8000:20000:100",
+               "--draws", "20", "--quiet", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 0, err
+    # the fixture's 200-step chain is not converged (ess_min = 1e12): lobes must say so, once, in one line
+    assert sum("did not converge" in ln for ln in err.splitlines()) == 1, err
+    doc = json.loads((out / "lobes.json").read_text())
+    src = doc["source"]
+    assert src["parameter_model_source"] == "posterior" and src["posterior_status"]["converged"] is False
+    assert src["fixed_parameters"]["c_xf"] == 10.0
+    assert any("did not converge" in w for w in doc["warnings"])

@@ -14,7 +14,7 @@ import sys
 import numpy as np
 
 from ..errors import SetupError
-from ._common import parse_float, parse_float_list
+from ._common import nonnegative_int, parse_float, parse_float_list, positive_int
 
 __all__ = ["register", "run", "parse_speeds", "parse_fraction", "parse_coefficient"]
 
@@ -42,12 +42,12 @@ def register(subparsers) -> None:
     src.add_argument("setup", nargs="?", metavar="SETUP", help="setup TOML (posterior mode)")
     src.add_argument("--posterior", metavar="FILE", help="posterior.nc of 'bayes-rcsa identify' (posterior mode)")
     src.add_argument("--clamping-length", metavar="M", help="clamping length in m (posterior mode)")
-    src.add_argument("--draws", type=int, default=500, metavar="N", help="posterior draws used (default 500)")
-    src.add_argument("--seed", type=int, default=0, help="seed for choosing posterior draws (default 0)")
+    src.add_argument("--draws", type=positive_int, default=500, metavar="N", help="posterior draws used (default 500)")
+    src.add_argument("--seed", type=nonnegative_int, default=0, help="seed for choosing posterior draws (default 0)")
     src.add_argument("--measured-x", metavar="FX", help="measured tool-point FRF in X (CSV frequency_hz,real,imag or UFF58)")
     src.add_argument("--measured-y", metavar="FY", help="measured tool-point FRF in Y (CSV frequency_hz,real,imag or UFF58)")
     cut = p.add_argument_group("cutting conditions")
-    cut.add_argument("--flutes", type=int, required=True, metavar="N", help="number of teeth")
+    cut.add_argument("--flutes", type=positive_int, required=True, metavar="N", help="number of teeth")
     cut.add_argument("--kt", required=True, metavar="PA[±TOL]",
                      help="tangential cutting-force coefficient in Pa (e.g. 790e6); an optional tolerance of the "
                      "cutting-force level, 790e6±5%% (or +-5%%, or ±40e6), scales Kt and Kr together and is part of "
@@ -74,11 +74,11 @@ def register(subparsers) -> None:
     grid.add_argument("--depth-margin", default="10%", metavar="FRAC",
                       help="depth margin of the recommendation: P(stable) >= level up to depth x (1 + margin), "
                       "e.g. 10%% (default)")
-    grid.add_argument("--depth-points", type=int, default=200, metavar="N", help="depth levels of the map (default 200)")
+    grid.add_argument("--depth-points", type=positive_int, default=200, metavar="N", help="depth levels of the map (default 200)")
     grid.add_argument("--method", choices=names, default="zoa", help="stability method (default zoa)")
-    grid.add_argument("--intervals", type=int, metavar="M",
+    grid.add_argument("--intervals", type=positive_int, metavar="M",
                       help="SDM intervals per tooth period (default: 30 per cycle of the highest mode, >= 30)")
-    grid.add_argument("--max-modes", type=int, default=4, metavar="N", help="largest mode count of the SDM modal fit (default 4)")
+    grid.add_argument("--max-modes", type=positive_int, default=4, metavar="N", help="largest mode count of the SDM modal fit (default 4)")
     grid.add_argument("--level", default="0.95", metavar="P", help="P(stable) required over the neighbourhood (default 0.95)")
     grid.add_argument("--budget", default=str(DEFAULT_BUDGET_S), metavar="S",
                       help=f"run time in s above which the estimate printed before the job comes with advice on "
@@ -204,6 +204,7 @@ def run(args: argparse.Namespace) -> int:
     from ..stability.outputs import lobes_document, write_lobes_outputs
     from ..stability.progress import ProgressBar
     from ..stability.tests_io import read_cutting_tests
+    from ..io.atomic import directory_lock
 
     cutting, kt_tol, warnings = _cutting(args)
     speeds = parse_speeds(args.speeds)
@@ -224,6 +225,12 @@ def run(args: argparse.Namespace) -> int:
     tests = read_cutting_tests(args.tests) if args.tests is not None else None
     frf = _dynamics(args)  # validates before any output is written
     flute = flute if flute is not None else frf.flute_length_m
+    status = frf.source.get("posterior_status") or {}
+    if status.get("converged") is False:
+        warnings.append(f"the posterior {frf.source['posterior']} did not converge (see its summary.json): "
+                        "the P(stable) map inherits its uncertainty estimate")
+    warnings += [n.removeprefix("warning:").strip() for n in frf.source.get("parameter_model_notes", [])
+                 if n.startswith("warning:")]
     for w in warnings:
         print(f"bayes-rcsa lobes: warning: {w}", file=sys.stderr)
 
@@ -242,7 +249,8 @@ def run(args: argparse.Namespace) -> int:
     title = f"{cutting.flutes} flutes, {res.method.upper()}, " + (
         "measured FRFs" if frf.source["mode"] == "measured" else f"{frf.n_draws} draws"
     )
-    path = write_lobes_outputs(args.out, res, doc, tests, title, max_depth=max_depth)
+    with directory_lock(args.out):
+        path = write_lobes_outputs(args.out, res, doc, tests, title, max_depth=max_depth)
     rec = res.recommended
     msg = f"wrote {path}, p_stable.npz, lobes.png"
     if rec is not None:

@@ -107,7 +107,8 @@ def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_dr
     from ..io import load_setup
     from ..model import Configuration
     from ..posterior import load_posterior, predictive_frf
-    from ..posterior.prediction_outputs import check_prediction_lengths
+    from ..posterior.growth_prior import feasible_growth_law, with_growth_prior
+    from ..posterior.prediction_outputs import check_prediction_lengths, posterior_status
 
     setup = load_setup(setup_path, load_data=False, load_spindle=True)
     for d in ("x", "y"):
@@ -119,6 +120,8 @@ def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_dr
         tool = next(iter(setup.tools))
     draws = load_posterior(posterior_path, setup).subset(n_draws, rng)
     check_prediction_lengths(draws, setup, [clamping_length])
+    # a single-length fit carries the growth law's prior to other lengths (multi-length draws pass unchanged)
+    draws = with_growth_prior(draws, feasible_growth_law(setup), rng, setup.extra.get("priors"))
     sx, sy = setup.spindle["x"].frequency_hz, setup.spindle["y"].frequency_hz
     lo, hi = max(sx[0], sy[0]), min(sx[-1], sy[-1])
     f = sx[(sx >= lo) & (sx <= hi)]
@@ -132,5 +135,7 @@ def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_dr
         "clamping_length_m": clamping_length,
         "n_draws": int(draws.n_draws),
         "method": draws.method,
+        **draws.provenance(),
+        "posterior_status": posterior_status(posterior_path),
     }
     return FRFInput(f, hx, hy, source, flute_length(setup.tools[tool]))
