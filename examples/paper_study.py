@@ -30,7 +30,7 @@ and prints the analogues of the paper's tables:
 
 Run::
 
-    python examples/paper_study.py            # converged fits, a few minutes
+    python examples/paper_study.py            # converged fits, about 6 minutes on two shared cores
     python examples/paper_study.py --quick    # reduced run (coarse lines, short chains), ~30 s
 
 (``BAYES_RCSA_QUICK=1`` in the environment also selects the reduced run.)
