@@ -78,7 +78,7 @@ def register(subparsers) -> None:
     grid.add_argument("--method", choices=names, default="zoa", help="stability method (default zoa)")
     grid.add_argument("--intervals", type=positive_int, metavar="M",
                       help="SDM intervals per tooth period (default: 30 per cycle of the highest mode, >= 30)")
-    grid.add_argument("--max-modes", type=positive_int, default=4, metavar="N", help="largest mode count of the SDM modal fit (default 4)")
+    grid.add_argument("--max-modes", type=int, default=4, metavar="N", help="largest mode count of the SDM modal fit (default 4)")
     grid.add_argument("--level", default="0.95", metavar="P", help="P(stable) required over the neighbourhood (default 0.95)")
     grid.add_argument("--budget", default=str(DEFAULT_BUDGET_S), metavar="S",
                       help=f"run time in s above which the estimate printed before the job comes with advice on "
