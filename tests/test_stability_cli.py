@@ -38,7 +38,7 @@ def test_measured_zoa_outputs(tmp_path, frfs, capsys):
     out = tmp_path / "out"
     argv = ["lobes", "--measured-x", frfs[0], "--measured-y", frfs[1], *COMMON, "--speeds", "5000:30000:300"]
     assert main(argv + ["--tests", str(tests), "--out", str(out)]) == 0
-    assert "recommended" in capsys.readouterr().out
+    assert "recommended" in capsys.readouterr().err
     doc = json.loads((out / "lobes.json").read_text())
     n = np.array(doc["spindle_speed_rpm"])
     np.testing.assert_allclose(n, np.linspace(5000, 30000, 300))

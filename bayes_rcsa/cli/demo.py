@@ -23,7 +23,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from ._common import nonnegative_int, positive_int
+from ..errors import SetupError
+from ._common import Summary, check_output_directory, nonnegative_int, positive_int
 
 ORDER = 10
 
@@ -47,6 +48,9 @@ def register(subparsers) -> None:
     p.add_argument("--out", default=".", metavar="DIR", help="output directory (default: current directory)")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="random seed of the whole run (default 0)")
     p.add_argument("--max-steps", type=positive_int, default=20000, metavar="N", help="sampler step cap (default 20000)")
+    p.add_argument("--force", action="store_true",
+                   help="replace the outputs of an earlier demo in DIR (identify/, predict/, lobes/, report.html, "
+                        "index.html); default: refuse")
     p.set_defaults(func=run)
 
 
@@ -61,26 +65,33 @@ def _step(title: str, argv: list[str]) -> None:
         raise BayesRCSAError(f"demo step '{argv[0]}' failed with exit status {status}")
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> Summary:
     from ..data import example_setup
     from ..report import write_demo_index, write_report_html
 
     out = Path(args.out)
+    # the overwrite rule of every command, checked for all steps before the first one runs
+    for name in ("identify", "predict", "lobes"):
+        check_output_directory(out / name, args.force)
+    for name in ("report.html", "index.html"):
+        if (out / name).exists() and not args.force:
+            raise SetupError(f"--out {out}: {name} of an earlier run exists; use --force to replace it")
+    force = ["--force"] if args.force else []
     setup = str(example_setup())
     seed = str(args.seed)
     _step("1/3 identify the contact from the 25 and 40 mm tests",
           ["identify", setup, "--out", str(out / "identify"), "--lengths", FIT_LENGTHS, "--seed", seed,
-           "--max-steps", str(args.max_steps)])
+           "--max-steps", str(args.max_steps), *force])
     posterior = str(out / "identify" / "posterior.nc")
     _step("2/3 predict 25-40 mm with credible intervals",
           ["predict", setup, "--posterior", posterior, "--lengths", PREDICT_LENGTHS, "--seed", seed,
-           "--out", str(out / "predict")])
+           "--out", str(out / "predict"), *force])
     _step("3/3 probabilistic stability lobes at 30 mm",
           ["lobes", setup, "--posterior", posterior, *LOBES_CASE, "--draws", "300", "--seed", seed,
-           "--out", str(out / "lobes")])
+           "--out", str(out / "lobes"), *force])
     print("\n== report.html: one self-contained page of all three", file=sys.stderr)
     report = write_report_html([out / "identify", out / "predict", out / "lobes"], out / "report.html", seed=args.seed,
                                title="bayes_rcsa demo: ER32 collet + 7.94 mm end mill")
     index = write_demo_index(out)
-    print(f"\ndemo finished: open {report} (links: {index})", file=sys.stderr)
-    return 0
+    return Summary(f"demo finished: open {report} (links: {index})", {"out": str(out), "report": str(report),
+                                                                       "index": str(index)})

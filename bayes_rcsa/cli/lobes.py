@@ -14,7 +14,8 @@ import sys
 import numpy as np
 
 from ..errors import SetupError
-from ._common import nonnegative_int, parse_float, parse_float_list, positive_int
+from ._common import (Summary, add_force_argument, check_output_directory, nonnegative_int, parse_float,
+                      parse_float_list, positive_int)
 
 __all__ = ["register", "run", "parse_speeds", "parse_fraction", "parse_coefficient"]
 
@@ -86,6 +87,7 @@ def register(subparsers) -> None:
     p.add_argument("--tests", metavar="CSV", help="cutting tests: spindle_speed_rpm,depth_m,outcome (stable|chatter)")
     p.add_argument("--quiet", action="store_true", help="no run-time estimate or progress bar on stderr")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    add_force_argument(p)
     p.set_defaults(func=run)
 
 
@@ -198,13 +200,13 @@ def _estimate(impl, frf, speeds, method, budget, quiet: bool) -> None:
                                "full radial immersion, SDM is needed below about 0.3)"), file=sys.stderr)
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> Summary:
     from ..stability import Tolerances, lobes_from_frf_draws
     from ..stability.methods import STABILITY_METHODS, MethodOptions
     from ..stability.outputs import lobes_document, write_lobes_outputs
     from ..stability.progress import ProgressBar
     from ..stability.tests_io import read_cutting_tests
-    from ..io.atomic import directory_lock
+    from ..io.atomic import directory_is_empty, directory_lock
 
     cutting, kt_tol, warnings = _cutting(args)
     speeds = parse_speeds(args.speeds)
@@ -224,6 +226,8 @@ def run(args: argparse.Namespace) -> int:
     impl.check(MethodOptions(intervals=args.intervals, max_modes=args.max_modes))
     tests = read_cutting_tests(args.tests) if args.tests is not None else None
     frf = _dynamics(args)  # validates before any output is written
+    if not args.force and not directory_is_empty(args.out):
+        check_output_directory(args.out)  # refused before the lobes are computed (checked again under the lock)
     flute = flute if flute is not None else frf.flute_length_m
     status = frf.source.get("posterior_status") or {}
     if status.get("converged") is False:
@@ -231,8 +235,6 @@ def run(args: argparse.Namespace) -> int:
                         "the P(stable) map inherits its uncertainty estimate")
     warnings += [n.removeprefix("warning:").strip() for n in frf.source.get("parameter_model_notes", [])
                  if n.startswith("warning:")]
-    for w in warnings:
-        print(f"bayes-rcsa lobes: warning: {w}", file=sys.stderr)
 
     _estimate(impl, frf, speeds, args.method, budget, args.quiet)
     bar = None if args.quiet else ProgressBar(f"lobes: {args.method}")
@@ -250,6 +252,7 @@ def run(args: argparse.Namespace) -> int:
         "measured FRFs" if frf.source["mode"] == "measured" else f"{frf.n_draws} draws"
     )
     with directory_lock(args.out):
+        check_output_directory(args.out, args.force)
         path = write_lobes_outputs(args.out, res, doc, tests, title, max_depth=max_depth)
     rec = res.recommended
     msg = f"wrote {path}, p_stable.npz, lobes.png"
@@ -261,5 +264,8 @@ def run(args: argparse.Namespace) -> int:
                 f"{rec.margin_depth_m * 1e3:.3f} mm; limited by {rec.binding})")
     else:
         msg += f"; no recommendation: {res.note}"
-    print(msg)
-    return 0
+    recommended = None if rec is None else {
+        "spindle_speed_rpm": rec.spindle_speed_rpm, "depth_m": rec.depth_m,
+        "p_stable": rec.p_stable_neighbourhood, "binding": rec.binding}
+    return Summary(msg, {"out": str(args.out), "lobes": str(path), "recommended": recommended,
+                         "posterior_converged": status.get("converged")}, warnings=tuple(warnings))
