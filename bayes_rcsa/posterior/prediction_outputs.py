@@ -31,7 +31,7 @@ from ..params.growth import GrowthLaw
 from ..params.priors import PriorSet
 from .draws import PosteriorDraws, load_posterior
 from .growth_prior import feasible_growth_law, with_growth_prior
-from .identifiability import VERDICT_RULE, parameter_identifiability
+from .identifiability import VERDICT_RULE, combination_statement, fmt_contraction, parameter_identifiability
 from ..model.natural_frequencies import NATURAL_FREQUENCY_RULE
 from .predict import (
     MODE_REL_HEIGHT,
@@ -323,13 +323,16 @@ def undetermined_statement(name: str, ident: dict, infl: dict | None) -> str | N
     if ident["verdict"] == "identified":
         return None
     unit = _unit(name)
+    if ident["verdict"].startswith("identified only in combination"):
+        # pinned along the ridge, wide across it: say so instead of calling it undetermined
+        return combination_statement(name, ident, unit)
     if ident["verdict"] == "not identified":
         why = "its posterior is close to its prior"
     else:
         why = {"upper": "the data bound it only from below; the prior's upper bound ends the posterior",
                "lower": "the data bound it only from above; the prior's lower bound ends the posterior",
                }.get(ident.get("bound"), "its posterior is wide compared with its prior")
-    text = (f"{name} is {ident['verdict']} (contraction {ident['contraction']:.3f}; {why}); no value is quoted for it, "
+    text = (f"{name} is {ident['verdict']} (contraction {fmt_contraction(ident['contraction'])}; {why}); no value is quoted for it, "
             f"its 90 % posterior range is [{fmt(ident['q05'])}, {fmt(ident['q95'])}]{' ' + unit if unit else ''}.")
     if infl and infl.get("max_delta_hz") is not None:
         frac = infl.get("max_fraction_of_interval")
