@@ -194,7 +194,7 @@ def test_unexplained_effect_gets_the_statistical_discrepancy_and_wider_intervals
 def test_statistical_discrepancy_absorbs_a_smooth_gain_but_not_a_resonance_shift():
     from types import SimpleNamespace
 
-    from bayes_rcsa.discrepancy.statistical import StatisticalDiscrepancy
+    from bayes_rcsa.params.terms.statistical_discrepancy import StatisticalDiscrepancy
     from bayes_rcsa.model.receptance import PointReceptance
 
     f = np.arange(500.0, 3500.0, 2.0)

@@ -6,7 +6,8 @@ The loop (docs/discrepancy.md):
 * :mod:`.screen` -- score test of every candidate model term at the baseline fit;
 * :mod:`.fit` -- MAP + Laplace fits of model variants on the tempered likelihood;
 * :mod:`.select` -- refits, the evidence criterion, winner / runner-up / confounded;
-* :mod:`.statistical` -- the statistical discrepancy term used when nothing is named;
+* the statistical discrepancy term used when nothing is named is a model term,
+  :mod:`bayes_rcsa.params.terms.statistical_discrepancy` (so a posterior holding it reads back anywhere);
 * :mod:`.workflow` -- the whole loop and its files; :mod:`.plots` -- its figures.
 
 Candidates are the registered model terms (:mod:`bayes_rcsa.params.terms`):

@@ -18,7 +18,7 @@ Steps
 5. **Add and show**: the named model's gap, natural-frequency errors at every
    measured and held-out clamping length and contact stiffness, against the
    baseline's.  Nothing named: the statistical discrepancy term
-   (:mod:`.statistical`) is fitted instead and its (wider) intervals are reported.
+   (:mod:`bayes_rcsa.params.terms.statistical_discrepancy`) is fitted instead and its (wider) intervals are reported.
 """
 
 from __future__ import annotations
@@ -39,7 +39,6 @@ from ..model.assembly import ConfigurationStack
 from ..model.natural_frequencies import natural_frequency
 from ..params.forward import ForwardModel
 from ..params.terms import get_term, known_terms
-from . import statistical  # noqa: F401  (registers the statistical discrepancy term)
 from .detect import Detection, detect_from_fit
 from .fit import ModelFit, fit_baseline, fit_variant, laplace_draws
 from .screen import ScoreResult, embed_baseline, score_test

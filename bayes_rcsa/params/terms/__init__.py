@@ -46,7 +46,7 @@ def known_terms() -> tuple[str, ...]:
 
 # Built-in terms, one module each (each registers itself on import).
 _BUILTIN: tuple[str, ...] = ("tip_mass", "contact_damping", "extra_mode", "fluted_section", "nonlinear_stiffness_law",
-                              "spindle_error", "spindle_rotation_omitted")
+                              "spindle_error", "spindle_rotation_omitted", "statistical_discrepancy")
 
 for _mod in _BUILTIN:
     importlib.import_module(f"{__name__}.{_mod}")

@@ -46,9 +46,10 @@ from typing import Mapping
 
 import numpy as np
 
-from ..params.parameter import Parameter
-from ..params.priors import Normal
-from ..params.terms import ModelTerm, register_term
+from ..parameter import Parameter
+from ..priors import Normal
+from .base import ModelTerm
+from . import register_term
 
 __all__ = ["StatisticalDiscrepancy", "N_BASIS", "PRIOR_SD"]
 
