@@ -27,7 +27,7 @@ def demo_out(tmp_path_factory):
 def test_demo_writes_every_report(demo_out):
     for rel in ("index.html", "report.html", "identify/summary.json", "identify/posterior.nc", "identify/corner.png",
                 "predict/frequencies.json", "predict/report.html", "predict/frf_bands.png",
-                "lobes/lobes.json", "lobes/lobes.png", "lobes/p_stable.npz"):
+                "lobes/lobes.json", "lobes/lobes.png", "lobes/p_stable.npz", "discrepancy/discrepancy.json"):
         assert (demo_out / rel).stat().st_size > 0, rel
     html = (demo_out / "index.html").read_text()
     assert "First tool-point natural frequency" in html and "lobes/lobes.png" in html
@@ -71,3 +71,13 @@ def test_demo_lobes_are_a_probability_map(demo_out):
     assert np.all(np.diff(ps, axis=-1) <= 1e-12)  # P(stable) never grows with depth
     rec = lobes["recommended"]
     assert rec is not None and rec["p_stable"] >= 0.95
+
+
+def test_demo_checks_the_model_and_links_the_finding(demo_out):
+    # the bundled campaign was made without hidden effects: the model check must not invent physics
+    disc = json.loads((demo_out / "discrepancy" / "discrepancy.json").read_text())
+    assert disc["named_effect"] is None and disc["gap_metric"]
+    html = (demo_out / "index.html").read_text()
+    assert 'href="discrepancy/summary.md"' in html and "Model check" in html
+    assert (demo_out / "discrepancy" / "summary.md").stat().st_size > 0
+    assert "discrepancy" in (demo_out / "report.html").read_text().lower()

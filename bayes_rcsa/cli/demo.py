@@ -10,9 +10,11 @@ it writes is exactly what a user gets from running them by hand:
 3. ``lobes``     probabilistic stability lobes at 30 mm clamping for the
    paper's cutting case b (4 flutes, Al 7050, Kt = 790 MPa, Kr = 230 MPa,
    95 % radial immersion, feed in y);
+4. ``discrepancy`` the model check: does the model miss a known effect
+   (tip mass, joint damping, ...)? Named, added and shown, or "adequate";
 
 and finally ``report.html``, the self-contained report of ``bayes-rcsa
-report`` over the three directories (figures embedded; the page to open or
+report`` over the four directories (figures embedded; the page to open or
 mail), and an ``index.html`` landing page that links it and the
 sub-commands' own files (:mod:`bayes_rcsa.report.index_html`).
 """
@@ -42,7 +44,8 @@ def register(subparsers) -> None:
         "ER32 collet chuck with a 7.94 mm carbide end mill at 25-40 mm clamping, made by the project's "
         "independent finite-element bench): identify the tool-holder contact from the 25 and 40 mm tests, "
         "predict the tool point with credible intervals at 25-40 mm (30 and 35 mm held out), and compute "
-        "probabilistic stability lobes at 30 mm.  Writes DIR/identify, DIR/predict, DIR/lobes, the "
+        "probabilistic stability lobes at 30 mm, and check the model for missing effects (discrepancy).  "
+        "Writes DIR/identify, DIR/predict, DIR/lobes, DIR/discrepancy, the "
         "self-contained report DIR/report.html and the landing page DIR/index.html.  Takes one to two minutes.",
     )
     p.add_argument("--out", default=".", metavar="DIR", help="output directory (default: current directory)")
@@ -71,7 +74,7 @@ def run(args: argparse.Namespace) -> Summary:
 
     out = Path(args.out)
     # the overwrite rule of every command, checked for all steps before the first one runs
-    for name in ("identify", "predict", "lobes"):
+    for name in ("identify", "predict", "lobes", "discrepancy"):
         check_output_directory(out / name, args.force)
     for name in ("report.html", "index.html"):
         if (out / name).exists() and not args.force:
@@ -79,18 +82,21 @@ def run(args: argparse.Namespace) -> Summary:
     force = ["--force"] if args.force else []
     setup = str(example_setup())
     seed = str(args.seed)
-    _step("1/3 identify the contact from the 25 and 40 mm tests",
+    _step("1/4 identify the contact from the 25 and 40 mm tests",
           ["identify", setup, "--out", str(out / "identify"), "--lengths", FIT_LENGTHS, "--seed", seed,
            "--max-steps", str(args.max_steps), *force])
     posterior = str(out / "identify" / "posterior.nc")
-    _step("2/3 predict 25-40 mm with credible intervals",
+    _step("2/4 predict 25-40 mm with credible intervals",
           ["predict", setup, "--posterior", posterior, "--lengths", PREDICT_LENGTHS, "--seed", seed,
            "--out", str(out / "predict"), *force])
-    _step("3/3 probabilistic stability lobes at 30 mm",
+    _step("3/4 probabilistic stability lobes at 30 mm",
           ["lobes", setup, "--posterior", posterior, *LOBES_CASE, "--draws", "300", "--seed", seed,
            "--out", str(out / "lobes"), *force])
-    print("\n== report.html: one self-contained page of all three", file=sys.stderr)
-    report = write_report_html([out / "identify", out / "predict", out / "lobes"], out / "report.html", seed=args.seed,
+    _step("4/4 model check: is anything missing from the model? (discrepancy workflow)",
+          ["discrepancy", setup, "--lengths", FIT_LENGTHS, "--seed", seed, "--out", str(out / "discrepancy"), *force])
+    print("\n== report.html: one self-contained page of all four", file=sys.stderr)
+    report = write_report_html([out / "identify", out / "predict", out / "lobes", out / "discrepancy"],
+                               out / "report.html", seed=args.seed,
                                title="bayes_rcsa demo: ER32 collet + 7.94 mm end mill")
     index = write_demo_index(out)
     return Summary(f"demo finished: open {report} (links: {index})", {"out": str(out), "report": str(report),

@@ -15,9 +15,9 @@ DESCRIPTION = """\
 Fit the setup's model, look for systematic disagreement with the measurements (residual correlation,
 resonance shifts, trends with clamping length, prior-bound pile-up), rank the candidate effects
 (model terms: contact_damping, tip_mass, fluted_section, extra_mode, nonlinear_stiffness_law,
-spindle_error, spindle_rotation_omitted, ...) by a score test, refit the best few, and name the one the
-tempered evidence supports.  Nothing named but the model inadequate: a statistical discrepancy term
-widens the intervals instead.
+spindle_error, spindle_rotation_omitted, ...) by a score test, refit the best few, and name the
+one the tempered evidence supports.  Nothing named but the model inadequate: a statistical
+discrepancy term widens the intervals instead.
 
 Writes to --out: discrepancy.json, summary.md, frf_before_after.png, residuals_before_after.png,
 frequency_errors.png, stiffness_before_after.png and, when an effect is named, setup.amended.toml

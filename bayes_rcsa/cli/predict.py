@@ -16,9 +16,12 @@ Predict the tool-point FRF at clamping lengths inside the feasible range, measur
 posterior draws of 'bayes-rcsa identify' pushed through the RCSA model.
 
 Writes to --out:
-  frequencies.json         per clamping length, direction and mode: natural-frequency quantiles
-                           q05/q25/q50/q75/q95 (Hz), the measured value where a measurement exists,
-                           peak magnitude and dynamic stiffness intervals, parameter influence
+  frequencies.json         per clamping length, direction and mode: natural-frequency quantiles of the
+                           model q05/q25/q50/q75/q95 (Hz), the predictive interval of a new measured
+                           peak (noise included) predictive_peak_q05/q50/q95_hz with
+                           measured_in_predictive_90, the measured value where a measurement exists,
+                           peak magnitude and dynamic stiffness intervals, parameter influence; the
+                           fit's convergence (converged, posterior_status), interval_definitions
   frf_bands.csv            |H| quantiles and median Re/Im H per line
   frf_bands.png            median |H| with 50 % and 90 % bands and mode intervals
   natural_frequencies.png  dominant natural frequency against clamping length

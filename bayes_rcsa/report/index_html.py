@@ -16,7 +16,7 @@ from ..io.atomic import atomic_write_text
 __all__ = ["demo_index_html", "write_demo_index"]
 
 
-def demo_index_html(summary: dict, freqs: dict, lobes: dict) -> str:
+def demo_index_html(summary: dict, freqs: dict, lobes: dict, discrepancy: dict | None = None) -> str:
     """The demo's ``index.html``: contact intervals, predicted vs measured frequencies, lobes, links.
 
     Parameters
@@ -61,6 +61,19 @@ def demo_index_html(summary: dict, freqs: dict, lobes: dict) -> str:
         f"(P(stable) = {rec['p_stable']:.2f})"
     )
     warnings = "".join(f"<li>{html.escape(w)}</li>" for w in summary.get("warnings", [])) or "<li>none</li>"
+    disc = ""
+    if discrepancy is not None:
+        named = discrepancy.get("named_effect")
+        verdict = (f"the model misses <b>{html.escape(named)}</b>; the amended setup is "
+                   f"<a href=\"discrepancy/setup.amended.toml\">discrepancy/setup.amended.toml</a>" if named else
+                   "no known effect is missing" if discrepancy.get("adequate") else
+                   "the model disagrees with the measurements but no known effect explains it; the intervals were "
+                   "widened by a statistical discrepancy term")
+        disc = (f"<h2>Model check (discrepancy workflow)</h2><p>Adequate: <b>{_yes_no(discrepancy.get('adequate'))}</b>; "
+                f"{verdict}. Gap ({html.escape(str(discrepancy.get('gap_metric', '')).split(':')[0])}): "
+                f"{discrepancy.get('gap_before', float('nan')):.3g} before, {discrepancy.get('gap_after', float('nan')):.3g} "
+                f"after. <a href=\"discrepancy/summary.md\">discrepancy/summary.md</a> &middot; "
+                f"<a href=\"discrepancy/discrepancy.json\">discrepancy/discrepancy.json</a></p>")
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>bayes_rcsa demo</title>
 <style>body{{font-family:sans-serif;max-width:1000px;margin:2em auto}}table{{border-collapse:collapse}}
@@ -83,6 +96,7 @@ noisy and is to be compared with the predictive interval of a new measurement.</
 <h2>Stability lobes at 30 mm, case b (95 % immersion, feed y)</h2>
 <p>Recommended operating point: {rec_text}</p>
 <img src="lobes/lobes.png" alt="stability lobes">
+{disc}
 <h2>Sampler</h2><img src="identify/trace.png" alt="trace"><img src="identify/corner.png" alt="corner">
 </body></html>
 """
@@ -93,11 +107,13 @@ def _yes_no(b) -> str:
 
 
 def write_demo_index(out) -> Path:
-    """Write ``out/index.html`` from ``out/identify``, ``out/predict`` and ``out/lobes``; returns its path."""
+    """Write ``out/index.html`` from ``out/identify``, ``out/predict``, ``out/lobes`` (and ``out/discrepancy``); returns its path."""
     out = Path(out)
     summary = json.loads((out / "identify" / "summary.json").read_text())
     freqs = json.loads((out / "predict" / "frequencies.json").read_text())
     lobes = json.loads((out / "lobes" / "lobes.json").read_text())
+    disc_path = out / "discrepancy" / "discrepancy.json"
+    disc = json.loads(disc_path.read_text()) if disc_path.is_file() else None
     index = out / "index.html"
-    atomic_write_text(index, demo_index_html(summary, freqs, lobes))
+    atomic_write_text(index, demo_index_html(summary, freqs, lobes, disc))
     return index
