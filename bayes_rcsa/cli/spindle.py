@@ -55,11 +55,14 @@ def register(subparsers) -> None:
     p.add_argument("artifact", type=Path, metavar="ARTIFACT", help="artifact file (TOML), see docs/spindle.md")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
     p.add_argument("--samples", type=_nonnegative_int, default=50, metavar="N",
-                   help="bootstrap samples of the flange receptance (0: none; default 50).  Cost per direction on "
-                   "2 cores, about 4000 lines: 5-10 s for the fit, 5-10 s more for the bootstrap start fits, then "
-                   "0.5-1.5 s per sample (about 1 min per direction at the default); the estimate and a progress "
-                   "bar are printed on stderr")
+                   help="bootstrap samples of the flange receptance (0: none; default 50).  CPU cost per direction, "
+                   "about 4000 lines: about 8 s for the fit, 9 s more for the bootstrap start fits, then "
+                   "about 0.6 s per sample (about 45 s per direction at the default; two directions run in "
+                   "parallel on two cores); the estimate and a progress bar are printed on stderr")
     p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (default 0)")
+    p.add_argument("--workers", type=_nonnegative_int, default=2, metavar="N",
+                   help="worker processes, one direction each (default 2; 1: run in this process).  The samples "
+                   "do not depend on it")
     p.add_argument("--max-modes", type=_nonnegative_int, default=None, metavar="N",
                    help="largest mode count tried by the modal smoothing (default: [fit] max_modes or 8)")
     p.add_argument("--directions", type=_directions, default=None, metavar="x,y",
@@ -70,11 +73,9 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    import numpy as np
-
     from ..errors import SetupError
     from ..spindle.artifact import load_artifact
-    from ..spindle.identification import identify_direction
+    from ..spindle.identification import identify_directions
     from ..spindle.outputs import write_outputs
 
     if args.seed < 0:
@@ -87,28 +88,26 @@ def run(args) -> int:
     if missing:
         raise SetupError(f"--directions: {args.artifact} has no measurement for {missing}; measured: "
                          f"{sorted(setup.measurements)}")
-    rng = np.random.default_rng(args.seed)
-    results = {}
+    if args.workers < 1:
+        raise SetupError(f"--workers {args.workers}: expected an integer >= 1")
+    workers = min(args.workers, len(directions))
+    bar = None
     if not args.quiet:
-        from ..stability.progress import format_seconds
+        from ..stability.progress import ProgressBar, format_seconds
 
-        per = 8.0 + (9.0 + 0.8 * args.samples if args.samples else 0.0)  # measured, benchmarks/spindle.py
-        print(f"spindle: {len(directions)} direction(s), {args.samples} bootstrap samples each: estimated "
-              f"{format_seconds(per * len(directions))}", file=sys.stderr)
-    for d in directions:
-        bar = None
-        if not args.quiet:
-            from ..stability.progress import ProgressBar
-
-            print(f"spindle: direction {d}: inverse coupling, modal smoothing"
-                  + (f", {args.samples} bootstrap samples" if args.samples else ""), file=sys.stderr)
-            bar = ProgressBar(f"spindle {d}")
-        try:
-            results[d] = identify_direction(setup, d, n_samples=args.samples, rng=rng,
-                                            max_modes=args.max_modes, progress=bar)
-        finally:
-            if bar is not None:
-                bar.close()
+        per = 8.0 + (9.0 + 0.6 * args.samples if args.samples else 0.0)  # CPU s, measured, benchmarks/spindle.py
+        rounds = -(-len(directions) // workers)  # directions run side by side in `workers` processes
+        print(f"spindle: {', '.join(directions)}: inverse coupling, modal smoothing"
+              + (f", {args.samples} bootstrap samples each" if args.samples else "")
+              + f" ({workers} worker process{'es' if workers > 1 else ''}): estimated "
+              f"{format_seconds(per * rounds)}", file=sys.stderr)
+        bar = ProgressBar("spindle")
+    try:
+        results = identify_directions(setup, directions, n_samples=args.samples, seed=args.seed,
+                                      max_modes=args.max_modes, workers=workers, progress=bar)
+    finally:
+        if bar is not None:
+            bar.close()
     summary = write_outputs(setup, results, args.out, plots=not args.no_plots, seed=args.seed)
     if not args.quiet:
         for d, s in summary["directions"].items():

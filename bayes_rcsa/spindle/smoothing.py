@@ -324,16 +324,30 @@ def _pack(lw, phi, lc, u, low, sc: _Scaling) -> np.ndarray:
     return np.concatenate([sc.log_w.inverse(lw), np.asarray(phi).ravel(), c[tri], u, low])
 
 
-def _evaluate(x: np.ndarray, n: int, wt: np.ndarray, sc: _Scaling, derivatives: bool = False):
-    """Scaled (h, l, p) entries (n_freq, 3) and, optionally, their derivatives (n_freq, 3, n_par)."""
+def _evaluate(x: np.ndarray, n: int, wt: np.ndarray, sc: _Scaling, derivatives: bool = False,
+              cache: dict | None = None):
+    """Scaled (h, l, p) entries (n_freq, 3) and, optionally, their derivatives (n_freq, 3, n_par).
+
+    ``cache`` (a dict owned by the caller) keeps the entries and ``Z^-1 Phi^T``
+    of the last ``x``: Levenberg-Marquardt asks for the Jacobian at the point
+    whose residuals it has just evaluated, and the batched solve is the
+    dominant cost of both.  The cached values are the ones a fresh
+    evaluation would give, bit for bit.
+    """
     lw, phi, lc, u, low, dlw, ddiag = _unpack(x, n, sc)
-    ent = np.broadcast_to(u - low / (wt**2)[:, None], (wt.size, 3)).astype(complex)
-    if n:
-        wr2 = np.exp(2 * lw)
-        z = np.diag(wr2)[None] - (wt**2)[:, None, None] * np.eye(n) + 1j * wt[:, None, None] * (lc @ lc.T)
-        g = np.linalg.solve(z, np.broadcast_to(phi.T, (wt.size, n, 2)))  # Z^-1 Phi^T, (nf, n, 2)
-        s = phi @ g
-        ent = ent + np.stack([s[:, a, b] for a, b in _PAIRS], -1)
+    wr2 = np.exp(2 * lw)
+    if cache is not None and cache.get("x") is not None and np.array_equal(cache["x"], x):
+        ent, g = cache["ent"], cache["g"]
+    else:
+        ent = np.broadcast_to(u - low / (wt**2)[:, None], (wt.size, 3)).astype(complex)
+        g = None
+        if n:
+            z = np.diag(wr2)[None] - (wt**2)[:, None, None] * np.eye(n) + 1j * wt[:, None, None] * (lc @ lc.T)
+            g = np.linalg.solve(z, np.broadcast_to(phi.T, (wt.size, n, 2)))  # Z^-1 Phi^T, (nf, n, 2)
+            s = phi @ g
+            ent = ent + np.stack([s[:, a, b] for a, b in _PAIRS], -1)
+        if cache is not None:
+            cache.update(x=np.array(x, dtype=float), ent=ent, g=g)
     if not derivatives:
         return ent
     d = np.zeros((wt.size, 3, n_parameters(n)), dtype=complex)
@@ -344,12 +358,16 @@ def _evaluate(x: np.ndarray, n: int, wt: np.ndarray, sc: _Scaling, derivatives: 
             for i in (0, 1):  # d / d Phi[i, r]: delta_ai G_rb + G_ra delta_bi
                 d[:, e, n + i * n : n + (i + 1) * n] = (ga[b] if a == i else 0) + (ga[a] if b == i else 0)
         ltg = np.einsum("kj,fka->fja", lc, g)  # (L_c^T G)[j, a]
-        tri = np.tril_indices(n)
-        for idx, (j, k) in enumerate(zip(*tri)):
-            fac = ddiag[j] if j == k else 1.0  # chain rule of the boxed log diagonal
-            # dC = E_jk L^T + L E_kj  ->  G^T dC G [a, b] = G_ja (L^T G)_kb + (L^T G)_ka G_jb
-            for e, (a, b) in enumerate(_PAIRS):
-                d[:, e, 3 * n + idx] = -1j * wt * fac * (g[:, j, a] * ltg[:, k, b] + ltg[:, k, a] * g[:, j, b])
+        j, k = np.tril_indices(n)
+        # chain rule of the boxed log diagonal (1 off the diagonal); all (j, k) pairs at once: the
+        # element-wise operations and their order are those of a loop over the pairs, so the
+        # values are the same to the last bit
+        fac = np.where(j == k, ddiag[j], 1.0)
+        iwf = -1j * wt[:, None] * fac
+        cols = slice(3 * n, 3 * n + j.size)
+        # dC = E_jk L^T + L E_kj  ->  G^T dC G [a, b] = G_ja (L^T G)_kb + (L^T G)_ka G_jb
+        for e, (a, b) in enumerate(_PAIRS):
+            d[:, e, cols] = iwf * (g[:, j, a] * ltg[:, k, b] + ltg[:, k, a] * g[:, j, b])
     k0 = 3 * n + n * (n + 1) // 2
     for e in range(3):
         d[:, e, k0 + e] = 1.0
@@ -365,13 +383,14 @@ class _Problem:
         self.wt = 2 * np.pi * data.frequency_hz / sc.w0
         self.w = data.weight * sc.entry  # acts on scaled entries
         self.target = data.target / sc.entry
+        self.cache: dict = {}
 
     def residual(self, x) -> np.ndarray:
-        r = np.einsum("fke,fe->fk", self.w, _evaluate(x, self.n, self.wt, self.sc) - self.target)
+        r = np.einsum("fke,fe->fk", self.w, _evaluate(x, self.n, self.wt, self.sc, cache=self.cache) - self.target)
         return np.concatenate([r.real.ravel(), r.imag.ravel()])
 
     def jacobian(self, x) -> np.ndarray:
-        _, d = _evaluate(x, self.n, self.wt, self.sc, derivatives=True)
+        _, d = _evaluate(x, self.n, self.wt, self.sc, derivatives=True, cache=self.cache)
         jac = np.matmul(self.w, d).reshape(-1, d.shape[-1])  # (nf, k, e) @ (nf, e, p)
         return np.concatenate([jac.real, jac.imag], axis=0)
 
@@ -408,6 +427,7 @@ class _MeasurementProblem:
         self.n, self.sc, self.data = n, sc, data
         self.wt = data.artifact.omega / sc.w0
         self.scale = math.sqrt(2.0) / data.sigma
+        self.cache: dict = {}
 
     def _block(self, ent: np.ndarray) -> np.ndarray:
         e = ent * self.sc.entry
@@ -416,12 +436,12 @@ class _MeasurementProblem:
         return b
 
     def residual(self, x) -> np.ndarray:
-        g = forward_artifact(self._block(_evaluate(x, self.n, self.wt, self.sc)), self.data.artifact)
+        g = forward_artifact(self._block(_evaluate(x, self.n, self.wt, self.sc, cache=self.cache)), self.data.artifact)
         r = (g[:, self.data.component] - self.data.measured) * self.scale
         return np.concatenate([r.real.ravel(), r.imag.ravel()])
 
     def jacobian(self, x) -> np.ndarray:
-        ent, d = _evaluate(x, self.n, self.wt, self.sc, derivatives=True)
+        ent, d = _evaluate(x, self.n, self.wt, self.sc, derivatives=True, cache=self.cache)
         k = forward_jacobian(self.data.artifact, self._block(ent))[:, self.data.component, :] * self.sc.entry
         jac = (np.matmul(k, d) * self.scale[..., None]).reshape(-1, d.shape[-1])
         return np.concatenate([jac.real, jac.imag], axis=0)
