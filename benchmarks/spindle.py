@@ -78,16 +78,17 @@ OLD_COMMIT = "0b81963"
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def cli_run(tree: Path, artifact: Path, out: Path, samples: int) -> tuple[float, float]:
-    """Wall and CPU time of ``bayes-rcsa spindle`` run from source ``tree`` in a fresh interpreter."""
+def cli_run(tree: Path, artifact: Path, out: Path, samples: int, extra=()) -> tuple[float, float]:
+    """Wall and CPU time (this process's children: the command and its workers) of ``bayes-rcsa spindle``
+    run from source ``tree`` in a fresh interpreter."""
     import resource
 
     env = dict(os.environ, PYTHONPATH=str(tree))
     t0 = time.perf_counter()
     r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     subprocess.run([sys.executable, "-m", "bayes_rcsa", "spindle", str(artifact), "--out", str(out),
-                    "--samples", str(samples), "--no-plots", "--quiet"], cwd=out.parent, env=env, check=True,
-                   capture_output=True)
+                    "--samples", str(samples), "--no-plots", "--quiet", *extra], cwd=out.parent, env=env,
+                   check=True, capture_output=True)
     r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     return time.perf_counter() - t0, (r1.ru_utime + r1.ru_stime) - (r0.ru_utime + r0.ru_stime)
 
@@ -99,9 +100,15 @@ def end_to_end(samples: int, skip_old: bool) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         artifact = Path(write_artifact_tests(tests, tmp / "artifact"))
+        t_one, c_one = cli_run(ROOT, artifact, tmp / "one", samples, ("--workers", "1"))
         t_new, c_new = cli_run(ROOT, artifact, tmp / "new", samples)
-        line = (f"{'bayes-rcsa spindle, ' + str(samples) + ' samples (both directions)':<58}{t_new:>10.1f} s "
-                f"(CPU {c_new:.1f} s)")
+        a1 = np.load(tmp / "one" / "spindle_samples.npz")
+        a2 = np.load(tmp / "new" / "spindle_samples.npz")
+        same = all(np.array_equal(a1[k], a2[k]) for k in a2.files if k != "metadata")
+        print(f"{'bayes-rcsa spindle --workers 1, ' + str(samples) + ' samples':<58}{t_one:>10.1f} s "
+              f"(CPU {c_one:.1f} s); samples {'identical' if same else 'DIFFERENT'} with --workers 2")
+        line = (f"{'bayes-rcsa spindle, ' + str(samples) + ' samples (both directions, 2 workers)':<58}"
+                f"{t_new:>10.1f} s (CPU {c_new:.1f} s)")
         if not skip_old:
             old_tree = tmp / "old"
             old_tree.mkdir()
@@ -145,7 +152,10 @@ def main() -> None:
         diff = float(np.max(np.abs(naive - exact[sub]) / np.abs(exact[sub])))
         t_naive = t_naive_sub * f.size / 400
         t_fit = median_time(lambda: identify_direction(setup, "x"), repeats=3)
-        t_boot = median_time(lambda: identify_direction(setup, "x", n_samples=10, rng=np.random.default_rng(0)),
+        # 1 and 11 samples: the difference is 10 replicates, without the bootstrap start fits
+        t_one = median_time(lambda: identify_direction(setup, "x", n_samples=1, rng=np.random.default_rng(0)),
+                            repeats=1)
+        t_boot = median_time(lambda: identify_direction(setup, "x", n_samples=11, rng=np.random.default_rng(0)),
                              repeats=1)
 
     print(f"Spindle identification, synthetic artifact, direction x, {f.size} lines")
@@ -155,8 +165,9 @@ def main() -> None:
     print(f"{'inverse coupling, naive per-line root finding (scaled)':<58}{t_naive * 1e3:>9.1f} ms{1:>9.0f}x")
     print(f"   max relative difference naive vs closed form (first 400 lines): {diff:.1e}")
     print(f"{'identify_direction (noise, inversion, smoothing, flags)':<58}{t_fit:>10.2f} s")
-    print(f"{'identify_direction with 10 bootstrap samples':<58}{t_boot:>10.2f} s")
-    print(f"   -> about {(t_boot - t_fit) / 10:.2f} s per bootstrap sample")
+    per = (t_boot - t_one) / 10
+    print(f"{'identify_direction with 11 bootstrap samples':<58}{t_boot:>10.2f} s")
+    print(f"   -> bootstrap start fits about {t_one - t_fit - per:.2f} s, about {per:.2f} s per bootstrap sample")
     end_to_end(args.samples, args.skip_old)
 
 

@@ -57,7 +57,7 @@ def register(subparsers) -> None:
     p.add_argument("--samples", type=_nonnegative_int, default=50, metavar="N",
                    help="bootstrap samples of the flange receptance (0: none; default 50).  CPU cost per direction, "
                    "about 4000 lines: about 8 s for the fit, 9 s more for the bootstrap start fits, then "
-                   "about 0.6 s per sample (about 45 s per direction at the default; two directions run in "
+                   "about 0.6 s per sample (about 47 s per direction at the default; two directions run in "
                    "parallel on two cores); the estimate and a progress bar are printed on stderr")
     p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (default 0)")
     p.add_argument("--workers", type=_nonnegative_int, default=2, metavar="N",
@@ -75,7 +75,7 @@ def register(subparsers) -> None:
 def run(args) -> int:
     from ..errors import SetupError
     from ..spindle.artifact import load_artifact
-    from ..spindle.identification import identify_directions
+    from ..spindle.identification import estimated_cpu_seconds, identify_directions
     from ..spindle.outputs import write_outputs
 
     if args.seed < 0:
@@ -95,7 +95,7 @@ def run(args) -> int:
     if not args.quiet:
         from ..stability.progress import ProgressBar, format_seconds
 
-        per = 8.0 + (9.0 + 0.6 * args.samples if args.samples else 0.0)  # CPU s, measured, benchmarks/spindle.py
+        per = estimated_cpu_seconds(args.samples)
         rounds = -(-len(directions) // workers)  # directions run side by side in `workers` processes
         print(f"spindle: {', '.join(directions)}: inverse coupling, modal smoothing"
               + (f", {args.samples} bootstrap samples each" if args.samples else "")

@@ -47,13 +47,22 @@ from .smoothing import (
 from .substructure import artifact_receptances, scaled_segments
 from .uncertainty import bootstrap
 
-__all__ = ["SpindleIdentification", "identify_direction", "identify_directions", "block_error"]
+__all__ = ["SpindleIdentification", "identify_direction", "identify_directions", "estimated_cpu_seconds",
+           "block_error"]
 # Residual evaluations per bootstrap refit: it starts at the nominal optimum,
 # about one standard deviation from its own, and a few Gauss-Newton steps get
 # there; the cap bounds the cost of crawling along flat valleys (mode pairs
 # that only matter inside flagged bands).
 _BOOTSTRAP_NFEV = 40
 _COMPONENT = {"h11": 0, "h12": 1, "h21": 1, "h22": 2}
+# CPU seconds per direction measured on the synthetic artifact (3801 lines, benchmarks/spindle.py): the
+# nominal fit, the bootstrap start fits (two larger mode counts), one replicate
+_COST_FIT, _COST_STARTS, _COST_SAMPLE = 8.0, 9.0, 0.6
+
+
+def estimated_cpu_seconds(n_samples: int) -> float:
+    """CPU seconds :func:`identify_direction` takes for one direction of about 4000 lines."""
+    return _COST_FIT + (_COST_STARTS + _COST_SAMPLE * n_samples if n_samples else 0.0)
 
 
 @dataclass(frozen=True)
@@ -236,11 +245,9 @@ def identify_direction(
                             np.array([_COMPONENT[k] for k in keys]), np.stack([sig[k] for k in keys], axis=-1))
     fit = _stages(first, data, tests)
     smoothed = fit.model.block(f)
-    # cost shares measured on the synthetic artifact (benchmarks/spindle.py): nominal fit ~ 8 s,
-    # bootstrap start fits ~ 9 s, ~ 0.8 s per replicate
-    total = 8.0 + (9.0 + 0.8 * n_samples if n_samples else 0.0)
+    total = estimated_cpu_seconds(n_samples)
     if progress is not None:
-        progress(8.0 / total)
+        progress(_COST_FIT / total)
 
     std = propagated_std(forward_jacobian(ar, smoothed), sigma)
     eps = block_error(smoothed, std)
@@ -255,7 +262,7 @@ def identify_direction(
         counts = tuple(s.model.n_modes for s in starts)
         segments = artifact.segments()
         if progress is not None:
-            progress(17.0 / total)
+            progress((_COST_FIT + _COST_STARTS) / total)
 
         def replicate(g: np.random.Generator, index: int) -> np.ndarray:
             start = starts[index % len(starts)]
@@ -267,7 +274,7 @@ def identify_direction(
                 ar_b = artifact_receptances(artifact, omega, scaled_segments(segments, *factors))
             block = refine(start, tests.with_measured(noisy, ar_b), max_nfev=_BOOTSTRAP_NFEV).model.block(f)
             if progress is not None:
-                progress((17.0 + 0.8 * (index + 1)) / total)
+                progress((_COST_FIT + _COST_STARTS + _COST_SAMPLE * (index + 1)) / total)
             return block
 
         samples = bootstrap(replicate, n_samples, rng)
