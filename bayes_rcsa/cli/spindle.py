@@ -56,9 +56,9 @@ def register(subparsers) -> None:
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
     p.add_argument("--samples", type=_nonnegative_int, default=50, metavar="N",
                    help="bootstrap samples of the flange receptance (0: none; default 50).  CPU cost per direction, "
-                   "about 4000 lines: about 8 s for the fit, 9 s more for the bootstrap start fits, then "
-                   "about 0.6 s per sample (about 47 s per direction at the default; two directions run in "
-                   "parallel on two cores); the estimate and a progress bar are printed on stderr")
+                   "about 4000 lines: about 7 s for the fit, 8 s more for the bootstrap start fits, then "
+                   "about 0.5 s per sample (about 40 s per direction at the default; the directions run in "
+                   "parallel, see --workers); the estimate and a progress bar are printed on stderr")
     p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (default 0)")
     p.add_argument("--workers", type=_nonnegative_int, default=2, metavar="N",
                    help="worker processes, one direction each (default 2; 1: run in this process).  The samples "

@@ -57,7 +57,7 @@ _BOOTSTRAP_NFEV = 40
 _COMPONENT = {"h11": 0, "h12": 1, "h21": 1, "h22": 2}
 # CPU seconds per direction measured on the synthetic artifact (3801 lines, benchmarks/spindle.py): the
 # nominal fit, the bootstrap start fits (two larger mode counts), one replicate
-_COST_FIT, _COST_STARTS, _COST_SAMPLE = 8.0, 9.0, 0.6
+_COST_FIT, _COST_STARTS, _COST_SAMPLE = 7.0, 8.0, 0.5
 
 
 def estimated_cpu_seconds(n_samples: int) -> float:
