@@ -53,6 +53,13 @@ def setup_and_reference(tmp_path_factory):
     return setup, _posterior(ref)
 
 
+def _stored_steps(ck) -> int:
+    try:
+        return ck.read().iteration
+    except Exception:  # noqa: BLE001 - a file being written may not be readable yet; poll again
+        return -1
+
+
 def _kill_when(proc, condition, timeout: float = 120.0) -> None:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline and proc.poll() is None and not condition():
@@ -74,8 +81,10 @@ def test_sigkill_then_resume_gives_the_uninterrupted_posterior(setup_and_referen
         _kill_when(proc, lambda: ck.path.exists() and ck.mirror.exists())
         assert ck.read().iteration == 0
     else:
-        # the mirror is dropped once sampling is complete; then summaries and posterior.nc are written
-        _kill_when(proc, lambda: ck.path.exists() and not ck.mirror.exists())
+        # the mirror is dropped once sampling is complete; then summaries and posterior.nc are written.
+        # (The main file also exists without a mirror for an instant at creation, before the mirror is made:
+        # wait for the stored steps too, or a loaded machine kills the run in that window.)
+        _kill_when(proc, lambda: ck.path.exists() and not ck.mirror.exists() and _stored_steps(ck) == 400)
         assert ck.read().iteration == 400
     assert not (out / "summary.json").exists()
     res = _run(["identify", str(setup), "--out", str(out), *COMMON, "--resume"])

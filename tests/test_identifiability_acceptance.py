@@ -263,12 +263,14 @@ def test_predict_refuses_lengths_outside_the_feasible_range(bench, tmp_path, cap
 
 def test_single_length_posterior_predicts_with_a_constant_contact(bench, tmp_path):
     # The literature method transfers k unchanged; predict must accept other lengths in the feasible
-    # range and reproduce the summary's transfer error at 40 mm.
+    # range, reproduce the summary's transfer error at 40 mm, and warn that the interval there leaves
+    # out the unknown growth (issue #11: no confidently wrong transfer without a warning).
     out = tmp_path / "pred25"
     assert main(["predict", str(bench["setup"]), "--posterior",
                  str(bench["out"] / "fits" / "single_25mm" / "posterior.nc"), "--lengths", "0.040",
                  "--out", str(out), "--no-plots", "--max-draws", "0"]) == 0
     doc = json.loads((out / "frequencies.json").read_text())
+    assert any(n.startswith("warning: literature method") and "40 mm" in n for n in doc["parameter_model_notes"])
     e = next(e for e in doc["predictions"] if e["dominant"])
     assert doc["fit_lengths"] == [0.025] and e["fitted"] is False
     single = next(f for f in bench["ident"]["fits"] if f["name"] == "single_25mm")

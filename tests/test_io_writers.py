@@ -70,7 +70,11 @@ def test_demo_index_page_shows_the_numbers_it_is_given():
     ]}
     lobes = {"recommended": {"spindle_speed_rpm": 14184.0, "depth_m": 0.000115, "p_stable": 0.96}}
     page = demo_index_html(summary, freqs, lobes)
-    assert "<td>950.0 &ndash; 970.0</td><td>960.0</td><td>962.0</td><td>-0.21 %</td>" in page
+    # model interval, median, predictive interval of a new measured peak (none given: a dash), measured, error
+    assert "<td>950.0 &ndash; 970.0</td><td>960.0</td><td>&mdash;</td><td>962.0</td><td>-0.21 %</td>" in page
+    with_pred = {"predictions": [dict(freqs["predictions"][0], predictive_peak_q05_hz=940.0,
+                                      predictive_peak_q95_hz=980.0)]}
+    assert "<td>940.0 &ndash; 980.0</td><td>962.0</td>" in demo_index_html(summary, with_pred, lobes)
     assert "1e+07 &ndash; 2e+07" in page
     assert "14184 rpm" in page and "0.115 mm" in page
     assert "k_xf &lt;piles&gt; at a bound" in page  # escaped

@@ -203,7 +203,10 @@ def test_cli_prints_a_warning_as_one_line(tmp_path, capsys):
                "--freq", "600,800,50", "--out", str(tmp_path / "h.csv")])
     err = capsys.readouterr().err
     assert rc == 0
-    assert err.count("\n") == 1 and err.startswith("bayes-rcsa simulate: warning: ") and "spindle_x.csv" in err, err
+    # the warning is one line, followed by the command's one closing summary line
+    lines = err.splitlines()
+    assert len(lines) == 2 and lines[0].startswith("bayes-rcsa simulate: warning: ") and "spindle_x.csv" in lines[0], err
+    assert lines[1].startswith("bayes-rcsa simulate: wrote "), err
 
 
 def test_identical_data_refused_or_flagged():

@@ -31,6 +31,7 @@ setup defines a feasible range wider than the fitted length).
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any, Mapping
 
 import numpy as np
@@ -41,7 +42,8 @@ from ..params.model import ParameterModel, contact_parameter
 from ..params.priors import Prior, Uniform, prior_from_spec
 from .draws import PosteriorDraws
 
-__all__ = ["GROWTH_NAMES", "feasible_growth_law", "growth_priors", "needs_growth_prior", "with_growth_prior"]
+__all__ = ["GROWTH_NAMES", "feasible_growth_law", "growth_priors", "needs_growth_prior", "with_growth_prior",
+           "transfer_draws"]
 
 #: The growth factors a single-length fit holds at 0.
 GROWTH_NAMES = ("g_xf", "g_thetaM")
@@ -161,3 +163,29 @@ def with_growth_prior(draws: PosteriorDraws, growth: GrowthLaw | None, rng: np.r
             f"{growth.l_b * 1e3:.4g}] mm: the fit at {l_fit * 1e3:.4g} mm alone does not determine them")
     return PosteriorDraws(new_pm, values, draws.method, draws.fit_lengths, draws.source,
                           draws.parameter_model_source, draws.notes + (note,))
+
+
+def transfer_draws(draws: PosteriorDraws, setup, lengths, rng: np.random.Generator) -> PosteriorDraws:
+    """Draws ready to predict at ``lengths`` (m): the one rule of ``predict`` and ``lobes --posterior``.
+
+    * A multi-length posterior (growth identified) is returned unchanged.
+    * A single-length posterior of the default method gets the growth law's
+      prior (:func:`with_growth_prior`): honest intervals elsewhere,
+      unchanged at its own length.
+    * The literature method (``method = "single"``) asked for a constant
+      contact stiffness explicitly; it keeps it, but predicting at another
+      length adds a ``warning:`` note (such intervals exclude the unknown
+      growth and, measured blind, rarely cover the truth; docs/design.md).
+    """
+    l_fit = draws.fit_lengths
+    elsewhere = [l for l in lengths if all(abs(l - f) > _LENGTH_TOL for f in l_fit)]
+    if draws.method == "single":
+        if not elsewhere or not needs_growth_prior(draws, feasible_growth_law(setup)):
+            return draws
+        note = (f"warning: literature method (constant contact stiffness, fitted at "
+                f"{', '.join(f'{f * 1e3:.4g}' for f in l_fit)} mm) transferred to "
+                f"{', '.join(f'{l * 1e3:.4g}' for l in elsewhere)} mm: its intervals leave out how the stiffness "
+                "grows with clamping length and are too narrow there; identify with the default method "
+                "(growth prior) or measure a second clamping length")
+        return replace(draws, notes=draws.notes + (note,))
+    return with_growth_prior(draws, feasible_growth_law(setup), rng, setup.extra.get("priors"))

@@ -30,7 +30,7 @@ from ..io.atomic import atomic_path, atomic_write_text
 from ..params.growth import GrowthLaw
 from ..params.priors import PriorSet
 from .draws import PosteriorDraws, load_posterior
-from .growth_prior import feasible_growth_law, with_growth_prior
+from .growth_prior import transfer_draws
 from .identifiability import VERDICT_RULE, combination_statement, fmt_contraction, parameter_identifiability
 from ..model.natural_frequencies import NATURAL_FREQUENCY_RULE
 from .predict import (
@@ -216,7 +216,7 @@ def run_prediction(setup, posterior_path, lengths: Sequence[float], directions: 
     draws = draws_all.subset(max_draws, np.random.default_rng(seed))
     rng_noise, rng_growth = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2))
     # a single-length fit says nothing about growth: elsewhere its predictions carry the growth law's prior
-    draws = with_growth_prior(draws, feasible_growth_law(setup), rng_growth, setup.extra.get("priors"))
+    draws = transfer_draws(draws, setup, lengths, rng_growth)
     floor = status["noise_floor"] if status["noise_floor"] is not None else DEFAULT_NOISE_FLOOR
     noise = PredictiveNoise.from_draws(draws, floor, rng_noise)
     targets = prediction_targets(setup, lengths, directions, tool, frequency_hz, draws.fit_lengths)

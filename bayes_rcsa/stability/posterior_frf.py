@@ -107,7 +107,7 @@ def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_dr
     from ..io import load_setup
     from ..model import Configuration
     from ..posterior import load_posterior, predictive_frf
-    from ..posterior.growth_prior import feasible_growth_law, with_growth_prior
+    from ..posterior.growth_prior import transfer_draws
     from ..posterior.prediction_outputs import check_prediction_lengths, posterior_status
 
     setup = load_setup(setup_path, load_data=False, load_spindle=True)
@@ -121,7 +121,7 @@ def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_dr
     draws = load_posterior(posterior_path, setup).subset(n_draws, rng)
     check_prediction_lengths(draws, setup, [clamping_length])
     # a single-length fit carries the growth law's prior to other lengths (multi-length draws pass unchanged)
-    draws = with_growth_prior(draws, feasible_growth_law(setup), rng, setup.extra.get("priors"))
+    draws = transfer_draws(draws, setup, [clamping_length], rng)
     sx, sy = setup.spindle["x"].frequency_hz, setup.spindle["y"].frequency_hz
     lo, hi = max(sx[0], sy[0]), min(sx[-1], sy[-1])
     f = sx[(sx >= lo) & (sx <= hi)]
