@@ -7,10 +7,13 @@ run (one generator used direction after direction, the behaviour before the
 workers) gives it.
 """
 
+import json
+
 import numpy as np
 import pytest
 
-from bayes_rcsa.spindle import load_artifact
+from bayes_rcsa.cli.main import main
+from bayes_rcsa.spindle import load_artifact, load_spindle_samples
 from bayes_rcsa.spindle.identification import _direction_rng, identify_direction, identify_directions
 from bayes_rcsa.synthetic import default_bench_config
 from bayes_rcsa.synthetic.artifact import default_bench_artifact, generate_artifact_tests, write_artifact_tests
@@ -47,14 +50,21 @@ def test_direction_generator_is_the_sequential_stream(two_directions):
         np.random.default_rng(SEED).bit_generator.state
 
 
-def test_two_workers_give_the_samples_of_one_generator_used_in_turn(two_directions):
+@pytest.fixture(scope="module")
+def parallel(two_directions):
+    """Both directions in two worker processes, and the progress fractions reported."""
+    fractions = []
+    result = identify_directions(two_directions, ("x", "y"), n_samples=N_SAMPLES, seed=SEED, max_modes=MAX_MODES,
+                                 workers=2, progress=fractions.append)
+    return result, fractions
+
+
+def test_two_workers_give_the_samples_of_one_generator_used_in_turn(two_directions, parallel):
     setup = two_directions
     sequential = np.random.default_rng(SEED)
     reference = {d: identify_direction(setup, d, n_samples=N_SAMPLES, rng=sequential, max_modes=MAX_MODES)
                  for d in ("x", "y")}
-    fractions = []
-    parallel = identify_directions(setup, ("x", "y"), n_samples=N_SAMPLES, seed=SEED, max_modes=MAX_MODES,
-                                   workers=2, progress=fractions.append)
+    parallel, fractions = parallel
     assert list(parallel) == ["x", "y"]
     for d in ("x", "y"):
         ref, got = reference[d].samples, parallel[d].samples
@@ -69,3 +79,24 @@ def test_two_workers_give_the_samples_of_one_generator_used_in_turn(two_directio
     assert not np.allclose(parallel["x"].samples - parallel["x"].smoothed,
                            parallel["y"].samples - parallel["y"].smoothed, rtol=1e-3)
     assert fractions and fractions == sorted(fractions) and fractions[-1] == pytest.approx(1.0)
+
+
+def test_cli_two_directions_in_two_workers(two_directions, parallel, tmp_path, capsys):
+    """The command runs both directions in workers and writes both; its samples are the library's."""
+    out = tmp_path / "out"
+    code = main(["spindle", str(two_directions.path), "--out", str(out), "--samples", str(N_SAMPLES),
+                 "--seed", str(SEED), "--max-modes", str(MAX_MODES), "--no-plots"])
+    assert code == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["spindle_files"] == {"x": "spindle_x.csv", "y": "spindle_y.csv"}
+    assert "2 worker processes" in captured.err
+    samples = load_spindle_samples(out / "spindle_samples.npz")
+    for d in ("x", "y"):  # both from single-threaded workers: bit-identical
+        assert np.array_equal(samples.samples[d], parallel[0][d].samples)
+
+
+def test_cli_refuses_zero_workers(two_directions, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["spindle", str(two_directions.path), "--out", str(out), "--workers", "0", "--quiet"]) == 2
+    assert "--workers 0" in capsys.readouterr().err
+    assert not out.exists()
