@@ -11,7 +11,9 @@ ARTIFACT --samples 50`` on the synthetic artifact tests (both directions,
 budget 60 s), timed in a subprocess for the current tree and for the tree
 before issue 13 (commit ``OLD_COMMIT``, exported with ``git archive``), with
 the largest relative difference of their bootstrap samples (the speed-up must
-not change results).  ``--skip-old`` leaves the old run out.
+not change results).  The current tree runs with the default two worker
+processes and with ``--workers 1`` (whose samples must be identical).  The
+CPU times include the worker processes.  ``--skip-old`` leaves the old run out.
 Run: ``python benchmarks/spindle.py [--samples 50] [--skip-old]``.
 """
 
