@@ -155,7 +155,7 @@ def test_cli_writes_spindle_files_samples_and_plots(small_campaign, tmp_path, ca
 
     path = _edited(small_campaign, tmp_path, options)
     out = tmp_path / "out"
-    code = main(["spindle", path, "--out", str(out), "--samples", "2", "--quiet"])
+    code = main(["spindle", path, "--out", str(out), "--samples", "2", "--quiet", "--json"])
     assert code == 0
     printed = json.loads(capsys.readouterr().out)
     assert printed["spindle_files"] == {"x": "spindle_x.csv"}

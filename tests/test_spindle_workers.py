@@ -85,7 +85,7 @@ def test_cli_two_directions_in_two_workers(two_directions, parallel, tmp_path, c
     """The command runs both directions in workers and writes both; its samples are the library's."""
     out = tmp_path / "out"
     code = main(["spindle", str(two_directions.path), "--out", str(out), "--samples", str(N_SAMPLES),
-                 "--seed", str(SEED), "--max-modes", str(MAX_MODES), "--no-plots"])
+                 "--seed", str(SEED), "--max-modes", str(MAX_MODES), "--no-plots", "--json"])
     assert code == 0
     captured = capsys.readouterr()
     assert json.loads(captured.out)["spindle_files"] == {"x": "spindle_x.csv", "y": "spindle_y.csv"}

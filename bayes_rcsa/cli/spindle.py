@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
+
+from ._common import Summary, add_force_argument, check_output_directory, nonnegative_int
 
 __all__ = ["register", "run"]
 
@@ -28,16 +29,6 @@ spindle_summary.json and the plots spindle_<d>.png, artifact_<d>.png.  See docs/
 """
 
 
-def _nonnegative_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected an integer >= 0") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected an integer >= 0")
-    return v
-
-
 def _directions(text: str) -> tuple[str, ...]:
     vals = tuple(v.strip() for v in text.split(",") if v.strip())
     if not vals or any(v not in ("x", "y") for v in vals) or len(set(vals)) != len(vals):
@@ -54,25 +45,26 @@ def register(subparsers) -> None:
     )
     p.add_argument("artifact", type=Path, metavar="ARTIFACT", help="artifact file (TOML), see docs/spindle.md")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
-    p.add_argument("--samples", type=_nonnegative_int, default=50, metavar="N",
+    p.add_argument("--samples", type=nonnegative_int, default=50, metavar="N",
                    help="bootstrap samples of the flange receptance (0: none; default 50).  CPU cost per direction, "
                    "about 4000 lines: about 7 s for the fit, 8 s more for the bootstrap start fits, then "
                    "about 0.5 s per sample (about 40 s per direction at the default; the directions run in "
                    "parallel, see --workers); the estimate and a progress bar are printed on stderr")
     p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (default 0)")
-    p.add_argument("--workers", type=_nonnegative_int, default=2, metavar="N",
+    p.add_argument("--workers", type=nonnegative_int, default=2, metavar="N",
                    help="worker processes, one direction each (default 2; 1: run in this process).  The samples "
                    "do not depend on it")
-    p.add_argument("--max-modes", type=_nonnegative_int, default=None, metavar="N",
+    p.add_argument("--max-modes", type=nonnegative_int, default=None, metavar="N",
                    help="largest mode count tried by the modal smoothing (default: [fit] max_modes or 8)")
     p.add_argument("--directions", type=_directions, default=None, metavar="x,y",
                    help="directions to identify (default: all measured)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress output on stderr")
+    add_force_argument(p)
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args) -> Summary:
     from ..errors import SetupError
     from ..spindle.artifact import load_artifact
     from ..spindle.identification import estimated_cpu_seconds, identify_directions
@@ -90,6 +82,10 @@ def run(args) -> int:
                          f"{sorted(setup.measurements)}")
     if args.workers < 1:
         raise SetupError(f"--workers {args.workers}: expected an integer >= 1")
+    from ..io.atomic import directory_is_empty, directory_lock
+
+    if not args.force and not directory_is_empty(args.out):
+        check_output_directory(args.out)  # refused before the identification runs (checked again under the lock)
     workers = min(args.workers, len(directions))
     bar = None
     if not args.quiet:
@@ -108,12 +104,14 @@ def run(args) -> int:
     finally:
         if bar is not None:
             bar.close()
-    summary = write_outputs(setup, results, args.out, plots=not args.no_plots, seed=args.seed)
+    with directory_lock(args.out):
+        check_output_directory(args.out, args.force)
+        summary = write_outputs(setup, results, args.out, plots=not args.no_plots, seed=args.seed)
     if not args.quiet:
         for d, s in summary["directions"].items():
             bands = ", ".join(f"{lo:g}-{hi:g} Hz" for lo, hi in s["unreliable_bands_hz"]) or "none"
             print(f"spindle: {d}: {s['modal_model']['n_modes']} modes, reduced chi2 {s['reduced_chi2']:.3g}, "
                   f"unreliable bands: {bands}", file=sys.stderr)
-    print(json.dumps({"out": str(args.out), "spindle_files": {d: f"spindle_{d}.csv" for d in results},
-                      "samples": summary["samples_file"]}))
-    return 0
+    files = {d: f"spindle_{d}.csv" for d in results}
+    return Summary(f"wrote {', '.join(files.values())} and {summary['samples_file']} in {args.out}",
+                   {"out": str(args.out), "spindle_files": files, "samples": summary["samples_file"]})
