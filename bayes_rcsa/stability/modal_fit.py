@@ -200,16 +200,7 @@ def fit_modal_model(
         ub = np.tile([hi_bound, np.log(0.5), np.inf], r).tolist() + [np.inf]
         p0 = np.clip(p0, np.array(lb) + 1e-9, np.array(ub) - 1e-9)  # start strictly inside the box
 
-        def fun(p):
-            m, _ = _modes_and_jac(p, f)
-            d = m - gs
-            return np.concatenate([d.real, d.imag])
-
-        def jac(p):
-            _, J = _modes_and_jac(p, f)
-            return np.concatenate([J.real, J.imag])
-
-        sol = least_squares(fun, p0, jac=jac, bounds=(lb, ub), x_scale="jac", max_nfev=200)
+        sol = _least_squares_modes(f, gs, p0, lb, ub)
         rss = float(np.sum(sol.fun**2))
         bic = n_obs * np.log(max(rss, 1e-300) / n_obs) + (3 * r + 1) * np.log(n_obs)
         fits.append((sol.x, rss))
@@ -270,16 +261,7 @@ def refit_modal_model(frequency_hz, frf, start: ModalFit, source: str = "<frf>")
     lb = np.tile([lo_f, np.log(1e-4), -np.inf], r).tolist() + [-np.inf]
     ub = np.tile([hi_f, np.log(0.5), np.inf], r).tolist() + [np.inf]
 
-    def fun(p):
-        mm, _ = _modes_and_jac(p, f)
-        d = mm - gs
-        return np.concatenate([d.real, d.imag])
-
-    def jac(p):
-        _, J = _modes_and_jac(p, f)
-        return np.concatenate([J.real, J.imag])
-
-    sol = least_squares(fun, p0, jac=jac, bounds=(lb, ub), x_scale="jac", max_nfev=200)
+    sol = _least_squares_modes(f, gs, p0, lb, ub)
     p = sol.x
     rss = float(np.sum(sol.fun**2))
     n_obs = 2 * f.size
@@ -292,3 +274,18 @@ def refit_modal_model(frequency_hz, frf, start: ModalFit, source: str = "<frf>")
     bic = n_obs * np.log(max(rss, 1e-300) / n_obs) + (3 * r + 1) * np.log(n_obs)
     return ModalFit(model=ModalModel(fn[order], ze[order], kk[order]), residual_compliance=float(p[-1] * scale),
                     bic=np.array([bic]), rms_relative=float(np.sqrt(rss / f.size)))
+
+
+def _least_squares_modes(f, gs, p0, lb, ub):
+    """Bounded least squares of the scaled modal model against ``gs`` on the complex lines (re, im stacked)."""
+
+    def fun(p):
+        m, _ = _modes_and_jac(p, f)
+        d = m - gs
+        return np.concatenate([d.real, d.imag])
+
+    def jac(p):
+        _, J = _modes_and_jac(p, f)
+        return np.concatenate([J.real, J.imag])
+
+    return least_squares(fun, p0, jac=jac, bounds=(lb, ub), x_scale="jac", max_nfev=200)
