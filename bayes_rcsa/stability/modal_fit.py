@@ -169,10 +169,7 @@ def fit_modal_model(
     -------
     ModalFit
     """
-    f = np.asarray(frequency_hz, dtype=float)
-    g = np.asarray(frf, dtype=complex)
-    if f.ndim != 1 or g.shape != f.shape or f.size < 8:
-        raise DataError(f"{source}: need matching 1-D frequency and FRF arrays with >= 8 lines")
+    f, g = _checked_lines(frequency_hz, frf, source)
     if band is not None:
         keep = (f >= band[0]) & (f <= band[1])
         f, g = f[keep], g[keep]
@@ -242,10 +239,7 @@ def refit_modal_model(frequency_hz, frf, start: ModalFit, source: str = "<frf>")
     -------
     ModalFit
     """
-    f = np.asarray(frequency_hz, dtype=float)
-    g = np.asarray(frf, dtype=complex)
-    if f.ndim != 1 or g.shape != f.shape or f.size < 8:
-        raise DataError(f"{source}: need matching 1-D frequency and FRF arrays with >= 8 lines")
+    f, g = _checked_lines(frequency_hz, frf, source)
     scale = float(np.sqrt(np.mean(np.abs(g) ** 2)))
     if not np.isfinite(scale) or scale == 0:
         raise DataError(f"{source}: FRF is zero or not finite")
@@ -289,3 +283,12 @@ def _least_squares_modes(f, gs, p0, lb, ub):
         return np.concatenate([J.real, J.imag])
 
     return least_squares(fun, p0, jac=jac, bounds=(lb, ub), x_scale="jac", max_nfev=200)
+
+
+def _checked_lines(frequency_hz, frf, source: str):
+    """(f (n,) Hz, g (n,) complex m/N) after checking they are matching 1-D arrays of at least 8 lines."""
+    f = np.asarray(frequency_hz, dtype=float)
+    g = np.asarray(frf, dtype=complex)
+    if f.ndim != 1 or g.shape != f.shape or f.size < 8:
+        raise DataError(f"{source}: need matching 1-D frequency and FRF arrays with >= 8 lines")
+    return f, g
