@@ -2,22 +2,13 @@
 
 from __future__ import annotations
 
-import shutil
 
 import numpy as np
 import pytest
 
 from bayes_rcsa.cli.main import COMMANDS, build_parser, main
-from bayes_rcsa.data import example_dir
 from bayes_rcsa.io import load_setup, read_frf_csv
 from bayes_rcsa.model import Configuration
-
-
-@pytest.fixture()
-def example(tmp_path):
-    dst = tmp_path / "example"
-    shutil.copytree(example_dir(), dst)
-    return dst / "setup.toml"
 
 
 def test_every_subcommand_is_installed_and_has_help(capsys):

@@ -5,24 +5,15 @@ from __future__ import annotations
 import argparse
 import io
 import json
-import shutil
 import time
 
 import pytest
 
 from bayes_rcsa.cli._common import Summary
 from bayes_rcsa.cli.main import HELP_WIDTH, _run, build_parser, main
-from bayes_rcsa.data import example_dir
 from bayes_rcsa.io.progress import Heartbeat
 
 SIM = ["--clamping-length", "0.03", "--kx", "2e6", "--ktheta", "5e5", "--freq", "600,1200,5"]
-
-
-@pytest.fixture()
-def example(tmp_path):
-    dst = tmp_path / "example"
-    shutil.copytree(example_dir(), dst)
-    return dst / "setup.toml"
 
 
 def test_every_help_text_is_wrapped_to_the_help_width(capsys):
