@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> Summary:
         result = run_discrepancy(setup, options, progress=say)
         files = write_discrepancy(result, out, plots=not args.no_plots, overwrite=args.force)
     r = result.report
-    gap = f"gap {100 * r['gap_before']:.1f} % -> {100 * r['gap_after']:.1f} %"
+    gap = f"systematic gap {100 * r['gap_before']:.1f} % -> {100 * r['gap_after']:.1f} %"
     if r["named_effect"]:
         extra = f" (confounded with {', '.join(r['confounded_with'])})" if r["confounded_with"] else ""
         human = f"named {r['named_effect']}{extra}: {gap}; wrote {out}/discrepancy.json and setup.amended.toml"

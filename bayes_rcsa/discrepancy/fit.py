@@ -29,7 +29,7 @@ every variant is judged on the same effective number of independent lines.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -38,7 +38,8 @@ from ..inference.likelihood import residual_correlation_length
 from ..inference.posterior import LogPosterior
 from ..inference.problem import Problem
 
-__all__ = ["ModelFit", "fit_baseline", "fit_variant", "whitened_residuals", "profile_noise", "laplace_draws"]
+__all__ = ["ModelFit", "fit_baseline", "fit_variant", "whitened_residuals", "profile_noise", "laplace_draws",
+           "cluster_robust_covariance", "loewner_max", "with_robust_covariance"]
 
 
 @dataclass
@@ -316,3 +317,89 @@ def laplace_draws(fit: ModelFit, rng: np.random.Generator, n: int = 400) -> np.n
         if out.shape[0] >= n:
             return out[:n]
     return out  # the prior truncates most of the Laplace mass; callers see the short count
+
+
+# -- covariance under misspecification ---------------------------------------------
+
+
+def cluster_robust_covariance(fit: ModelFit) -> tuple[np.ndarray, int]:
+    """Cluster-robust ("sandwich") covariance of the physical coordinates, one cluster per measurement.
+
+    With ``z`` the whitened residuals (``ln L = -sum z^2``), ``J = dz/dtheta``,
+    ``H = 2 J^T J + P`` (``P`` the prior precision used by the Laplace
+    approximation) and ``s_g = -2 J_g^T z_g`` the score of measurement ``g``::
+
+        V = H^-1 [G / (G - 1) sum_g s_g s_g^T] H^-1
+
+    (Liang & Zeger 1986, with the usual small-sample factor).  Under an
+    adequate model with white noise ``E[s_g s_g^T] = 2 J_g^T J_g`` and ``V``
+    is the untempered Laplace covariance.  Under misspecification the
+    systematic misfit of each measurement pulls the parameters its own way;
+    ``V`` then treats each measurement's misfit as *one* draw of the model
+    error rather than as many independent lines, which is what keeps the
+    intervals honest when the residual is a deterministic pattern (a missing
+    resonance) instead of noise.
+
+    Returns
+    -------
+    V : (d, d) covariance over ``fit.physical`` (sampling coordinates)
+    n_clusters : int
+        ``G``; with ``G < 2`` ``V`` is the Laplace covariance untouched.
+    """
+    prob = fit.problem
+    cols = fit.physical
+    slices = prob.likelihood.stack.slices
+    if len(slices) < 2:
+        return fit.cov, len(slices)
+    lo, hi = _bounds(prob, cols)
+    step = 1e-6 * (hi - lo)
+    h = np.where(fit.theta[cols] + step > hi, -step, step)
+    z, jac = _jacobian(prob, fit.theta, cols, h)  # (2 n_lines,), (2 n_lines, d): re/im interleaved
+    hess = 2.0 * jac.T @ jac
+    for k, g in enumerate(_gaussian_prior_terms(prob, cols)):
+        hess[k, k] += g[1] ** 2 if g is not None else 2 * math.pi / (hi[k] - lo[k]) ** 2
+    scores = np.array([-2.0 * jac[2 * sl.start : 2 * sl.stop].T @ z[2 * sl.start : 2 * sl.stop] for sl in slices])
+    n = len(slices)
+    meat = n / (n - 1) * scores.T @ scores
+    bread = np.linalg.inv(0.5 * (hess + hess.T))
+    v = bread @ meat @ bread
+    return 0.5 * (v + v.T), n
+
+
+def loewner_max(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The covariance that is at least ``a`` and at least ``b`` along every direction of ``a``'s eigenframe.
+
+    ``a = L L^T``; in the whitened frame ``M = L^-1 b L^-T`` the eigenvalues
+    are raised to at least 1, so the result contains the ellipsoids of both
+    (it equals ``a`` when ``b <= a`` and ``b`` when ``b >= a``).
+
+    Parameters
+    ----------
+    a : (d, d) positive definite
+    b : (d, d) positive semi-definite
+    """
+    l = np.linalg.cholesky(a)
+    li = np.linalg.inv(l)
+    m = li @ b @ li.T
+    w, v = np.linalg.eigh(0.5 * (m + m.T))
+    out = l @ (v * np.maximum(w, 1.0)) @ v.T @ l.T
+    return 0.5 * (out + out.T)
+
+
+def with_robust_covariance(fit: ModelFit) -> ModelFit:
+    """``fit`` with its covariance widened to the cluster-robust one where that is wider.
+
+    The tempered Laplace covariance accounts for the residual's correlation
+    over ``tau_r`` lines; the cluster-robust one for a misfit that is
+    systematic over a whole measurement.  The larger of the two (in the sense
+    of :func:`loewner_max`) is kept, and ``notes`` says by how much the
+    largest standard deviation grew.
+    """
+    v, n = cluster_robust_covariance(fit)
+    if n < 2:
+        return fit
+    cov = loewner_max(fit.cov, v)
+    growth = float(np.max(np.sqrt(np.diag(cov) / np.diag(fit.cov))))
+    note = (f"covariance: the larger of the tempered Laplace and the cluster-robust (one cluster per measurement, "
+            f"{n} clusters) covariance; largest standard deviation x{growth:.2f}")
+    return replace(fit, cov=cov, notes=[*fit.notes, note])

@@ -42,7 +42,7 @@ from .fit import ModelFit, fit_variant
 from .screen import ScoreResult, embed_baseline
 
 __all__ = ["LN_BF_NAME", "LN_BF_CONFOUNDED", "MIN_GAP_REDUCTION", "Refit", "refit_candidate", "decide", "edge_parameters",
-           "separating_test", "gap"]
+           "separating_test", "gap", "systematic_gap", "GAP_LAGS"]
 
 LN_BF_NAME = math.log(100.0)
 LN_BF_CONFOUNDED = math.log(10.0)
@@ -60,6 +60,63 @@ def gap(measured: np.ndarray, predicted: np.ndarray) -> float:
     alone gives about its relative level (0.02 on the bench).
     """
     return float(np.sqrt(np.sum(np.abs(predicted - measured) ** 2) / np.sum(np.abs(measured) ** 2)))
+
+
+#: Lags (lines) of the residual autocovariance that estimate the systematic gap (see :func:`systematic_gap`).
+GAP_LAGS = 3
+
+
+def systematic_gap(measured, predicted, lags: int = GAP_LAGS) -> dict:
+    """The part of the model-measurement gap that is not measurement noise.
+
+    The residual ``r_n = H_model - H_meas`` on the band lines of one
+    measurement is a systematic part ``s_n`` (what the model misses: smooth
+    over many lines) plus noise ``e_n``, white over lines.  Because the noise
+    of different lines is independent, the lag-``k`` autocovariance
+    ``Re sum_n r_n conj(r_{n+k})`` estimates ``sum_n |s_n|^2`` without the
+    noise power, whatever its level (no noise model is needed, and none is
+    fitted to the same residual).  Averaged over lags 1..``lags`` and over
+    measurements (lags never cross a measurement), relative to the power of
+    the measurements::
+
+        gap^2 = sum_meas mean_k [N/(N-k) Re sum_n r_n conj(r_{n+k})] / sum |H_meas|^2
+
+    The estimate of ``gap^2`` can come out negative when the systematic part
+    is below the noise's fluctuation; ``gap`` is then reported as 0 with
+    ``at_noise_floor`` set and ``resolution`` (two standard errors of the
+    estimate, in gap units) saying how small a gap could be told from noise.
+    The lags average out a systematic part that changes sign within a few
+    lines (a peak shifted by much less than its half-power width); on the
+    synthetic bench the estimate tracks the gap to the noise-free truth to
+    within 0.002 (tests).
+
+    Parameters
+    ----------
+    measured, predicted : sequences of (n_lines_j,) complex, one per measurement
+
+    Returns
+    -------
+    dict with ``gap`` (float >= 0), ``squared`` (the signed estimate of gap^2),
+    ``resolution`` (float), ``at_noise_floor`` (bool), ``raw`` (RMS relative
+    residual including the noise, :func:`gap`).
+    """
+    num = var = den = raw = 0.0
+    for y, h in zip(measured, predicted):
+        r = np.asarray(h) - np.asarray(y)
+        n = r.size
+        ks = [k for k in range(1, lags + 1) if k < n]
+        if ks:
+            prods = [(r[:-k] * np.conj(r[k:])).real for k in ks]
+            num += float(np.mean([p.sum() * n / (n - k) for p, k in zip(prods, ks)]))
+            # products at different (n, k) are nearly uncorrelated under white noise: var ~ sum |r_n|^2 |r_n+k|^2 / 2
+            a2 = np.abs(r) ** 2
+            var += float(sum(np.sum(a2[:-k] * a2[k:]) / 2 for k in ks)) / len(ks) ** 2
+        den += float(np.sum(np.abs(y) ** 2))
+        raw += float(np.sum(np.abs(r) ** 2))
+    sq = num / den
+    resolution = math.sqrt(2.0 * math.sqrt(var) / den)
+    return {"gap": math.sqrt(sq) if sq > 0 else 0.0, "squared": sq, "resolution": resolution,
+            "at_noise_floor": bool(sq < resolution**2), "raw": math.sqrt(raw / den)}
 
 
 @dataclass
