@@ -230,27 +230,6 @@ def test_extra_mode_matches_the_bench_and_is_passive_and_reciprocal(tmp_path_fac
     assert np.all(_passive(out[1]) <= 1e-12 * scale)
 
 
-def test_spindle_rotation_term_is_passive_reciprocal_and_closes_the_gap(tmp_path_factory):
-    cfg, model = _campaign(tmp_path_factory, "rot", {"spindle_rotation_omitted": 1.0})
-    configs = [Configuration(l, "x") for l in (0.025, 0.040)]
-    truth = _truth(cfg, configs)
-    term = make_term("spindle_rotation_omitted")
-    rho, lever = np.meshgrid(np.linspace(0.0, 1.0, 6), np.geomspace(0.02, 0.5, 9))
-    v = {"rotation_restored": rho.ravel(), "rotation_lever_m": lever.ravel()}
-    h = reference_frf(model, cfg, configs, term, v, n_sets=rho.size)
-    err = np.array([[_rel(h[i, j], truth[j]) for j in range(len(configs))] for i in range(rho.size)]).mean(axis=1)
-    base = err[rho.ravel() == 0][0]
-    # A translational-only file cannot be reconstructed exactly (the true p has its own anti-resonances;
-    # even the true p alone, with l still missing, only halves the gap).  The one-lever rocking model
-    # closes 28 % of it on this grid (measured); require a clear 20 %.
-    assert err.min() < 0.8 * base
-    ctx = _context(model, configs)
-    s = model.spindle_receptance("x").interpolate(np.tile(FREQ, 2))[None]
-    out = term.spindle({"rotation_restored": np.array([1.0, 0.3]), "rotation_lever_m": np.array([0.05, 0.2])}, s, ctx)
-    assert np.array_equal(out[..., 0, 1], out[..., 1, 0])
-    assert np.all(_passive(out) <= 1e-12 * np.abs(out).max())
-
-
 def test_spindle_error_moves_the_file_towards_the_true_spindle(tmp_path_factory):
     from scipy.optimize import least_squares
 
