@@ -17,6 +17,7 @@ import pytest
 
 from bayes_rcsa.cli import main as cli_main
 from bayes_rcsa.discrepancy import DiscrepancyOptions, run_discrepancy, write_discrepancy
+from bayes_rcsa.discrepancy.workflow import summary_markdown
 from bayes_rcsa.discrepancy.detect import compare_peaks, length_trend, standardised_residuals, systematic_bands
 from bayes_rcsa.io.setup import load_setup
 from bayes_rcsa.synthetic import default_bench_config, generate_campaign, write_campaign
@@ -51,6 +52,8 @@ def test_hidden_effect_is_named_and_the_gap_halves(tmp_path_factory, effect):
     assert r["adequate"] is False
     assert r["named_effect"] == effect or effect in r["confounded_with"]
     assert r["gap_after"] <= 0.5 * r["gap_before"]
+    # the systematic gap excludes the bench's 2 % noise, which the raw gap keeps
+    assert r["gap_raw_after"] > max(r["gap_after"], 0.015)
     assert r["candidates"][0]["effect"] == r["named_effect"]
     assert r["candidates"][0]["criterion"] > np.log(100)
     # the held-out lengths (30, 35 mm) are reported too
@@ -186,9 +189,98 @@ def test_unexplained_effect_gets_the_statistical_discrepancy_and_wider_intervals
     r = res.report
     assert r["adequate"] is False and r["named_effect"] is None
     assert r["final_model"] == "statistical_discrepancy"
+    # the remainder: smooth FRF discrepancy, and the law's shape between 25 and 40 mm marginalised
+    assert r["final_terms"] == ["statistical_discrepancy", "nonlinear_stiffness_law"]
     width = lambda q: q["q95"] - q["q05"]  # noqa: E731
     for length in ("25", "40"):
         assert width(r["stiffness_after"]["k_xf"][length]) > width(r["stiffness_before"]["k_xf"][length])
+    # Honest intervals (reduced version of benchmarks/discrepancy.py --coverage, 10/10 + 10/10 there):
+    # the truth is inside the 90 % intervals of k_xf at a fitted length and of the tool mode at the
+    # unmeasured 30 mm, which the baseline's intervals both miss at this seed.
+    from bayes_rcsa.model.assembly import Configuration
+    from bayes_rcsa.model.natural_frequencies import natural_frequency
+    from bayes_rcsa.synthetic import true_tool_point_frf
+
+    cfg = default_bench_config(hidden_effects={"extra_mode": True})
+    f = np.arange(cfg.frequency_start, cfg.frequency_stop + 1e-9, cfg.frequency_step)
+    f30 = float(natural_frequency(f, true_tool_point_frf(cfg, Configuration(0.030, "x"), f)))
+
+    def f_interval(measurements):
+        return next(m for m in measurements if abs(m["clamping_length"] - 0.030) < 1e-9
+                    and m["direction"] == "x")["predicted_hz_interval"]
+
+    inside = lambda q, v: q["q05"] <= v <= q["q95"]  # noqa: E731
+    assert not inside(f_interval(r["measurements_before"]), f30)
+    assert inside(f_interval(r["measurements_after"]), f30)
+    assert inside(r["stiffness_after"]["k_xf"]["25"], cfg.k_xf)
+    assert "cluster-robust" in r["interval_notes"][-1]
+
+
+def test_a_partial_explanation_is_not_named(tmp_path_factory):
+    # Three fitted lengths and a flange resonance outside the library: the saturating stiffness law bends
+    # the length trend and wins the criterion decisively, but removes only about a third of the systematic
+    # misfit on the fitted lines (measured 33 %) while the gap at the held-out length grows.  Naming it
+    # would be confidently wrong at 30 mm; it is reported as a partial explanation instead.
+    path, cfg = _campaign(tmp_path_factory, {"extra_mode": True}, 200)
+    res = run_discrepancy(load_setup(path), DiscrepancyOptions(lengths=(0.025, 0.035, 0.040), seed=0,
+                                                               candidates=("nonlinear_stiffness_law",), n_refit=1,
+                                                               leave_one_out=False))
+    r = res.report
+    assert r["named_effect"] is None and r["adequate"] is False
+    (part,) = r["partially_explained_by"]
+    assert part["effect"] == "nonlinear_stiffness_law" and part["criterion"] > np.log(100)
+    assert 0.5 < part["systematic_gap_ratio"] < 1.0
+    assert "part of the explanation" in summary_markdown(r)
+
+
+def test_systematic_gap_excludes_white_noise_and_tracks_the_noise_free_gap():
+    from bayes_rcsa.discrepancy.select import systematic_gap
+
+    f = np.arange(500.0, 3500.0, 2.0)
+    # a bench-like tool mode (half-power width 60 Hz = 30 lines) shifted by 0.15 %, and a 1 % gain error
+    h_true = np.stack([_sdof(f, 1000.0, 0.03), _sdof(f, 1400.0, 0.02)])
+    h_model = np.stack([_sdof(f, 1001.5, 0.0305), h_true[1] * 1.01])
+    rng = np.random.default_rng(7)
+    est, truth, raw = [], [], []
+    for _ in range(40):
+        sigma = 0.02 * np.abs(h_true)  # the bench's noise model: 2 % of |H|, white over lines
+        y = h_true + sigma * (rng.standard_normal(h_true.shape) + 1j * rng.standard_normal(h_true.shape)) / np.sqrt(2)
+        g = systematic_gap(list(y), list(h_model))
+        est.append(g["gap"])
+        raw.append(g["raw"])
+        # reference: the gap to the noise-free truth, written directly
+        truth.append(np.sqrt(np.sum(np.abs(h_model - h_true) ** 2) / np.sum(np.abs(y) ** 2)))
+    est, truth, raw = map(np.array, (est, truth, raw))
+    # the noise (2 %) is comparable with the systematic gap; the estimate is unbiased to 5 % of it and
+    # its scatter over noise draws is below 10 %, while the raw gap is inflated.  (A residual that changes
+    # sign within a few lines is underestimated: a 0.4 % shift of a mode with zeta = 0.01, 10 lines wide,
+    # by 11 %; documented in docs/discrepancy.md.)
+    assert abs(est.mean() / truth.mean() - 1) < 0.05
+    assert est.std() < 0.1 * truth.mean()
+    assert raw.mean() > 1.2 * truth.mean()
+    # pure noise (model = truth): at the noise floor in most draws, and never a sizeable gap
+    floor = [systematic_gap(list(h_true + 0.02 * np.abs(h_true) * (rng.standard_normal(h_true.shape)
+                                                                  + 1j * rng.standard_normal(h_true.shape)) / np.sqrt(2)),
+                            list(h_true)) for _ in range(40)]
+    # (the estimate of gap^2 fluctuates around 0 by about 2 % of the noise power: gaps up to ~0.15 x the
+    # 2 % noise level; measured max 0.0058 over 40 draws)
+    assert sum(g["at_noise_floor"] for g in floor) >= 30
+    assert max(g["gap"] for g in floor) < 0.4 * 0.02
+    assert all(g["raw"] > 0.015 for g in floor)
+
+
+def test_loewner_max_contains_both_covariances():
+    from bayes_rcsa.discrepancy.fit import loewner_max
+
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        m1, m2 = rng.standard_normal((2, 4, 4))
+        a, b = m1 @ m1.T + 0.1 * np.eye(4), m2 @ m2.T
+        c = loewner_max(a, b)
+        assert np.linalg.eigvalsh(c - a).min() > -1e-9 * np.abs(c).max()
+        assert np.linalg.eigvalsh(c - b).min() > -1e-9 * np.abs(c).max()
+    a = np.diag([4.0, 1.0])
+    assert np.allclose(loewner_max(a, 0.5 * a), a) and np.allclose(loewner_max(a, 2 * a), 2 * a)
 
 
 def test_statistical_discrepancy_absorbs_a_smooth_gain_but_not_a_resonance_shift():

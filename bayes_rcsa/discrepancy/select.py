@@ -34,7 +34,7 @@ Decision
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -42,7 +42,7 @@ from .fit import ModelFit, fit_variant
 from .screen import ScoreResult, embed_baseline
 
 __all__ = ["LN_BF_NAME", "LN_BF_CONFOUNDED", "MIN_GAP_REDUCTION", "Refit", "refit_candidate", "decide", "edge_parameters",
-           "separating_test", "gap", "systematic_gap", "GAP_LAGS"]
+           "separating_test", "gap", "systematic_gap", "fitted_systematic_gap", "GAP_LAGS", "MIN_SYSTEMATIC_REDUCTION"]
 
 LN_BF_NAME = math.log(100.0)
 LN_BF_CONFOUNDED = math.log(10.0)
@@ -51,6 +51,12 @@ LN_BF_CONFOUNDED = math.log(10.0)
 #: gap of 0.023 against 0.020 from noise alone, and its correct term removes most of the excess but only
 #: 9 % of the gap; the whitened-residual criterion already measures the misfit reduction.)
 MIN_GAP_REDUCTION = 0.0
+#: Fraction of the fitted lines' *systematic* gap (:func:`systematic_gap`, noise excluded) a named effect must
+#: remove.  An effect that explains less than half of the systematic disagreement is at most part of it: it is
+#: reported as a partial explanation and the remainder is handled as unexplained.  (On the bench the correct
+#: terms remove 70-99 %; with an effect outside the library and three clamping lengths the saturating law
+#: removed 33 % on the fitted lines while the gap at the held-out length grew.)
+MIN_SYSTEMATIC_REDUCTION = 0.5
 
 
 def gap(measured: np.ndarray, predicted: np.ndarray) -> float:
@@ -128,6 +134,7 @@ class Refit:
     fit: ModelFit
     criterion: float
     gap: float
+    systematic: dict = field(default_factory=dict)
 
 
 def _quantile_starts(problem, theta0: np.ndarray, effect: str, qs=(0.2, 0.5, 0.8)) -> list[np.ndarray]:
@@ -151,7 +158,14 @@ def refit_candidate(baseline: ModelFit, problem, score: ScoreResult) -> Refit:
     fit = fit_variant(score.effect, problem, np.array(starts), baseline.tempering, n_polish=3)
     crit = fit.log_evidence - baseline.log_evidence
     lik = problem.likelihood
-    return Refit(score.effect, score, fit, float(crit), gap(lik.data, fit.model_frf()))
+    return Refit(score.effect, score, fit, float(crit), gap(lik.data, fit.model_frf()), fitted_systematic_gap(fit))
+
+
+def fitted_systematic_gap(fit: ModelFit) -> dict:
+    """:func:`systematic_gap` of a fit on its fitted band lines (lags within each measurement)."""
+    lik = fit.problem.likelihood
+    h = fit.model_frf()
+    return systematic_gap([lik.data[sl] for sl in lik.stack.slices], [h[sl] for sl in lik.stack.slices])
 
 
 def edge_parameters(fit: ModelFit, effect: str, rel: float = 0.01) -> list[str]:
@@ -187,23 +201,40 @@ def edge_parameters(fit: ModelFit, effect: str, rel: float = 0.01) -> list[str]:
     return out
 
 
-def decide(refits: list[Refit], gap_before: float) -> dict:
-    """Winner, runner-up, margin and confounded candidates (see the module docstring)."""
+def decide(refits: list[Refit], gap_before: float, systematic_before: dict | None = None) -> dict:
+    """Winner, runner-up, margin, confounded and partial candidates (see the module docstring).
+
+    Parameters
+    ----------
+    refits : the refitted candidates
+    gap_before : the baseline's raw gap on the fitted lines (:func:`gap`)
+    systematic_before : the baseline's :func:`systematic_gap` on the fitted lines, or None to skip the
+        :data:`MIN_SYSTEMATIC_REDUCTION` rule (also skipped when that gap is at the noise floor: there is
+        nothing systematic to halve, and the criterion alone decides)
+    """
     ranked = sorted(refits, key=lambda r: -r.criterion)
     edges = {r.effect: edge_parameters(r.fit, r.effect) for r in ranked}
-    supported = [r for r in ranked if r.criterion > LN_BF_NAME and r.gap <= (1 - MIN_GAP_REDUCTION) * gap_before
-                 and not edges[r.effect]]
+    check = systematic_before is not None and not systematic_before["at_noise_floor"] and systematic_before["gap"] > 0
+
+    def ratio(r: Refit) -> float | None:
+        return r.systematic["gap"] / systematic_before["gap"] if check and r.systematic else None
+
+    decisive = [r for r in ranked if r.criterion > LN_BF_NAME and r.gap <= (1 - MIN_GAP_REDUCTION) * gap_before
+                and not edges[r.effect]]
+    supported = [r for r in decisive if ratio(r) is None or ratio(r) <= 1 - MIN_SYSTEMATIC_REDUCTION]
+    partial = [{"effect": r.effect, "criterion": r.criterion, "systematic_gap_ratio": ratio(r)}
+               for r in decisive if r not in supported]
     if not supported:
         best = ranked[0] if ranked else None
         return {"named": None, "runner_up": best.effect if best else None,
-                "margin": None, "confounded_with": [], "ranked": ranked, "edge_parameters": edges}
+                "margin": None, "confounded_with": [], "ranked": ranked, "edge_parameters": edges, "partial": partial}
     win = supported[0]
     others = [r for r in ranked if r is not win]
     runner = others[0] if others else None
     confounded = [r.effect for r in supported[1:] if win.criterion - r.criterion < LN_BF_CONFOUNDED]
     return {"named": win.effect, "runner_up": runner.effect if runner else None,
             "margin": (win.criterion - runner.criterion) if runner else None,
-            "confounded_with": confounded, "ranked": ranked, "edge_parameters": edges}
+            "confounded_with": confounded, "ranked": ranked, "edge_parameters": edges, "partial": partial}
 
 
 #: What separates two kinds of explanation (by the kinds of the two terms).

@@ -42,7 +42,8 @@ from ..params.terms import get_term, known_terms
 from .detect import Detection, detect_from_fit
 from .fit import ModelFit, fit_baseline, fit_variant, laplace_draws, with_robust_covariance
 from .screen import ScoreResult, embed_baseline, score_test
-from .select import GAP_LAGS, Refit, decide, gap, refit_candidate, separating_test, systematic_gap
+from .select import (GAP_LAGS, Refit, decide, fitted_systematic_gap, gap, refit_candidate, separating_test,
+                     systematic_gap)
 
 __all__ = ["DiscrepancyOptions", "DiscrepancyResult", "run_discrepancy", "write_discrepancy", "validate",
            "default_candidates", "remainder_terms", "REMAINDER_TERMS", "GAP_METRIC", "MIN_LINES_PER_PARAMETER"]
@@ -328,7 +329,7 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
 
     t0 = time.perf_counter()
     gap_fit = gap(problem.likelihood.data, baseline.model_frf())
-    decision = decide(refits, gap_fit)
+    decision = decide(refits, gap_fit, fitted_systematic_gap(baseline))
     if decision["named"] is not None and detection.adequate:
         # a decisive improvement by a physical term is itself evidence against the baseline
         win = next(r for r in refits if r.effect == decision["named"])
@@ -378,7 +379,8 @@ def build_report(res: DiscrepancyResult) -> dict:
         cands.append({"effect": r.effect, "score": r.score.statistic, "criterion": r.criterion,
                       "parameters": {n: _quantiles(vals[n]) for n in pm.names if pm[n].term == r.effect},
                       "parameters_on_prior_edge": dec["edge_parameters"].get(r.effect, []),
-                      "gap_fitted_lines": r.gap, "score_p_value": r.score.p_value, "description": get_term(r.effect).description})
+                      "gap_fitted_lines": r.gap, "systematic_gap_fitted_lines": r.systematic.get("gap"),
+                      "score_p_value": r.score.p_value, "description": get_term(r.effect).description})
     for s in res.scores:  # screened but not refitted: score only
         if s.effect not in by_effect:
             cands.append({"effect": s.effect, "score": s.statistic, "criterion": None, "parameters": {},
@@ -406,13 +408,14 @@ def build_report(res: DiscrepancyResult) -> dict:
         "final_model": res.final_label,
         "final_terms": [n for n in _term_names(res.final) if n not in _term_names(res.baseline)],
         "interval_notes": list(res.final.notes),
+        "partially_explained_by": dec.get("partial", []),
         "runner_up": dec["runner_up"],
         "margin": dec["margin"],
         "separating_test": {c: separating_test(named, c) for c in dec["confounded_with"]} if named else {},
         "detection": res.detection.as_dict(),
         "tempering": res.baseline.tempering,
         "criterion": "Laplace log evidence of the tempered posterior minus the baseline's (beta = 1/tau_r of the "
-                     "baseline); named when > ln 100, the fitted-line gap does not grow and no parameter of the term sits on a prior bound other than its baseline",
+                     "baseline); named when > ln 100, the fitted-line gap does not grow, the term removes at least half of the fitted lines' systematic gap and no parameter of the term sits on a prior bound other than its baseline",
         "measurements_before": b["measurements"],
         "measurements_after": a["measurements"],
         "final_parameters": a["term_parameters"],
@@ -474,6 +477,10 @@ def summary_markdown(report: dict) -> str:
                      "A statistical discrepancy term was added so that the stiffness and frequency intervals "
                      "are wider and stay honest. Reasons:")
         lines += [f"- {r}" for r in report["detection"]["reasons"]]
+        for part in report.get("partially_explained_by", []):
+            ratio = part["systematic_gap_ratio"]
+            lines.append(f"- `{part['effect']}` improves the fit decisively but removes only "
+                         f"{100 * (1 - ratio):.0f} % of the systematic mismatch: at most part of the explanation")
         if "nonlinear_stiffness_law" in report.get("final_terms", []):
             lines += ["", "Because the model is not trusted, the stiffness law *between* the measured clamping "
                       "lengths is not trusted either: predictions at other clamping lengths carry every law shape "
