@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
+from bayes_rcsa.data import example_dir
 from bayes_rcsa.discrepancy import DiscrepancyOptions, run_discrepancy
 from bayes_rcsa.io.setup import load_setup
 from bayes_rcsa.model import Configuration, ConfigurationStack
@@ -23,16 +24,17 @@ from bayes_rcsa.synthetic import (
     default_bench_config, generate_campaign, true_spindle_receptance, true_tool_point_frf, write_campaign,
 )
 
-# On the file's 2 Hz grid (500-3500 Hz), around the dominant tool mode at 25-40 mm: the term's passivity
-# proof holds at the file's lines.
-FREQ = np.arange(600.0, 1500.0, 2.0)
+# The bench campaigns here use 4 Hz lines (half the default: the same physics at half the cost).  FREQ lies on
+# the file's grid (500-3500 Hz), where the term's passivity proof holds, around the dominant tool mode at 25-40 mm.
+STEP = 4.0
+FREQ = np.arange(600.0, 1500.0, STEP)
 PRIORS = {"k_xf": LogUniform(1e5, 1e9), "k_thetaM": LogUniform(1e3, 1e8), "g_xf": Uniform(0.0, 0.5),
           "g_thetaM": Uniform(0.0, 0.5)}
 
 
 @pytest.fixture(scope="module")
 def bench(tmp_path_factory):
-    cfg = default_bench_config(hidden_effects={"spindle_rotation_omitted": 1.0})
+    cfg = default_bench_config(hidden_effects={"spindle_rotation_omitted": 1.0}, frequency_step=STEP)
     path = write_campaign(generate_campaign(cfg, np.random.default_rng(0)), tmp_path_factory.mktemp("rot") / "c")
     return cfg, load_setup(path).model()
 
@@ -69,8 +71,8 @@ def test_modal_fit_finds_the_bench_spindle_modes(bench):
         true_h = true_spindle_receptance(cfg, direction, r.frequency_hz).block[:, 0, 0]
         peaks = _local_maxima(r.frequency_hz, np.abs(true_h))
         assert m.n_modes == peaks.size == 2, (direction, peaks)
-        # fitted within 0.3 % (measured 0.2 %: a viscous-damping pole against a 2 Hz line grid)
-        np.testing.assert_allclose(m.omega / (2 * np.pi), peaks, rtol=3e-3)
+        # within one line (a sampled peak is only known to a line; measured at most 1.5 Hz off)
+        np.testing.assert_allclose(m.omega / (2 * np.pi), peaks, rtol=0, atol=STEP)
         assert np.all(m.residue > 0) and np.all((m.zeta > 0) & (m.zeta < 0.1))
         # the modes + residuals reproduce the file's h (unweighted relative error, measured 4.4 %; the bench's
         # bearing dampers make its modes slightly complex, which real residues cannot follow exactly)
@@ -124,6 +126,25 @@ def test_term_is_passive_reciprocal_vectorised_and_matches_a_per_set_reference(b
     np.testing.assert_allclose(outb[2, :, 0, 1], out[2, :, 0, 1], rtol=1e-12)
 
 
+def test_on_a_file_that_already_has_rotation_passivity_is_violated_at_most_slightly():
+    """The documented limit: the guarantee is for translational-only files (the term's premise)."""
+    model = load_setup(example_dir() / "setup.toml").model()  # the bench spindle with its true l, n, p
+    r = model.spindle_receptance("x")
+    assert np.abs(r.block[:, 1, 1]).max() > 0
+    term = make_term("spindle_rotation_omitted")
+    names = _slopes(term, model)
+    f = r.frequency_hz
+    ctx = TermContext(model=model, configurations=(Configuration(0.03, "x"),), frequency_hz=f, omega=2 * np.pi * f,
+                      line_config=np.zeros(f.size, dtype=int), lengths=np.array([0.03]), l_a=0.025, l_b=0.040)
+    grid = np.array(np.meshgrid(*[np.linspace(-S_MAX, S_MAX, 11)] * len(names))).reshape(len(names), -1)
+    out = term.spindle(dict(zip(names, grid)), r.block[None], ctx)
+    im = (out - np.conj(np.swapaxes(out, -1, -2))) / 2j
+    ev = np.linalg.eigvalsh(im)
+    worst = (ev.max(axis=-1) / np.abs(ev).max(axis=-1)).max()
+    # measured 0.54 % of the line's largest eigenvalue over the whole prior (0 for a translational-only file)
+    assert 0 < worst < 0.01
+
+
 def _tool_point_gap(cfg, model, term, slopes_by_name):
     """Relative RMS tool-point error against the bench truth at 25 and 40 mm (x), contact at its true values."""
     lengths = (0.025, 0.040)
@@ -161,7 +182,7 @@ def test_oracle_slopes_reconstruct_the_true_rotation_and_close_the_tool_point_ga
     b = block(fit.x)
     err_l = np.linalg.norm(b[:, 0, 1] - l_true) / np.linalg.norm(l_true)
     err_p = np.linalg.norm(b[:, 1, 1] - p_true) / np.linalg.norm(p_true)
-    # measured 0.081 and 0.118 (600-1500 Hz): the rocking mode at 468 Hz (below the file, invisible in h) and the
+    # measured 0.081 and 0.119 (600-1500 Hz): the rocking mode at 468 Hz (below the file, invisible in h) and the
     # gamma scaling of the residues are what remains
     assert err_l < 0.12 and err_p < 0.16
     # the slope ratio of each mode is what the true receptances show near its resonance, Re(l/h) there
@@ -177,7 +198,7 @@ def test_oracle_slopes_reconstruct_the_true_rotation_and_close_the_tool_point_ga
 
 @pytest.mark.slow
 def test_workflow_names_the_omitted_rotation_and_halves_the_gap(tmp_path):
-    cfg = default_bench_config(hidden_effects={"spindle_rotation_omitted": True})
+    cfg = default_bench_config(hidden_effects={"spindle_rotation_omitted": True}, frequency_step=STEP)
     path = write_campaign(generate_campaign(cfg, np.random.default_rng(1)), tmp_path / "c")
     r = run_discrepancy(load_setup(path), DiscrepancyOptions(lengths=(0.025, 0.040), seed=1)).report
     assert r["named_effect"] == "spindle_rotation_omitted", [c["effect"] for c in r["candidates"]]

@@ -59,7 +59,12 @@ dampers make the modes slightly complex; a warning below
 slope ratios; between lines it inherits the linear interpolation of the
 file.  A file that already carries rotational receptances receives the
 modal block on top; its passivity is then not guaranteed by construction
-(the term exists for files without them).
+(the term exists for files without them): on the bench's complete spindle
+file the largest positive eigenvalue of ``Im S'`` over the whole prior is
+0.54 % of the line's largest eigenvalue magnitude.  (Requiring it would
+mean scaling by the Schur complement of the file's imaginary block, which is
+zero for a rank-one file such as a crude one-lever model: the term would be
+unable to correct exactly the files it is meant for.)
 
 Limits
 ------
@@ -310,6 +315,10 @@ class SpindleRotationOmitted(ModelTerm):
 
     def __init__(self) -> None:
         self._ctx_cache: tuple | None = None  # (ctx, per-line mode terms (n_lines, N))
+
+    def __getstate__(self) -> dict:
+        # the per-context cache holds the whole model: rebuilt on first use after unpickling
+        return {**self.__dict__, "_ctx_cache": None}
 
     def parameters(self, model) -> tuple[Parameter, ...]:
         modes = model_flange_modes(model)
