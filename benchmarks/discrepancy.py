@@ -16,10 +16,13 @@ Parts (choose with flags; default: timing and a small naming table):
     in docs/discrepancy.md.
 ``--coverage R``
     Honest intervals under misspecification: R replicated campaigns with
-    ``spindle_error`` (not excluded) and R with ``extra_mode`` excluded
-    from the candidates; 90 % coverage of k_xf at 25 mm and of the natural
-    frequency at the unmeasured 30 mm (x) after the workflow, with binomial
-    intervals.
+    ``spindle_error`` (not excluded), R with ``extra_mode`` excluded from
+    the candidates, and R of the latter with three fitted lengths; 90 %
+    coverage of k_xf at 25 mm and of the natural frequency at the unmeasured
+    30 mm (x) after the workflow (and of the baseline), with binomial
+    intervals and median interval widths; with ``--write-docs`` the table
+    replaces the block between ``<!-- coverage-table:begin -->`` and
+    ``<!-- coverage-table:end -->`` in docs/discrepancy.md.
 
 Run: ``OMP_NUM_THREADS=1 python benchmarks/discrepancy.py --timing 3 --seeds 3 --clean-seeds 10``.
 """
@@ -52,6 +55,15 @@ def campaign(effects: dict, seed: int, root: Path):
 
 def lengths_for(effect: str | None):
     return None if effect == "nonlinear_stiffness_law" else (0.025, 0.040)
+
+
+def replace_docs_block(marker: str, table: str) -> None:
+    """Replace the block between ``<!-- marker:begin -->`` and ``<!-- marker:end -->`` in docs/discrepancy.md."""
+    if not DOCS.exists():
+        return
+    block = f"<!-- {marker}:begin -->\n{table}\n<!-- {marker}:end -->"
+    text = re.sub(rf"<!-- {marker}:begin -->.*?<!-- {marker}:end -->", lambda m: block, DOCS.read_text(), flags=re.S)
+    DOCS.write_text(text)
 
 
 def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
@@ -113,36 +125,64 @@ def naming(seeds: int, clean_seeds: int, root: Path, write_docs: bool) -> str:
         f"| clean data (null expected) | {null}/{clean_seeds} null | [{nlo:.2f}, {nhi:.2f}] | | |",
     ])
     print(table)
-    if write_docs and DOCS.exists():
-        text = DOCS.read_text()
-        block = f"<!-- naming-table:begin -->\n{table}\n<!-- naming-table:end -->"
-        text = re.sub(r"<!-- naming-table:begin -->.*?<!-- naming-table:end -->", lambda m: block, text, flags=re.S)
-        DOCS.write_text(text)
+    if write_docs:
+        replace_docs_block("naming-table", table)
     return table
 
 
-def coverage(reps: int, root: Path) -> None:
-    from bayes_rcsa.synthetic import true_contact, true_tool_point_frf
+COVERAGE_CASES = (
+    # (label, hidden effect, candidates (None: all seven), fitted lengths)
+    ("`spindle_error` (0.15), all candidates", "spindle_error", None, (0.025, 0.040)),
+    ("`extra_mode` (0.2 kg), excluded from the candidates", "extra_mode", "exclude", (0.025, 0.040)),
+    ("`extra_mode` excluded, three fitted lengths (25, 35, 40 mm)", "extra_mode", "exclude", (0.025, 0.035, 0.040)),
+)
+
+
+def coverage(reps: int, root: Path, write_docs: bool) -> str:
+    from bayes_rcsa.synthetic import true_tool_point_frf
     from bayes_rcsa.model.assembly import Configuration
     from bayes_rcsa.model.natural_frequencies import natural_frequency
 
-    for effect, cands in (("spindle_error", None), ("extra_mode", tuple(e for e in EFFECTS if e != "extra_mode"))):
-        cover_k = cover_f = 0
+    rows = []
+    for label, effect, cands, lengths in COVERAGE_CASES:
+        cands = tuple(e for e in EFFECTS if e != effect) if cands == "exclude" else cands
+        cover_k = cover_f = cover_k0 = cover_f0 = 0
+        wk, wf, named = [], [], []
         for seed in range(reps):
             setup, cfg, _ = campaign({effect: True}, 200 + seed, root)
-            r = run_discrepancy(setup, DiscrepancyOptions(lengths=(0.025, 0.040), candidates=cands, seed=seed)).report
-            k = r["stiffness_after"]["k_xf"]["25"]
-            cover_k += k["q05"] <= cfg.k_xf <= k["q95"]
-            m = next(m for m in r["measurements_after"] if abs(m["clamping_length"] - 0.030) < 1e-9 and m["direction"] == "x")
+            r = run_discrepancy(setup, DiscrepancyOptions(lengths=lengths, candidates=cands, seed=seed)).report
             f = np.arange(cfg.frequency_start, cfg.frequency_stop + 1e-9, cfg.frequency_step)
             f_true = float(natural_frequency(f, true_tool_point_frf(cfg, Configuration(0.030, "x"), f)))
-            q = m["predicted_hz_interval"]
-            cover_f += q["q05"] <= f_true <= q["q95"]
-            print(f"{effect} seed {200 + seed}: named {r['named_effect']}, k_xf(25) [{k['q05']:.4g}, {k['q95']:.4g}] "
-                  f"truth {cfg.k_xf:.4g}; f(30 mm) [{q['q05']:.1f}, {q['q95']:.1f}] truth {f_true:.1f}", flush=True)
-        for what, c in (("k_xf(25 mm)", cover_k), ("f_n(30 mm, unmeasured)", cover_f)):
-            lo, hi = clopper_pearson(c, reps)
-            print(f"coverage {effect}{' (excluded)' if cands else ''} {what}: {c}/{reps} [{lo:.2f}, {hi:.2f}]")
+            inside = lambda q, v: q["q05"] <= v <= q["q95"]  # noqa: E731
+
+            def f30(ms):
+                return next(m for m in ms if abs(m["clamping_length"] - 0.030) < 1e-9 and m["direction"] == "x")["predicted_hz_interval"]
+
+            k, q = r["stiffness_after"]["k_xf"]["25"], f30(r["measurements_after"])
+            cover_k += inside(k, cfg.k_xf)
+            cover_f += inside(q, f_true)
+            cover_k0 += inside(r["stiffness_before"]["k_xf"]["25"], cfg.k_xf)
+            cover_f0 += inside(f30(r["measurements_before"]), f_true)
+            wk.append(100 * (k["q95"] - k["q05"]) / cfg.k_xf)
+            wf.append(q["q95"] - q["q05"])
+            named.append(str(r["named_effect"]))
+            print(f"{effect} seed {200 + seed} lengths {lengths}: named {r['named_effect']}, k_xf(25) "
+                  f"[{k['q05']:.4g}, {k['q95']:.4g}] truth {cfg.k_xf:.4g}; f(30 mm) [{q['q05']:.1f}, {q['q95']:.1f}] "
+                  f"truth {f_true:.1f}", flush=True)
+        (klo, khi), (flo, fhi) = clopper_pearson(cover_k, reps), clopper_pearson(cover_f, reps)
+        names = ", ".join(f"{n} {named.count(n)}" for n in dict.fromkeys(named))
+        rows.append(f"| {label} | {names} | {cover_k}/{reps} [{klo:.2f}, {khi:.2f}] | {cover_f}/{reps} [{flo:.2f}, {fhi:.2f}] "
+                    f"| {statistics.median(wk):.2f} % | {statistics.median(wf):.1f} Hz | {cover_k0}/{reps}, {cover_f0}/{reps} |")
+    table = "\n".join([
+        "| truth | named (count) | k_xf at 25 mm covered | natural frequency at 30 mm (unmeasured, x) covered "
+        "| median width k_xf | median width f | baseline covered (k, f) |",
+        "|---|---|---|---|---|---|---|",
+        *rows,
+    ])
+    print(table)
+    if write_docs:
+        replace_docs_block("coverage-table", table)
+    return table
 
 
 def main() -> None:
@@ -160,7 +200,7 @@ def main() -> None:
         if args.seeds or args.clean_seeds:
             naming(args.seeds, args.clean_seeds, root, args.write_docs)
         if args.coverage:
-            coverage(args.coverage, root)
+            coverage(args.coverage, root, args.write_docs)
 
 
 if __name__ == "__main__":
