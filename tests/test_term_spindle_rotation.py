@@ -84,6 +84,26 @@ def test_modal_fit_finds_the_bench_spindle_modes(bench):
         assert 0.7 < m.gamma <= 1.0
 
 
+def test_modal_fit_recovers_known_modes_and_falls_back_to_the_quasi_static_part():
+    from bayes_rcsa.model.receptance import PointReceptance
+
+    f = np.arange(500.0, 3500.0, STEP)
+    w = 2 * np.pi * f
+    modes = ((0.2, 700.0, 0.02), (0.1, 1500.0, 0.01), (0.05, 2800.0, 0.03))  # residue 1/kg, Hz, damping ratio
+    block = np.zeros((f.size, 2, 2), dtype=complex)
+    block[:, 0, 0] = sum(a / ((2 * np.pi * fr) ** 2 - w**2 + 2j * z * 2 * np.pi * fr * w) for a, fr, z in modes)
+    m = flange_modes(PointReceptance(f, block, "three modes"))
+    assert m.n_modes == 3
+    np.testing.assert_allclose(m.omega / (2 * np.pi), [fr for _, fr, _ in modes], rtol=1e-6)
+    np.testing.assert_allclose(m.zeta, [z for _, _, z in modes], rtol=1e-5)
+    np.testing.assert_allclose(m.residue, [a for a, _, _ in modes], rtol=1e-5)  # gamma = 1: an exact modal file
+    # no resonance in the file (a damped spring with a mass line): one slope on the quasi-static part, real
+    block[:, 0, 0] = 1e-8 * (1 - 0.01j) - 1e-3 / w**2
+    flat = flange_modes(PointReceptance(f, block, "no resonance"))
+    assert flat.n_modes == 0 and flat.mode_terms(w).shape == (f.size, 1)
+    np.testing.assert_allclose(flat.mode_terms(w)[:, 0], 1e-8 - 1e-3 / w**2, rtol=1e-6)
+
+
 def test_term_is_passive_reciprocal_vectorised_and_matches_a_per_set_reference(bench):
     _, model = bench
     term = make_term("spindle_rotation_omitted")
