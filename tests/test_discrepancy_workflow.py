@@ -233,6 +233,21 @@ def test_a_partial_explanation_is_not_named(tmp_path_factory):
     assert "part of the explanation" in summary_markdown(r)
 
 
+def test_a_final_fit_pressed_against_a_prior_bound_is_reported(tmp_path_factory):
+    # the user's growth bound (0.2) is below the bench's true growth (0.45): no model term can move the
+    # law's ends, so the final model's g_xf still piles up on the bound, and the report must say so
+    path, _ = _campaign(tmp_path_factory, {}, 101)
+    text = path.read_text()
+    assert "growth_bound = 0.5" in text
+    path.write_text(text.replace("growth_bound = 0.5", "growth_bound = 0.2"))
+    r = run_discrepancy(load_setup(path), DiscrepancyOptions(
+        lengths=FIT, candidates=("tip_mass",), n_refit=1, leave_one_out=False)).report
+    assert r["adequate"] is False
+    assert "g_xf" in r["final_prior_bound_pile_up"]
+    assert any(w.startswith("g_xf:") and "upper bound 0.2" in w for w in r["final_prior_bound_warnings"])
+    assert "`g_xf` piles up on its prior bound" in summary_markdown(r)
+
+
 def test_systematic_gap_excludes_white_noise_and_tracks_the_noise_free_gap():
     from bayes_rcsa.discrepancy.select import systematic_gap
 

@@ -81,6 +81,5 @@ def run(args: argparse.Namespace) -> Summary:
     data = {"out": str(out), "files": [str(f) for f in files], "adequate": r["adequate"],
             "named_effect": r["named_effect"], "confounded_with": r["confounded_with"],
             "gap_before": r["gap_before"], "gap_after": r["gap_after"]}
-    warnings = tuple(f"{n} is pressed against its prior bound in the final model; its interval and the "
-                     f"predictions depending on it hold only if the bound is right" for n in r["final_prior_bound_pile_up"])
+    warnings = tuple(f"final model: {w}" for w in r["final_prior_bound_warnings"])
     return Summary(human, data, warnings)

@@ -42,7 +42,8 @@ from .fit import ModelFit, fit_variant
 from .screen import ScoreResult, embed_baseline
 
 __all__ = ["LN_BF_NAME", "LN_BF_CONFOUNDED", "MIN_GAP_REDUCTION", "Refit", "refit_candidate", "decide", "edge_parameters",
-           "separating_test", "gap", "systematic_gap", "fitted_systematic_gap", "GAP_LAGS", "MIN_SYSTEMATIC_REDUCTION"]
+           "separating_test", "gap", "systematic_gap", "fitted_systematic_gap", "GAP_LAGS", "MIN_SYSTEMATIC_REDUCTION",
+           "bound_warnings"]
 
 LN_BF_NAME = math.log(100.0)
 LN_BF_CONFOUNDED = math.log(10.0)
@@ -198,6 +199,39 @@ def edge_parameters(fit: ModelFit, effect: str, rel: float = 0.01) -> list[str]:
             if any(np.isclose(float(prior.to_physical(b)), v, rtol=1e-9, atol=1e-12) for v in physical.get(name, ())):
                 continue
             out.append(name)
+    return out
+
+
+def bound_warnings(fit: ModelFit, rel: float = 0.01) -> list[str]:
+    """One warning per non-noise parameter whose MAP lies on a finite prior bound.
+
+    Within ``rel`` of the prior's range (sampling coordinate) from the bound;
+    a bound that is the parameter's baseline (a term left at "absent") is not
+    reported.  For a MAP + Laplace summary the MAP's position is the evidence:
+    the truncated Laplace draws may spread far from the bound when the
+    curvature is weak, yet the bound still sets the value.
+    """
+    pm = fit.problem.parameters
+    noise = set(pm.noise_names)
+    bounds = fit.problem.priors.optimisation_bounds()
+    out = []
+    for j, name in enumerate(pm.names):
+        if name in noise:
+            continue
+        prior = fit.problem.priors[name]
+        lo, hi = bounds[j]
+        plo, phi = prior.bounds
+        width = hi - lo
+        for side, b, finite in (("lower", lo, np.isfinite(plo)), ("upper", hi, np.isfinite(phi))):
+            if not finite or abs(fit.theta[j] - b) > rel * width:
+                continue
+            value = float(prior.to_physical(b))
+            if pm[name].baseline is not None and np.isclose(value, pm[name].baseline, rtol=1e-9, atol=1e-12):
+                continue
+            unit = pm.unit(name)
+            out.append(f"{name}: the fit lies on the {side} bound {value:.4g}{'' if unit == '1' else ' ' + unit} of "
+                       "its prior; the bound, not the data, sets it, and its interval and every prediction depending "
+                       "on it hold only if the bound is right")
     return out
 
 

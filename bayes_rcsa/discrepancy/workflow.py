@@ -39,10 +39,10 @@ from ..model.assembly import ConfigurationStack
 from ..model.natural_frequencies import natural_frequency
 from ..params.forward import ForwardModel
 from ..params.terms import get_term, known_terms
-from .detect import Detection, detect_from_fit, pile_up
+from .detect import Detection, detect_from_fit
 from .fit import ModelFit, fit_baseline, fit_variant, laplace_draws, with_robust_covariance
 from .screen import ScoreResult, embed_baseline, score_test
-from .select import (GAP_LAGS, Refit, decide, fitted_systematic_gap, gap, refit_candidate, separating_test,
+from .select import (GAP_LAGS, Refit, bound_warnings, decide, fitted_systematic_gap, gap, refit_candidate, separating_test,
                      systematic_gap)
 
 __all__ = ["DiscrepancyOptions", "DiscrepancyResult", "run_discrepancy", "write_discrepancy", "validate",
@@ -387,6 +387,7 @@ def build_report(res: DiscrepancyResult) -> dict:
                           "score_p_value": s.p_value, "description": get_term(s.effect).description})
     named = dec["named"]
     b, a = res.evaluation["before"], res.evaluation["after"]
+    on_bounds = bound_warnings(res.final)
     out = {
         "adequate": bool(res.detection.adequate),
         "named_effect": named,
@@ -407,9 +408,10 @@ def build_report(res: DiscrepancyResult) -> dict:
         # details
         "final_model": res.final_label,
         "final_terms": [n for n in _term_names(res.final) if n not in _term_names(res.baseline)],
-        # contact/growth parameters the final model's data press against a prior bound: its intervals
-        # (and every prediction depending on them) are then conditional on that bound
-        "final_prior_bound_pile_up": pile_up(res.final) if res.final is not res.baseline else list(res.detection.pile_up),
+        # parameters of the final model whose MAP lies on a prior bound: their intervals, and every
+        # prediction depending on them, are set by the bound
+        "final_prior_bound_pile_up": [w.split(":")[0] for w in on_bounds],
+        "final_prior_bound_warnings": on_bounds,
         "interval_notes": list(res.final.notes),
         "partially_explained_by": dec.get("partial", []),
         "runner_up": dec["runner_up"],
@@ -501,7 +503,7 @@ def summary_markdown(report: dict) -> str:
     if trend is not None and not report["adequate"]:
         lines.append(f"- frequency error trend with clamping length: {trend['slope_pct_per_mm']:+.3f} % per mm")
     for name in report.get("final_prior_bound_pile_up", []):
-        lines += ["", f"**Warning:** in the final model `{name}` is pressed against its prior bound: its interval, and "
+        lines += ["", f"**Warning:** in the final model `{name}` piles up on its prior bound: its interval, and "
                   "every prediction that depends on it, holds only if the bound is right."]
     floor = " (at the noise floor)" if report.get("gap_after_at_noise_floor") else ""
     lines += ["", f"Systematic mismatch (gap, measurement noise excluded) before: {100 * report['gap_before']:.1f} %, "
