@@ -20,7 +20,7 @@ from bayes_rcsa.model.timoshenko import free_free_receptances
 from bayes_rcsa.params.terms import Contact, Substructures, TermContext, known_terms, make_term
 from bayes_rcsa.params.terms.fluted_section import batched_free_free
 from bayes_rcsa.params.terms.nonlinear_stiffness_law import saturating_shape
-from bayes_rcsa.synthetic import default_bench_config, generate_campaign, true_contact, true_tool_point_frf, write_campaign
+from bayes_rcsa.synthetic import default_bench_config, generate_campaign, true_tool_point_frf, write_campaign
 
 SIX = ("contact_damping", "extra_mode", "fluted_section", "nonlinear_stiffness_law", "spindle_error",
        "spindle_rotation_omitted")
