@@ -20,7 +20,7 @@ from bayes_rcsa.discrepancy import DiscrepancyOptions, run_discrepancy, write_di
 from bayes_rcsa.discrepancy.workflow import summary_markdown
 from bayes_rcsa.discrepancy.detect import compare_peaks, length_trend, standardised_residuals, systematic_bands
 from bayes_rcsa.io.setup import load_setup
-from bayes_rcsa.synthetic import default_bench_config, generate_campaign, write_campaign
+from bayes_rcsa.synthetic import default_bench_config, generate_campaign, true_contact, write_campaign
 
 FIT = (0.025, 0.040)
 REQUIRED_KEYS = {"adequate", "named_effect", "confounded_with", "candidates", "gap_metric", "gap_before", "gap_after",
@@ -58,6 +58,29 @@ def test_hidden_effect_is_named_and_the_gap_halves(tmp_path_factory, effect):
     assert r["candidates"][0]["criterion"] > np.log(100)
     # the held-out lengths (30, 35 mm) are reported too
     assert set(r["frequency_error_pct_after"]) == {"25", "30", "35", "40"}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("effect, seed, lengths", [
+    ("extra_mode", 0, FIT),
+    # the seed at which the former diagonal support change left k_xf's interval below the truth
+    ("spindle_error", 209, FIT),
+    # invisible with two lengths (the law keeps its ends): all four are fitted
+    ("nonlinear_stiffness_law", 0, (0.025, 0.030, 0.035, 0.040)),
+])
+def test_more_hidden_effects_are_named_and_the_gap_halves(tmp_path, effect, seed, lengths):
+    # 4 Hz lines (the bench's physics, half the lines) keep these runs short
+    cfg = default_bench_config(hidden_effects={effect: True}, frequency_step=4.0)
+    path = write_campaign(generate_campaign(cfg, np.random.default_rng(seed)), tmp_path / "c")
+    r = run_discrepancy(load_setup(path), DiscrepancyOptions(lengths=lengths, seed=seed, leave_one_out=False)).report
+    assert r["named_effect"] == effect or effect in r["confounded_with"], [c["effect"] for c in r["candidates"]]
+    assert r["gap_after"] <= 0.5 * r["gap_before"], (r["gap_before"], r["gap_after"])
+    if effect == "spindle_error":
+        # honest after naming: the true k_xf (1.8e6 N/m) inside the 90 % interval at both fitted lengths
+        k = r["stiffness_after"]["k_xf"]
+        for length in ("25", "40"):
+            truth = true_contact(cfg, float(length) * 1e-3)["k_xf"]
+            assert k[length]["q05"] <= truth <= k[length]["q95"], (length, k[length], truth)
 
 
 def test_tip_mass_named_by_the_cli_with_amended_setup(tmp_path_factory, tmp_path, monkeypatch, capsys):
