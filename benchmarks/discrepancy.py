@@ -40,7 +40,7 @@ import numpy as np
 
 from bayes_rcsa.discrepancy import DiscrepancyOptions, run_discrepancy
 from bayes_rcsa.io.setup import load_setup
-from bayes_rcsa.synthetic import CANONICAL_EFFECTS, HIDDEN_EFFECTS, default_bench_config, generate_campaign, write_campaign
+from bayes_rcsa.synthetic import HIDDEN_EFFECTS, default_bench_config, generate_campaign, write_campaign
 
 EFFECTS = tuple(HIDDEN_EFFECTS)  # the seven canonical names of issue #11
 DOCS = Path(__file__).resolve().parent.parent / "docs" / "discrepancy.md"

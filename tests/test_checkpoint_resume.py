@@ -18,7 +18,6 @@ from bayes_rcsa.errors import SetupError
 from bayes_rcsa.inference.checkpoint import Checkpoint
 from bayes_rcsa.inference.diagnostics import read_netcdf
 from bayes_rcsa.inference.identify import identify, run_fingerprint
-from bayes_rcsa.inference.likelihood import NoiseModel
 from bayes_rcsa.inference.problem import IdentificationOptions, build_problem
 from bayes_rcsa.model import Material, ToolPointModel
 from bayes_rcsa.synthetic import default_bench_config, generate_campaign, write_campaign

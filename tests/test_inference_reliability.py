@@ -16,7 +16,7 @@ from bayes_rcsa.inference.identify import identify
 from bayes_rcsa.inference.problem import IdentificationOptions, build_problem
 from bayes_rcsa.inference.results import noise_scale_warnings, prior_bound_warnings
 from bayes_rcsa.model import FRF
-from bayes_rcsa.params import GrowthLaw, LogUniform, ParameterModel, Uniform
+from bayes_rcsa.params import GrowthLaw, LogUniform, ParameterModel
 
 from test_inference_support import bench, bench_model, contact_spec
 

@@ -35,7 +35,6 @@ import json
 import re
 from pathlib import Path
 
-from ..errors import SetupError
 from ..io.tables import TableContext, did_you_mean, is_number, load_document
 
 __all__ = ["SetupJob", "load_manifest", "IDENTIFY_KEYS", "PREDICT_KEYS", "LOBES_KEYS"]

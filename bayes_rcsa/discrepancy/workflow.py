@@ -41,8 +41,8 @@ from ..params.forward import ForwardModel
 from ..params.terms import get_term, known_terms
 from .detect import Detection, detect_from_fit
 from .fit import ModelFit, fit_baseline, fit_variant, laplace_draws, with_robust_covariance
-from .screen import ScoreResult, embed_baseline, score_test
-from .select import (GAP_LAGS, Refit, bound_warnings, decide, fitted_systematic_gap, gap, refit_candidate, separating_test,
+from .screen import embed_baseline, score_test
+from .select import (GAP_LAGS, bound_warnings, decide, fitted_systematic_gap, gap, refit_candidate, separating_test,
                      systematic_gap)
 
 __all__ = ["DiscrepancyOptions", "DiscrepancyResult", "run_discrepancy", "write_discrepancy", "validate",

@@ -13,7 +13,7 @@ base) to the tool tip (its end 2).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from ..errors import SetupError
 from .materials import Material
