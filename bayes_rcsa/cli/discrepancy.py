@@ -69,12 +69,15 @@ def run(args: argparse.Namespace) -> Summary:
         result = run_discrepancy(setup, options, progress=say)
         files = write_discrepancy(result, out, plots=not args.no_plots, overwrite=args.force)
     r = result.report
-    gap = f"systematic gap {100 * r['gap_before']:.1f} % -> {100 * r['gap_after']:.1f} %"
+    def pct(key):
+        return "at the noise floor" if r[f"{key}_at_noise_floor"] else f"{100 * r[key]:.2g} %"
+
+    gap = f"systematic gap {pct('gap_before')} -> {pct('gap_after')}"
     if r["named_effect"]:
         extra = f" (confounded with {', '.join(r['confounded_with'])})" if r["confounded_with"] else ""
         human = f"named {r['named_effect']}{extra}: {gap}; wrote {out}/discrepancy.json and setup.amended.toml"
     elif r["adequate"]:
-        human = f"model adequate, nothing named (gap {100 * r['gap_before']:.1f} %); wrote {out}/discrepancy.json"
+        human = f"model adequate, nothing named (systematic gap {pct('gap_before')}); wrote {out}/discrepancy.json"
     else:
         human = f"model inadequate and no known effect explains it: statistical discrepancy added ({gap}); " \
                 f"wrote {out}/discrepancy.json"

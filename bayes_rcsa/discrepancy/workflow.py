@@ -505,17 +505,21 @@ def summary_markdown(report: dict) -> str:
     for name in report.get("final_prior_bound_pile_up", []):
         lines += ["", f"**Warning:** in the final model `{name}` piles up on its prior bound: its interval, and "
                   "every prediction that depends on it, holds only if the bound is right."]
-    floor = " (at the noise floor)" if report.get("gap_after_at_noise_floor") else ""
-    lines += ["", f"Systematic mismatch (gap, measurement noise excluded) before: {100 * report['gap_before']:.1f} %, "
-              f"after: {100 * report['gap_after']:.1f} %{floor}; with the noise: {100 * report['gap_raw_before']:.1f} % "
-              f"-> {100 * report['gap_raw_after']:.1f} %", "",
+    def gap_text(key: str) -> str:
+        if report.get(f"{key}_at_noise_floor"):
+            return f"at the noise floor (below {100 * report['gap_resolution']:.2g} %)"
+        return f"{100 * report[key]:.2g} %"
+
+    lines += ["", f"Systematic mismatch (gap, measurement noise excluded) before: {gap_text('gap_before')}, "
+              f"after: {gap_text('gap_after')}; with the noise: {100 * report['gap_raw_before']:.2g} % "
+              f"-> {100 * report['gap_raw_after']:.2g} %", "",
               "| clamping length (mm) | frequency error before (%) | after (%) |", "|---|---|---|"]
     for k in report["frequency_error_pct_before"]:
         lines.append(f"| {k} | {report['frequency_error_pct_before'][k]:+.2f} | {report['frequency_error_pct_after'].get(k, math.nan):+.2f} |")
-    lines += ["", "| clamping length (mm) | k_xf before (N/m) | k_xf after (N/m) |", "|---|---|---|"]
+    lines += ["", "| clamping length (mm) | k_xf before (N/m), median [90 % interval] | k_xf after (N/m) |", "|---|---|---|"]
     for k, q in report["stiffness_before"]["k_xf"].items():
         qa = report["stiffness_after"]["k_xf"][k]
-        lines.append(f"| {k} | {q['q50']:.3g} [{q['q05']:.3g}, {q['q95']:.3g}] | {qa['q50']:.3g} [{qa['q05']:.3g}, {qa['q95']:.3g}] |")
+        lines.append(f"| {k} | {q['q50']:.4g} [{q['q05']:.4g}, {q['q95']:.4g}] | {qa['q50']:.4g} [{qa['q05']:.4g}, {qa['q95']:.4g}] |")
     return "\n".join(lines) + "\n"
 
 
