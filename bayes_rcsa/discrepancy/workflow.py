@@ -516,6 +516,13 @@ def summary_markdown(report: dict) -> str:
               "| clamping length (mm) | frequency error before (%) | after (%) |", "|---|---|---|"]
     for k in report["frequency_error_pct_before"]:
         lines.append(f"| {k} | {report['frequency_error_pct_before'][k]:+.2f} | {report['frequency_error_pct_after'].get(k, math.nan):+.2f} |")
+    lines += ["", "| measurement | fitted | measured (Hz) | predicted before, 90 % interval (Hz) | after (Hz) |",
+              "|---|---|---|---|---|"]
+    for mb, ma in zip(report["measurements_before"], report["measurements_after"]):
+        qb, qa = mb["predicted_hz_interval"], ma["predicted_hz_interval"]
+        lines.append(f"| {ma['direction']} {ma['clamping_length'] * 1e3:g} mm | {'yes' if ma['fitted'] else 'no'} "
+                     f"| {ma['measured_hz']:.1f} | {qb['q50']:.1f} [{qb['q05']:.1f}, {qb['q95']:.1f}] "
+                     f"| {qa['q50']:.1f} [{qa['q05']:.1f}, {qa['q95']:.1f}] |")
     lines += ["", "| clamping length (mm) | k_xf before (N/m), median [90 % interval] | k_xf after (N/m) |", "|---|---|---|"]
     for k, q in report["stiffness_before"]["k_xf"].items():
         qa = report["stiffness_after"]["k_xf"][k]
