@@ -57,18 +57,30 @@ def _residual_plot(res, path: Path, label_after: str) -> None:
 
 
 def _frequency_plot(res, path: Path, label_after: str) -> None:
-    fig = new_figure(5.0, 3.4)
+    """Natural-frequency error of every measurement, with its 90 % interval, before and after.
+
+    Errors are relative to the measured peak; the bars show where the model's
+    90 % interval of that peak lies relative to it, so a bar that crosses 0
+    covers the measurement.  Before and after are offset slightly in
+    clamping length so the bars do not hide each other.
+    """
+    fig = new_figure(5.4, 3.6)
     ax = fig.add_subplot(1, 1, 1)
-    for key, colour, lab in (("before", "C3", "baseline"), ("after", "C0", label_after)):
-        ms = res.evaluation[key]["measurements"]
-        for m in ms:
-            ax.plot(m["clamping_length"] * 1e3, m["error_pct"], "o" if m["fitted"] else "s", color=colour,
-                    mfc=colour if m["fitted"] else "none")
+    for k, (key, colour, lab) in enumerate((("before", "C3", "baseline"), ("after", "C0", label_after))):
+        for m in res.evaluation[key]["measurements"]:
+            q = m["predicted_hz_interval"]
+            rel = [100 * (q[c] - m["measured_hz"]) / m["measured_hz"] for c in ("q05", "q95")]
+            x = m["clamping_length"] * 1e3 + (k - 0.5) * 0.5 + (0.15 if m["direction"] == "y" else 0.0)
+            ax.errorbar(x, m["error_pct"], yerr=[[m["error_pct"] - rel[0]], [rel[1] - m["error_pct"]]],
+                        fmt="o" if m["fitted"] else "s", color=colour, mfc=colour if m["fitted"] else "none",
+                        capsize=2, lw=0.8)
         ax.plot([], [], "o", color=colour, label=lab)
     ax.plot([], [], "ks", mfc="none", label="held out")
     ax.axhline(0, color="k", lw=0.5)
+    # linear within +-0.5 % (the errors of a good fit), logarithmic beyond (the intervals of an unexplained remainder)
+    ax.set_yscale("symlog", linthresh=0.5)
     ax.set_xlabel("clamping length [mm]")
-    ax.set_ylabel("natural-frequency error [%]\n(model - measured)")
+    ax.set_ylabel("natural-frequency error [%]\n(model - measured, 90 % interval)")
     ax.legend(fontsize=7)
     fig.tight_layout()
     save_png(fig, path)
