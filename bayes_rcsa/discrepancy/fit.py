@@ -39,7 +39,7 @@ from ..inference.posterior import LogPosterior
 from ..inference.problem import Problem
 
 __all__ = ["ModelFit", "fit_baseline", "fit_variant", "whitened_residuals", "profile_noise", "laplace_draws",
-           "cluster_robust_covariance", "loewner_max", "with_robust_covariance"]
+           "cluster_robust_covariance", "sandwich_covariance", "loewner_max", "with_robust_covariance"]
 
 
 @dataclass
@@ -322,23 +322,44 @@ def laplace_draws(fit: ModelFit, rng: np.random.Generator, n: int = 400) -> np.n
 # -- covariance under misspecification ---------------------------------------------
 
 
+def sandwich_covariance(jac: np.ndarray, z: np.ndarray, clusters: list, prior_precision: np.ndarray) -> np.ndarray:
+    """Cluster-robust covariance for ``ln L = -sum z^2`` (Liang & Zeger 1986).
+
+    Parameters
+    ----------
+    jac : (n, d) ``dz/dtheta`` at the estimate
+    z : (n,) residuals at the estimate (whitened, real)
+    clusters : list of G >= 2 slices (or index arrays) into the rows
+    prior_precision : (d,) diagonal prior precision added to the Hessian
+
+    Returns
+    -------
+    (d, d) ``H^-1 [G/(G-1) sum_g s_g s_g^T] H^-1`` with ``H = 2 J^T J + diag(P)``
+    and ``s_g = -2 J_g^T z_g``.  With white residuals of variance 1/2 per row
+    (the real and imaginary parts of a unit circular complex residual) its
+    expectation is ``(2 J^T J)^-1``, the untempered Laplace covariance.
+    """
+    hess = 2.0 * jac.T @ jac + np.diag(prior_precision)
+    scores = np.array([-2.0 * jac[c].T @ z[c] for c in clusters])
+    g = len(clusters)
+    meat = g / (g - 1) * scores.T @ scores
+    bread = np.linalg.inv(0.5 * (hess + hess.T))
+    v = bread @ meat @ bread
+    return 0.5 * (v + v.T)
+
+
 def cluster_robust_covariance(fit: ModelFit) -> tuple[np.ndarray, int]:
     """Cluster-robust ("sandwich") covariance of the physical coordinates, one cluster per measurement.
 
-    With ``z`` the whitened residuals (``ln L = -sum z^2``), ``J = dz/dtheta``,
-    ``H = 2 J^T J + P`` (``P`` the prior precision used by the Laplace
-    approximation) and ``s_g = -2 J_g^T z_g`` the score of measurement ``g``::
-
-        V = H^-1 [G / (G - 1) sum_g s_g s_g^T] H^-1
-
-    (Liang & Zeger 1986, with the usual small-sample factor).  Under an
-    adequate model with white noise ``E[s_g s_g^T] = 2 J_g^T J_g`` and ``V``
-    is the untempered Laplace covariance.  Under misspecification the
-    systematic misfit of each measurement pulls the parameters its own way;
-    ``V`` then treats each measurement's misfit as *one* draw of the model
-    error rather than as many independent lines, which is what keeps the
-    intervals honest when the residual is a deterministic pattern (a missing
-    resonance) instead of noise.
+    :func:`sandwich_covariance` with ``z`` the whitened residuals of ``fit``,
+    ``J = dz/dtheta`` (forward differences), the Laplace approximation's prior
+    precision and one cluster per measurement.  Under an adequate model with
+    white noise it estimates the untempered Laplace covariance.  Under
+    misspecification the systematic misfit of each measurement pulls the
+    parameters its own way; the sandwich then treats each measurement's misfit
+    as *one* draw of the model error rather than as many independent lines,
+    which is what keeps the intervals honest when the residual is a
+    deterministic pattern (a missing resonance) instead of noise.
 
     Returns
     -------
@@ -355,15 +376,10 @@ def cluster_robust_covariance(fit: ModelFit) -> tuple[np.ndarray, int]:
     step = 1e-6 * (hi - lo)
     h = np.where(fit.theta[cols] + step > hi, -step, step)
     z, jac = _jacobian(prob, fit.theta, cols, h)  # (2 n_lines,), (2 n_lines, d): re/im interleaved
-    hess = 2.0 * jac.T @ jac
-    for k, g in enumerate(_gaussian_prior_terms(prob, cols)):
-        hess[k, k] += g[1] ** 2 if g is not None else 2 * math.pi / (hi[k] - lo[k]) ** 2
-    scores = np.array([-2.0 * jac[2 * sl.start : 2 * sl.stop].T @ z[2 * sl.start : 2 * sl.stop] for sl in slices])
-    n = len(slices)
-    meat = n / (n - 1) * scores.T @ scores
-    bread = np.linalg.inv(0.5 * (hess + hess.T))
-    v = bread @ meat @ bread
-    return 0.5 * (v + v.T), n
+    prior = np.array([g[1] ** 2 if g is not None else 2 * math.pi / (hi[k] - lo[k]) ** 2
+                      for k, g in enumerate(_gaussian_prior_terms(prob, cols))])
+    clusters = [slice(2 * sl.start, 2 * sl.stop) for sl in slices]
+    return sandwich_covariance(jac, z, clusters, prior), len(slices)
 
 
 def loewner_max(a: np.ndarray, b: np.ndarray) -> np.ndarray:
