@@ -377,3 +377,37 @@ def test_statistical_discrepancy_absorbs_a_smooth_gain_but_not_a_resonance_shift
     shifted = _sdof(f, 1010.0, 0.01)  # a 1 % resonance shift
     # its residual changes sign within a few bandwidths: the smooth basis leaves most of it (measured: 69 % RMS)
     assert best_fit_residual(shifted) > 0.5
+
+
+def test_decision_rules_confounding_partial_and_separating_tests(monkeypatch):
+    from types import SimpleNamespace
+
+    from bayes_rcsa.discrepancy import select
+
+    monkeypatch.setattr(select, "edge_parameters", lambda fit, effect: [])  # no fit on a prior edge here
+    base_sys = {"gap": 0.05, "at_noise_floor": False}
+
+    def refit(effect, criterion, gap=0.02, sys_gap=0.005):
+        return select.Refit(effect, SimpleNamespace(statistic=1.0), None, criterion, gap, {"gap": sys_gap})
+
+    # two decisive candidates within ln 10 of each other: the better is named, the other is confounded
+    d = select.decide([refit("fluted_section", 18.0), refit("tip_mass", 20.0)], 0.03, base_sys)
+    assert d["named"] == "tip_mass" and d["confounded_with"] == ["fluted_section"]
+    assert d["runner_up"] == "fluted_section" and d["margin"] == pytest.approx(2.0)
+    # beyond ln 10: a clear winner, the runner-up and the margin reported, nothing confounded
+    d = select.decide([refit("fluted_section", 10.0), refit("tip_mass", 20.0)], 0.03, base_sys)
+    assert d["named"] == "tip_mass" and d["confounded_with"] == [] and d["margin"] == pytest.approx(10.0)
+    # decisive but explaining only 30 % of the systematic gap: partial, not named
+    d = select.decide([refit("nonlinear_stiffness_law", 14.0, sys_gap=0.035)], 0.03, base_sys)
+    assert d["named"] is None and d["partial"][0]["effect"] == "nonlinear_stiffness_law"
+    assert d["partial"][0]["systematic_gap_ratio"] == pytest.approx(0.7)
+    # the rule is skipped when the baseline's systematic gap is already at the noise floor
+    d = select.decide([refit("spindle_error", 8.0, sys_gap=0.0)], 0.03, {"gap": 0.0, "at_noise_floor": True})
+    assert d["named"] == "spindle_error"
+    # not decisive (below ln 100), or a raw gap that grows: not named
+    assert select.decide([refit("tip_mass", 4.0)], 0.03, base_sys)["named"] is None
+    assert select.decide([refit("tip_mass", 20.0, gap=0.04)], 0.03, base_sys)["named"] is None
+    # the separating tests name a measurement a machinist can make
+    assert "accelerometer" in select.separating_test("tip_mass", "fluted_section")
+    assert "clamping length" in select.separating_test("spindle_error", "contact_damping")
+    assert "second direction" in select.separating_test("contact_damping", "extra_mode")
