@@ -411,3 +411,23 @@ def test_decision_rules_confounding_partial_and_separating_tests(monkeypatch):
     assert "accelerometer" in select.separating_test("tip_mass", "fluted_section")
     assert "clamping length" in select.separating_test("spindle_error", "contact_damping")
     assert "second direction" in select.separating_test("contact_damping", "extra_mode")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("effects, inadequate", [({"nonlinear_stiffness_law": True}, True), ({}, False)])
+def test_leave_one_length_out_transfer_check(tmp_path, effects, inadequate):
+    # three fitted lengths: each is predicted by the baseline refitted without it.  A saturating stiffness
+    # law (s = 4) makes the linear law mispredict by 5-9 % (measured); clean data stay below 0.2 %.
+    cfg = default_bench_config(hidden_effects=effects, frequency_step=4.0)
+    path = write_campaign(generate_campaign(cfg, np.random.default_rng(0)), tmp_path / "c")
+    r = run_discrepancy(load_setup(path), DiscrepancyOptions(lengths=(0.025, 0.030, 0.040), candidates=("tip_mass",),
+                                                             n_refit=1)).report
+    transfer = r["detection"]["leave_one_length_out"]
+    assert sorted({(t["left_out_mm"], t["direction"]) for t in transfer}) == [
+        (l, d) for l in (25.0, 30.0, 40.0) for d in ("x", "y")]
+    worst = max(abs(t["error_pct"]) for t in transfer)
+    reasons = [x for x in r["detection"]["reasons"] if x.startswith("leave-one-length-out")]
+    if inadequate:
+        assert worst > 3.0 and reasons and r["adequate"] is False
+    else:
+        assert worst < 0.5 and not reasons and r["adequate"] is True

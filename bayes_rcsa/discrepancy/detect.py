@@ -36,7 +36,12 @@ The baseline is declared **inadequate** when any of
    two standard deviations (:func:`pile_up`): the data want a value the
    model's physics does not allow;
 3. a measurement's natural-frequency error exceeds ``max(0.3 %, 1 line)``
-   and is more than 3 times its posterior-predictive standard deviation.
+   and is more than 3 times its posterior-predictive standard deviation;
+4. (three or more fitted lengths) the baseline refitted without one length
+   mispredicts that length's natural frequency by more than
+   ``TRANSFER_LIMIT_PCT = 1 %`` (:func:`transfer_failures`): the model does
+   not carry from some lengths to another, which is what it is for.  Clean
+   bench campaigns stay below 0.2 %.
 """
 
 from __future__ import annotations
@@ -274,3 +279,24 @@ def detect_from_fit(fit, rng: np.random.Generator, n_draws: int = 64) -> Detecti
     piles = pile_up(fit)
     ok, reasons = adequacy(fit.correlation_length, piles, shifts)
     return Detection(ok, reasons, fit.correlation_length, meas, trend, piles)
+
+
+#: Leave-one-length-out natural-frequency error (%) beyond which the baseline is inadequate (rule 4).
+TRANSFER_LIMIT_PCT = 1.0
+
+
+def transfer_failures(transfer, limit_pct: float = TRANSFER_LIMIT_PCT) -> list[str]:
+    """Adequacy reasons from the leave-one-length-out check (rule 4 of the module docstring).
+
+    Parameters
+    ----------
+    transfer : list of dict with ``left_out_mm``, ``direction``, ``source``, ``error_pct`` (entries
+        with ``error`` instead, where a refit was impossible, are skipped)
+    limit_pct : float, %
+    """
+    out = []
+    for t in transfer:
+        if "error_pct" in t and abs(t["error_pct"]) > limit_pct:
+            out.append(f"leave-one-length-out: fitted without {t['left_out_mm']:g} mm, the model mispredicts "
+                       f"{t['source']} ({t['direction']}) by {t['error_pct']:+.2f} % (> {limit_pct:g} %)")
+    return out

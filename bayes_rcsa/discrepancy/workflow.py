@@ -39,7 +39,7 @@ from ..model.assembly import ConfigurationStack
 from ..model.natural_frequencies import natural_frequency
 from ..params.forward import ForwardModel
 from ..params.terms import get_term, known_terms
-from .detect import Detection, detect_from_fit
+from .detect import Detection, detect_from_fit, transfer_failures
 from .fit import ModelFit, fit_baseline, fit_variant, laplace_draws, with_robust_covariance
 from .screen import embed_baseline, score_test
 from .select import (GAP_LAGS, bound_warnings, decide, fitted_systematic_gap, gap, refit_candidate, separating_test,
@@ -314,6 +314,10 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
     detection = detect_from_fit(baseline, rng_detect)
     if options.leave_one_out:
         detection.transfer = _leave_one_length_out(setup, base_opts, problem, baseline.tempering)
+        failures = transfer_failures(detection.transfer)
+        if failures:
+            detection.adequate = False
+            detection.reasons += failures
     t["detect_s"] = time.perf_counter() - t0
     say("detect: " + ("baseline adequate" if detection.adequate else "baseline inadequate: " + "; ".join(detection.reasons)))
 
