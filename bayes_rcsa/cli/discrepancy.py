@@ -83,6 +83,7 @@ def run(args: argparse.Namespace) -> Summary:
                 f"wrote {out}/discrepancy.json"
     data = {"out": str(out), "files": [str(f) for f in files], "adequate": r["adequate"],
             "named_effect": r["named_effect"], "confounded_with": r["confounded_with"],
-            "gap_before": r["gap_before"], "gap_after": r["gap_after"]}
-    warnings = tuple(f"final model: {w}" for w in r["final_prior_bound_warnings"])
+            "gap_before": r["gap_before"], "gap_after": r["gap_after"], "gap_grew": r["gap_grew"],
+            "usable_for_prediction": r["usable_for_prediction"]}
+    warnings = tuple(r["warnings"])
     return Summary(human, data, warnings)

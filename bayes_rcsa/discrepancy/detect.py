@@ -53,7 +53,7 @@ from typing import Sequence
 import numpy as np
 
 from ..inference.likelihood import residual_correlation_length
-from ..model.natural_frequencies import natural_frequency
+from ..model.modes import find_modes, match_modes, mode_windows, track_modes
 
 __all__ = [
     "TAU_MAX", "standardised_residuals", "systematic_bands", "peak_features", "compare_peaks",
@@ -66,6 +66,8 @@ TAU_MAX = 2.0
 SHIFT_MIN_PCT = 0.3
 HEIGHT_RATIO = 0.15
 WIDTH_RATIO = 0.25
+#: An unmatched mode at least this fraction of its FRF's highest peak is a finding (weaker ones are listed only).
+UNMATCHED_REL_HEIGHT = 0.25
 
 
 def standardised_residuals(measured: np.ndarray, predicted_draws: np.ndarray, noise_sd: np.ndarray) -> np.ndarray:
@@ -113,56 +115,110 @@ def systematic_bands(frequency_hz: np.ndarray, z: np.ndarray, window: int = 5, l
     return out
 
 
-def _half_power_width(f: np.ndarray, mag: np.ndarray) -> float:
-    """Half-power bandwidth (Hz) of the largest peak, linear interpolation of the -3 dB crossings; NaN if open."""
-    i = int(np.argmax(mag))
-    level = mag[i] / math.sqrt(2.0)
-    left = np.nonzero(mag[:i] < level)[0]
-    right = np.nonzero(mag[i:] < level)[0]
-    if left.size == 0 or right.size == 0:
-        return math.nan
-    a = left[-1]
-    b = i + right[0]
-    fl = np.interp(level, [mag[a], mag[a + 1]], [f[a], f[a + 1]])
-    fr = np.interp(level, [mag[b], mag[b - 1]], [f[b], f[b - 1]])
-    return float(fr - fl)
-
-
 def peak_features(frequency_hz: np.ndarray, h: np.ndarray) -> dict:
     """Natural frequency (Hz), peak height (m/N) and half-power width (Hz) of the dominant peak of ``h`` (n,)."""
     f = np.asarray(frequency_hz, dtype=float)
-    mag = np.abs(h)
-    return {"frequency_hz": float(natural_frequency(f, h)), "height": float(mag.max()),
-            "width_hz": _half_power_width(f, mag)}
+    modes = find_modes(f, h)
+    if not modes:
+        return {"frequency_hz": math.nan, "height": float(np.abs(h).max()), "width_hz": math.nan}
+    m = max(modes, key=lambda x: x.height)
+    return m.as_dict()
 
 
 def compare_peaks(frequency_hz: np.ndarray, measured: np.ndarray, predicted: np.ndarray,
-                  predicted_f_sd: float = 0.0) -> dict:
-    """Resonance diagnosis of one measurement (model vs measured, same lines).
+                  predicted_f_sd=0.0, predicted_draws: np.ndarray | None = None) -> dict:
+    """Resonance diagnosis of one measurement (model vs measured, same lines), mode by mode.
+
+    The modes of both FRFs are found and matched one to one
+    (:func:`bayes_rcsa.model.modes.match_modes`); a frequency error is only
+    ever computed between a measured mode and *its* model mode.  The headline
+    numbers belong to the measured FRF's most prominent mode and its model
+    counterpart.
+
+    Parameters
+    ----------
+    frequency_hz : (n,) Hz
+    measured, predicted : (n,) complex, m/N
+    predicted_f_sd : float, Hz
+        Posterior standard deviation of the model's mode frequencies (used when ``predicted_draws`` is None).
+    predicted_draws : (n_draws, n) complex or None
+        Model FRF draws; each model mode's standard deviation is then tracked in its own window.
 
     Returns
     -------
-    dict with ``frequency_error_pct`` (model - measured), ``height_ratio``
-    and ``width_ratio`` (model / measured), ``significant_shift`` and a list
-    of plain-language ``findings``.
+    dict with ``frequency_error_pct`` (model - measured, of the most prominent measured mode and its match;
+    NaN when that mode has no model counterpart), ``height_ratio`` and ``width_ratio`` (model / measured),
+    ``significant_shift``, ``modes`` (every matched pair), ``unmatched_measured_hz``,
+    ``unmatched_model_hz``, ``prominent_mode_differs`` and a list of plain-language ``findings``.
     """
-    m = peak_features(frequency_hz, measured)
-    p = peak_features(frequency_hz, predicted)
-    err = 100.0 * (p["frequency_hz"] - m["frequency_hz"]) / m["frequency_hz"]
-    df = float(np.median(np.diff(frequency_hz))) if frequency_hz.size > 1 else 0.0
-    thresh = max(SHIFT_MIN_PCT, 100.0 * df / m["frequency_hz"])
-    significant = bool(np.isfinite(err) and abs(err) > thresh and abs(err) > 3 * 100.0 * predicted_f_sd / m["frequency_hz"])
-    hr = p["height"] / m["height"]
-    wr = p["width_hz"] / m["width_hz"] if np.isfinite(p["width_hz"]) and np.isfinite(m["width_hz"]) else math.nan
-    findings = []
-    if significant:
-        findings.append(f"model resonance {'too high' if err > 0 else 'too low'} by {abs(err):.2f} %")
-    if abs(hr - 1) > HEIGHT_RATIO:
+    f = np.asarray(frequency_hz, dtype=float)
+    mm = find_modes(f, measured)
+    pm = find_modes(f, predicted)
+    pairs = match_modes(pm, mm)
+    if predicted_draws is not None and pm:
+        tracked = track_modes(f, predicted_draws, mode_windows(pm))
+        with np.errstate(invalid="ignore"):
+            sd = [float(np.nanstd(tracked[:, i])) if np.isfinite(tracked[:, i]).sum() > 1 else 0.0
+                  for i in range(len(pm))]
+    else:
+        sd = [float(predicted_f_sd)] * len(pm)
+    df = float(np.median(np.diff(f))) if f.size > 1 else 0.0
+    modes, findings, significant_any = [], [], False
+    for i, j in pairs:
+        err = 100.0 * (pm[i].frequency_hz - mm[j].frequency_hz) / mm[j].frequency_hz
+        thresh = max(SHIFT_MIN_PCT, 100.0 * df / mm[j].frequency_hz)
+        sig = bool(np.isfinite(err) and abs(err) > thresh and abs(err) > 3 * 100.0 * sd[i] / mm[j].frequency_hz)
+        modes.append({"measured_hz": mm[j].frequency_hz, "model_hz": pm[i].frequency_hz, "frequency_error_pct": err,
+                      "height_ratio": pm[i].height / mm[j].height, "significant_shift": sig,
+                      "model_index": i, "measured_index": j})
+        significant_any |= sig
+    paired_m = {j for _, j in pairs}
+    paired_p = {i for i, _ in pairs}
+    unmatched_m = [mm[j].frequency_hz for j in range(len(mm)) if j not in paired_m]
+    unmatched_p = [pm[i].frequency_hz for i in range(len(pm)) if i not in paired_p]
+    top_m = max(range(len(mm)), key=lambda j: mm[j].height) if mm else None
+    top_p = max(range(len(pm)), key=lambda i: pm[i].height) if pm else None
+    head = next((m for m in modes if m["measured_index"] == top_m), None)
+    # the more prominent mode differs: the measured FRF's highest peak is matched to a model mode that is
+    # not the model's highest peak (or the model's highest peak is matched to another measured mode)
+    differs = bool(top_m is not None and top_p is not None and len(pairs) > 0
+                   and ((head is not None and head["model_index"] != top_p)
+                        or any(m["model_index"] == top_p and m["measured_index"] != top_m for m in modes)))
+    if head is not None:
+        err, hr = head["frequency_error_pct"], head["height_ratio"]
+        wr_m, wr_p = mm[top_m].width_hz, pm[head["model_index"]].width_hz
+        wr = wr_p / wr_m if np.isfinite(wr_p) and np.isfinite(wr_m) else math.nan
+        significant = head["significant_shift"]
+    else:
+        err, hr, wr, significant = math.nan, math.nan, math.nan, False
+    for m in modes:
+        if m["significant_shift"]:
+            e = m["frequency_error_pct"]
+            which = "" if len(modes) == 1 else f" (mode at {m['measured_hz']:.0f} Hz)"
+            findings.append(f"model resonance {'too high' if e > 0 else 'too low'} by {abs(e):.2f} %{which}")
+    if np.isfinite(hr) and abs(hr - 1) > HEIGHT_RATIO:
         findings.append(f"model peak {'too high' if hr > 1 else 'too low'} ({hr:.2f} x measured)")
     if np.isfinite(wr) and abs(wr - 1) > WIDTH_RATIO:
         findings.append(f"model peak {'too wide' if wr > 1 else 'too narrow'} ({wr:.2f} x measured)")
-    return {"measured": m, "predicted": p, "frequency_error_pct": err, "height_ratio": hr, "width_ratio": wr,
-            "significant_shift": significant, "findings": findings}
+    if differs:
+        findings.append(f"the more prominent mode differs: measured highest peak at {mm[top_m].frequency_hz:.0f} Hz, "
+                        f"model highest peak at {pm[top_p].frequency_hz:.0f} Hz (a different mode)")
+    # an unmatched mode is a finding only when it is strong (a weak peak near the detection threshold may be
+    # found on one side and not the other without any discrepancy)
+    strong_m = [mm[j].frequency_hz for j in range(len(mm))
+                if j not in paired_m and mm[j].height >= UNMATCHED_REL_HEIGHT * mm[top_m].height]
+    strong_p = [pm[i].frequency_hz for i in range(len(pm))
+                if i not in paired_p and pm[i].height >= UNMATCHED_REL_HEIGHT * pm[top_p].height]
+    for fu in strong_m:
+        findings.append(f"measured mode at {fu:.0f} Hz has no model counterpart")
+    for fu in strong_p:
+        findings.append(f"model mode at {fu:.0f} Hz has no measured counterpart")
+    return {"measured": mm[top_m].as_dict() if top_m is not None else None,
+            "predicted": pm[head["model_index"]].as_dict() if head is not None else None,
+            "frequency_error_pct": err, "height_ratio": hr, "width_ratio": wr,
+            "significant_shift": bool(significant or significant_any), "modes": modes,
+            "unmatched_measured_hz": unmatched_m, "unmatched_model_hz": unmatched_p,
+            "prominent_mode_differs": differs, "findings": findings}
 
 
 def length_trend(lengths_m: Sequence[float], errors_pct: Sequence[float]) -> dict | None:
@@ -262,9 +318,7 @@ def detect_from_fit(fit, rng: np.random.Generator, n_draws: int = 64) -> Detecti
     shifts = []
     for j, (obs, sl) in enumerate(zip(prob.observations, lik.stack.slices)):
         f = obs.frequency_hz
-        nat = natural_frequency(f, pred[:, sl])
-        f_sd = float(np.nanstd(nat)) if np.isfinite(nat).sum() > 1 else 0.0
-        cmp = compare_peaks(f, obs.values, h_map[sl], f_sd)
+        cmp = compare_peaks(f, obs.values, h_map[sl], predicted_draws=pred[:, sl])
         entry = {
             "source": obs.source, "clamping_length": obs.configuration.clamping_length,
             "direction": obs.configuration.direction, "rms_z": float(np.sqrt(np.mean(np.abs(z[sl]) ** 2))),
@@ -273,8 +327,10 @@ def detect_from_fit(fit, rng: np.random.Generator, n_draws: int = 64) -> Detecti
             "resonance": cmp,
         }
         meas.append(entry)
-        if cmp["significant_shift"]:
-            shifts.append(f"{obs.source}: {cmp['findings'][0]}")
+        # a shifted resonance, a mode only one side has, or a different most prominent mode
+        mode_reasons = [x for x in cmp["findings"] if x.startswith(("model resonance", "the more prominent",
+                                                                  "measured mode at"))]
+        shifts += [f"{obs.source}: {x}" for x in mode_reasons]
     trend = length_trend([m["clamping_length"] for m in meas], [m["resonance"]["frequency_error_pct"] for m in meas])
     piles = pile_up(fit)
     ok, reasons = adequacy(fit.correlation_length, piles, shifts)
@@ -296,7 +352,10 @@ def transfer_failures(transfer, limit_pct: float = TRANSFER_LIMIT_PCT) -> list[s
     """
     out = []
     for t in transfer:
-        if "error_pct" in t and abs(t["error_pct"]) > limit_pct:
+        if "error_pct" in t and not math.isfinite(t["error_pct"]):
+            out.append(f"leave-one-length-out: fitted without {t['left_out_mm']:g} mm, the model has no mode "
+                       f"matching the most prominent measured mode of {t['source']} ({t['direction']})")
+        elif "error_pct" in t and abs(t["error_pct"]) > limit_pct:
             out.append(f"leave-one-length-out: fitted without {t['left_out_mm']:g} mm, the model mispredicts "
                        f"{t['source']} ({t['direction']}) by {t['error_pct']:+.2f} % (> {limit_pct:g} %)")
     return out

@@ -57,30 +57,35 @@ def _residual_plot(res, path: Path, label_after: str) -> None:
 
 
 def _frequency_plot(res, path: Path, label_after: str) -> None:
-    """Natural-frequency error of every measurement, with its 90 % interval, before and after.
+    """Natural-frequency error of every matched mode of every measurement, with its 90 % interval.
 
-    Errors are relative to the measured peak; the bars show where the model's
-    90 % interval of that peak lies relative to it, so a bar that crosses 0
-    covers the measurement.  Before and after are offset slightly in
-    clamping length so the bars do not hide each other.
+    Errors are model mode k minus measured mode k (never two different modes), relative to the measured
+    frequency; the bar spans the model's 90 % interval of that mode relative to it, so a bar that crosses 0
+    covers the measurement.  The bar is drawn from its two ends (not as an error around the point), so a
+    point and interval are shown as computed.  Before and after are offset slightly in clamping length, and
+    the modes of one measurement fan out to the right.
     """
     fig = new_figure(5.4, 3.6)
     ax = fig.add_subplot(1, 1, 1)
     for k, (key, colour, lab) in enumerate((("before", "C3", "baseline"), ("after", "C0", label_after))):
         for m in res.evaluation[key]["measurements"]:
-            q = m["predicted_hz_interval"]
-            rel = [100 * (q[c] - m["measured_hz"]) / m["measured_hz"] for c in ("q05", "q95")]
-            x = m["clamping_length"] * 1e3 + (k - 0.5) * 0.5 + (0.15 if m["direction"] == "y" else 0.0)
-            ax.errorbar(x, m["error_pct"], yerr=[[m["error_pct"] - rel[0]], [rel[1] - m["error_pct"]]],
-                        fmt="o" if m["fitted"] else "s", color=colour, mfc=colour if m["fitted"] else "none",
-                        capsize=2, lw=0.8)
+            for r, md in enumerate(m["modes"]):
+                q, fm = md["model_interval"], md["measured_hz"]
+                lo, hi = (100 * (q[c] - fm) / fm for c in ("q05", "q95"))
+                x = m["clamping_length"] * 1e3 + (k - 0.5) * 0.5 + (0.15 if m["direction"] == "y" else 0.0) + 0.1 * r
+                style = dict(color=colour, lw=0.8)
+                if math.isfinite(lo) and math.isfinite(hi):
+                    ax.vlines(x, lo, hi, **style)
+                    ax.hlines([lo, hi], x - 0.08, x + 0.08, **style)
+                ax.plot(x, md["error_pct"], "o" if m["fitted"] else "s", color=colour,
+                        mfc=colour if m["fitted"] else "none", ms=4)
         ax.plot([], [], "o", color=colour, label=lab)
     ax.plot([], [], "ks", mfc="none", label="held out")
     ax.axhline(0, color="k", lw=0.5)
     # linear within +-0.5 % (the errors of a good fit), logarithmic beyond (the intervals of an unexplained remainder)
     ax.set_yscale("symlog", linthresh=0.5)
     ax.set_xlabel("clamping length [mm]")
-    ax.set_ylabel("natural-frequency error [%]\n(model - measured, 90 % interval)")
+    ax.set_ylabel("mode frequency error [%]\n(model mode - measured mode, 90 % interval)")
     ax.legend(fontsize=7)
     fig.tight_layout()
     save_png(fig, path)

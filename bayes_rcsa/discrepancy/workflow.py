@@ -36,10 +36,10 @@ from ..errors import DataError, ModelError, SetupError
 from ..inference.band import band_mask
 from ..inference.problem import IdentificationOptions, Problem, build_problem_from_setup
 from ..model.assembly import ConfigurationStack
-from ..model.natural_frequencies import natural_frequency
+from ..model.modes import MODE_RULE, find_modes, match_modes, mode_windows, track_modes
 from ..params.forward import ForwardModel
 from ..params.terms import get_term, known_terms
-from .detect import Detection, detect_from_fit, transfer_failures
+from .detect import UNMATCHED_REL_HEIGHT, Detection, detect_from_fit, transfer_failures
 from .fit import ModelFit, fit_baseline, fit_variant, laplace_draws, with_robust_covariance
 from .screen import embed_baseline, score_test
 from .select import (GAP_LAGS, bound_warnings, decide, fitted_systematic_gap, gap, refit_candidate, separating_test,
@@ -201,34 +201,132 @@ def _quantiles(x: np.ndarray) -> dict:
     return {"q05": float(q[0]), "q50": float(q[1]), "q95": float(q[2])}
 
 
+def _noise_sd(prob: Problem, vals, measured: list, parts_map: list) -> list:
+    """Per measurement (fitted and held out): (n_draws, 1) relative noise scale and (n,) variance shape.
+
+    Fitted measurements use their own sampled noise scale; a held-out one has none and takes the
+    median of the fitted ones per draw (the same test rig and hammer).
+    """
+    lik = prob.likelihood
+    s = prob.parameters.noise(vals)  # (n_draws, n_fitted)
+    used = {(o.configuration, o.source): j for j, o in enumerate(prob.observations)}
+    out = []
+    for (cfg, frf), hm, hp in zip(prob.all_measurements, measured, parts_map):
+        j = used.get((cfg, frf.source))
+        scale = s[:, j][:, None] if j is not None else np.median(s, axis=1)[:, None]
+        mask = band_mask(frf, prob.band_of(frf))
+        coh = frf.coherence[mask] if frf.coherence is not None else np.ones(hm.size)
+        coh = np.where(coh > 0, coh, 1.0)  # lines the likelihood drops (coherence 0) carry no noise information
+        floor2 = (prob.options.noise_floor ** 2) * float(np.max(np.abs(hm)) ** 2)
+        out.append((scale, floor2, coh))
+    return out
+
+
+def mode_entries(f: np.ndarray, measured: np.ndarray, h_map: np.ndarray, h_draws: np.ndarray,
+                 h_pred: np.ndarray) -> dict:
+    """Every in-band mode of one measurement, matched one to one with the model's, with its intervals.
+
+    Parameters
+    ----------
+    f : (n,) Hz;  measured, h_map : (n,) complex m/N
+    h_draws : (n_draws, n) complex, model FRF draws (parameter uncertainty only)
+    h_pred : (n_draws, n) complex, the same draws with measurement noise (posterior predictive)
+
+    Returns
+    -------
+    dict with ``modes`` (one entry per matched pair: measured and MAP model frequency, the model's 90 %
+    interval ``model_interval`` and the posterior-predictive one ``predictive_interval``, coverage of the
+    measured frequency by both, the error in %, the fraction of draws whose mode left its window), the
+    unmatched modes of each side, ``prominent_mode_differs`` and the index of the most prominent measured mode.
+
+    Raises
+    ------
+    ModelError
+        When a MAP mode frequency lies outside its own tracked interval by more than a line (the
+        bookkeeping of modes is broken; nothing downstream may then compare frequencies).
+    """
+    mm = find_modes(f, measured)
+    pm = find_modes(f, h_map)
+    pairs = match_modes(pm, mm)
+    win = mode_windows(pm)
+    fd = track_modes(f, h_draws, win)
+    fp = track_modes(f, h_pred, win)
+    fmap = track_modes(f, h_map[None], win)[0] if pm else np.zeros(0)
+    df = float(np.median(np.diff(f)))
+    modes = []
+    for i, j in pairs:
+        q, qp = _quantiles(fd[:, i]), _quantiles(fp[:, i])
+        fm = mm[j].frequency_hz
+        if np.isfinite(q["q05"]) and not (q["q05"] - df <= fmap[i] <= q["q95"] + df):
+            raise ModelError(f"mode bookkeeping: model mode {i} at {fmap[i]:.1f} Hz lies outside its own 90 % "
+                             f"interval [{q['q05']:.1f}, {q['q95']:.1f}] Hz")
+        modes.append({"measured_hz": fm, "measured_height": mm[j].height, "model_hz": float(fmap[i]),
+                      "model_height": pm[i].height, "model_interval": q, "predictive_interval": qp,
+                      "error_pct": 100.0 * (float(fmap[i]) - fm) / fm,
+                      "covered_model_90": bool(q["q05"] <= fm <= q["q95"]),
+                      "covered_predictive_90": bool(qp["q05"] <= fm <= qp["q95"]),
+                      "lost_draws": float(np.mean(~np.isfinite(fd[:, i]))),
+                      "model_index": i, "measured_index": j})
+    top_m = max(range(len(mm)), key=lambda j: mm[j].height) if mm else None
+    top_p = max(range(len(pm)), key=lambda i: pm[i].height) if pm else None
+    for m in modes:
+        m["most_prominent_measured"] = m["measured_index"] == top_m
+        m["most_prominent_model"] = m["model_index"] == top_p
+    differs = bool(modes) and (not any(m["most_prominent_measured"] and m["most_prominent_model"] for m in modes))
+    paired_m, paired_p = {j for _, j in pairs}, {i for i, _ in pairs}
+    return {"modes": modes,
+            "unmatched_measured_hz": [mm[j].frequency_hz for j in range(len(mm)) if j not in paired_m],
+            "unmatched_measured_rel_height": [mm[j].height / mm[top_m].height for j in range(len(mm))
+                                              if j not in paired_m],
+            "unmatched_model_hz": [pm[i].frequency_hz for i in range(len(pm)) if i not in paired_p],
+            "prominent_mode_differs": differs, "n_measured_modes": len(mm), "n_model_modes": len(pm)}
+
+
 def evaluate(fit: ModelFit, rng: np.random.Generator, n_draws: int = 200) -> dict:
-    """Gap, natural-frequency errors and stiffness of a fit at every measurement of the setup."""
+    """Gap, mode-by-mode natural frequencies and stiffness of a fit at every measurement of the setup.
+
+    Per measurement, every in-band mode of the measured FRF is matched one to one with the model's
+    (:func:`mode_entries`); the headline keys (``measured_hz``, ``predicted_hz``, ``error_pct``, ...)
+    belong to the measured FRF's most prominent mode and *its* model mode, never to the model's highest
+    peak when that is another mode.
+    """
     prob = fit.problem
     stack, measured, freqs = _all_stack(prob)
     fwd = ForwardModel(prob.parameters, stack, prob.model)
     pm = prob.parameters
     draws = laplace_draws(fit, rng, n_draws)
     h_map = fwd.frf(pm.values(fit.theta[None]))[0]
+    vals = pm.values(draws)
     h_draws = np.concatenate([fwd.frf(pm.values(draws[a : a + 64])) for a in range(0, draws.shape[0], 64)])
     parts = stack.split(h_map)
     dparts = stack.split(h_draws)
+    noise = _noise_sd(prob, vals, measured, parts)
     per = []
     by_len: dict[str, list] = {}
     used = {(o.configuration, o.source) for o in prob.observations}
-    for j, ((cfg, frf), f, hm, hp, hd) in enumerate(zip(prob.all_measurements, freqs, measured, parts, dparts)):
-        f_meas = float(natural_frequency(f, hm))
-        f_map = float(natural_frequency(f, hp))
-        f_draws = natural_frequency(f, hd)
-        err = 100.0 * (f_map - f_meas) / f_meas
-        per.append({"source": frf.source, "clamping_length": cfg.clamping_length, "direction": cfg.direction,
-                    "fitted": (cfg, frf.source) in used, "measured_hz": f_meas, "predicted_hz": f_map,
-                    "predicted_hz_interval": _quantiles(f_draws), "error_pct": err,
-                    "covered_90": bool(np.nanquantile(f_draws, 0.05) <= f_meas <= np.nanquantile(f_draws, 0.95))
-                    if np.isfinite(f_draws).any() else False,
-                    "gap": systematic_gap([hm], [hp])["gap"], "gap_raw": gap(hm, hp)})
-        by_len.setdefault(_length_key(cfg.clamping_length), []).append(err)
+    for j, ((cfg, frf), f, hm, hp, hd, (scale, floor2, coh)) in enumerate(
+            zip(prob.all_measurements, freqs, measured, parts, dparts, noise)):
+        sd = scale * np.sqrt((np.abs(hd) ** 2 + floor2) / coh)  # (n_draws, n) complex-noise standard deviation
+        eps = (rng.standard_normal(hd.shape) + 1j * rng.standard_normal(hd.shape)) * (sd / math.sqrt(2.0))
+        me = mode_entries(f, hm, hp, hd, hd + eps)
+        head = next((m for m in me["modes"] if m["most_prominent_measured"]), None)
+        nan_q = {"q05": math.nan, "q50": math.nan, "q95": math.nan}
+        entry = {"source": frf.source, "clamping_length": cfg.clamping_length, "direction": cfg.direction,
+                 "fitted": (cfg, frf.source) in used,
+                 "measured_hz": head["measured_hz"] if head else (max(me["unmatched_measured_hz"], default=math.nan)),
+                 "predicted_hz": head["model_hz"] if head else math.nan,
+                 "predicted_hz_interval": head["model_interval"] if head else nan_q,
+                 "predictive_hz_interval": head["predictive_interval"] if head else nan_q,
+                 "error_pct": head["error_pct"] if head else math.nan,
+                 "covered_90": head["covered_model_90"] if head else False,
+                 "covered_predictive_90": head["covered_predictive_90"] if head else False,
+                 "most_prominent_mode_matched": head is not None,
+                 **me,
+                 "gap": systematic_gap([hm], [hp])["gap"], "gap_raw": gap(hm, hp)}
+        per.append(entry)
+        if head is not None:
+            by_len.setdefault(_length_key(cfg.clamping_length), []).append(head["error_pct"])
     lengths = sorted({round(c.clamping_length, 12) for c, _ in prob.all_measurements})
-    vals = pm.values(draws)
     contact = pm.contact(vals, lengths)
     c_map = pm.contact(pm.values(fit.theta[None]), lengths)
     stiff = {
@@ -241,6 +339,37 @@ def evaluate(fit: ModelFit, rng: np.random.Generator, n_draws: int = 200) -> dic
     return {"gap": g["gap"], "gap_detail": g, "frequency_error_pct": {k: float(np.mean(v)) for k, v in by_len.items()},
             "measurements": per, "stiffness": stiff, "term_parameters": params,
             "frf": {"frequency_hz": freqs, "measured": measured, "predicted": parts}}
+
+
+def prediction_usability(after: dict, before: dict, gap_resolution: float) -> tuple[bool, list[str]]:
+    """Whether the final model's intervals may be used for prediction, and why not.
+
+    Rules (docs/discrepancy.md, "Usable for prediction"):
+
+    1. at every *fitted* measurement, every measured mode has a model counterpart (strong unmatched modes
+       count; weak ones below :data:`~.detect.UNMATCHED_REL_HEIGHT` of the highest peak do not);
+    2. at every fitted measurement, the 90 % posterior-predictive interval of every matched mode covers
+       the measured frequency (the model was given that data: missing it means the intervals are too
+       narrow for the misfit);
+    3. the systematic gap did not grow from the baseline to the final model (beyond its resolution).
+    """
+    reasons = []
+    for m in after["measurements"]:
+        if not m["fitted"]:
+            continue
+        where = f"{m['direction']} {m['clamping_length'] * 1e3:g} mm"
+        for fu, rel in zip(m["unmatched_measured_hz"], m["unmatched_measured_rel_height"]):
+            if rel >= UNMATCHED_REL_HEIGHT:
+                reasons.append(f"{where}: the measured mode at {fu:.0f} Hz has no counterpart in the model")
+        for md in m["modes"]:
+            q = md["predictive_interval"]
+            if not md["covered_predictive_90"]:
+                reasons.append(f"{where}: the 90 % predictive interval [{q['q05']:.0f}, {q['q95']:.0f}] Hz of the "
+                               f"mode measured at {md['measured_hz']:.0f} Hz (a fitted measurement) misses it")
+    if after["gap"] > before["gap"] + gap_resolution:
+        reasons.append(f"the systematic gap grew from {100 * before['gap']:.2g} % to {100 * after['gap']:.2g} % "
+                       "in the final model")
+    return (not reasons), reasons
 
 
 # -- the loop -----------------------------------------------------------------
@@ -266,6 +395,16 @@ def remainder_terms(setup, problem: Problem) -> list[str]:
 
 
 
+def _matched_head(f: np.ndarray, measured: np.ndarray, model: np.ndarray) -> tuple[float, float]:
+    """Measured frequency of the most prominent measured mode and of *its* model mode (NaN if unmatched), Hz."""
+    mm, pm = find_modes(f, measured), find_modes(f, model)
+    if not mm:
+        return math.nan, math.nan
+    top = max(range(len(mm)), key=lambda j: mm[j].height)
+    i = next((i for i, j in match_modes(pm, mm) if j == top), None)
+    return mm[top].frequency_hz, (pm[i].frequency_hz if i is not None else math.nan)
+
+
 def _leave_one_length_out(setup, base_opts, problem: Problem, tempering: float) -> list[dict]:
     lengths = sorted({round(o.configuration.clamping_length, 12) for o in problem.observations})
     if len(lengths) < 3:
@@ -284,7 +423,7 @@ def _leave_one_length_out(setup, base_opts, problem: Problem, tempering: float) 
         h = stack.split(fwd.frf(p.parameters.values(fit.theta[None]))[0])
         for (cfg, frf), f, hm, hp in zip(p.all_measurements, freqs, measured, h):
             if abs(cfg.clamping_length - left) < 1e-9:
-                fm, fp = float(natural_frequency(f, hm)), float(natural_frequency(f, hp))
+                fm, fp = _matched_head(f, hm, hp)
                 out.append({"left_out_mm": left * 1e3, "source": frf.source, "direction": cfg.direction,
                             "measured_hz": fm, "predicted_hz": fp, "error_pct": 100 * (fp - fm) / fm})
     return out
@@ -392,6 +531,13 @@ def build_report(res: DiscrepancyResult) -> dict:
     named = dec["named"]
     b, a = res.evaluation["before"], res.evaluation["after"]
     on_bounds = bound_warnings(res.final)
+    usable, why = prediction_usability(a, b, a["gap_detail"]["resolution"])
+    grew = bool(a["gap"] > b["gap"] + a["gap_detail"]["resolution"])
+    warnings = [f"final model: {w}" for w in on_bounds]
+    if not usable:
+        warnings.append("final model not usable for prediction: " + "; ".join(why))
+    elif grew:
+        warnings.append(f"the systematic gap grew in the final model ({100 * b['gap']:.2g} % -> {100 * a['gap']:.2g} %)")
     out = {
         "adequate": bool(res.detection.adequate),
         "named_effect": named,
@@ -405,6 +551,11 @@ def build_report(res: DiscrepancyResult) -> dict:
         "gap_resolution": a["gap_detail"]["resolution"],
         "gap_before_at_noise_floor": b["gap_detail"]["at_noise_floor"],
         "gap_after_at_noise_floor": a["gap_detail"]["at_noise_floor"],
+        "warnings": warnings,
+        "usable_for_prediction": usable,
+        "usable_for_prediction_reasons": why,
+        "gap_grew": grew,
+        "mode_rule": MODE_RULE,
         "frequency_error_pct_before": b["frequency_error_pct"],
         "frequency_error_pct_after": a["frequency_error_pct"],
         "stiffness_before": b["stiffness"],
@@ -483,8 +634,8 @@ def summary_markdown(report: dict) -> str:
         lines.append("`setup.amended.toml` adds it to the model; use it for the next `bayes-rcsa identify`.")
     else:
         lines.append("The model disagrees with the measurements, and none of the known effects explains it. "
-                     "A statistical discrepancy term was added so that the stiffness and frequency intervals "
-                     "are wider and stay honest. Reasons:")
+                     "A statistical discrepancy term was added to widen the stiffness and frequency intervals. "
+                     "Reasons for the disagreement:")
         lines += [f"- {r}" for r in report["detection"]["reasons"]]
         for part in report.get("partially_explained_by", []):
             ratio = part["systematic_gap_ratio"]
@@ -495,6 +646,13 @@ def summary_markdown(report: dict) -> str:
                       "lengths is not trusted either: predictions at other clamping lengths carry every law shape "
                       "the prior allows and are wide. Measure the clamping length you need (or a third one) to "
                       "narrow them."]
+    if report.get("gap_grew"):
+        lines += ["", f"**The systematic mismatch grew** in the final model ({100 * report['gap_before']:.2g} % -> "
+                  f"{100 * report['gap_after']:.2g} %): the added term makes the fit worse, not more honest."]
+    if not report.get("usable_for_prediction", True):
+        lines += ["", "**Not usable for prediction.** The final model's intervals are too narrow for the "
+                  "disagreement, so no frequency interval below may be used to choose a spindle speed:"]
+        lines += [f"- {r}" for r in report["usable_for_prediction_reasons"]]
     where = []
     for m in report["detection"]["measurements"]:
         notes = list(m["resonance"]["findings"])
@@ -520,13 +678,30 @@ def summary_markdown(report: dict) -> str:
               "| clamping length (mm) | frequency error before (%) | after (%) |", "|---|---|---|"]
     for k in report["frequency_error_pct_before"]:
         lines.append(f"| {k} | {report['frequency_error_pct_before'][k]:+.2f} | {report['frequency_error_pct_after'].get(k, math.nan):+.2f} |")
-    lines += ["", "| measurement | fitted | measured (Hz) | predicted before, 90 % interval (Hz) | after (Hz) |",
-              "|---|---|---|---|---|"]
+    usable = report.get("usable_for_prediction", True)
+    lines += ["", "Every mode in the band, model mode matched one to one with measured mode (never the model's "
+              "highest peak against the measured highest peak when those are different modes); intervals are "
+              "the model's 90 % interval and, after, the 90 % predictive interval with measurement noise:", "",
+              "| measurement | fitted | mode measured (Hz) | model before, 90 % interval (Hz) | model after (Hz) "
+              "| predictive after (Hz) |", "|---|---|---|---|---|---|"]
     for mb, ma in zip(report["measurements_before"], report["measurements_after"]):
-        qb, qa = mb["predicted_hz_interval"], ma["predicted_hz_interval"]
-        lines.append(f"| {ma['direction']} {ma['clamping_length'] * 1e3:g} mm | {'yes' if ma['fitted'] else 'no'} "
-                     f"| {ma['measured_hz']:.1f} | {qb['q50']:.1f} [{qb['q05']:.1f}, {qb['q95']:.1f}] "
-                     f"| {qa['q50']:.1f} [{qa['q05']:.1f}, {qa['q95']:.1f}] |")
+        before = {round(m["measured_hz"], 6): m for m in mb["modes"]}
+        for md in ma["modes"]:
+            b = before.get(round(md["measured_hz"], 6))
+            qb = b["model_interval"] if b else None
+            qa, qp = md["model_interval"], md["predictive_interval"]
+            star = "" if usable else " (not usable)"
+            lines.append(f"| {ma['direction']} {ma['clamping_length'] * 1e3:g} mm | {'yes' if ma['fitted'] else 'no'} "
+                         f"| {md['measured_hz']:.1f}{' (most prominent)' if md['most_prominent_measured'] else ''} "
+                         + (f"| {qb['q50']:.1f} [{qb['q05']:.1f}, {qb['q95']:.1f}] " if qb else "| no matching mode ")
+                         + f"| {qa['q50']:.1f} [{qa['q05']:.1f}, {qa['q95']:.1f}]{star} "
+                         f"| [{qp['q05']:.1f}, {qp['q95']:.1f}]{star} |")
+        for fu in ma["unmatched_measured_hz"]:
+            lines.append(f"| {ma['direction']} {ma['clamping_length'] * 1e3:g} mm | {'yes' if ma['fitted'] else 'no'} "
+                         f"| {fu:.1f} | | no matching model mode | |")
+        if ma["prominent_mode_differs"]:
+            lines.append(f"| {ma['direction']} {ma['clamping_length'] * 1e3:g} mm | | the most prominent mode "
+                         "differs between model and measurement | | | |")
     lines += ["", "| clamping length (mm) | k_xf before (N/m), median [90 % interval] | k_xf after (N/m) |", "|---|---|---|"]
     for k, q in report["stiffness_before"]["k_xf"].items():
         qa = report["stiffness_after"]["k_xf"][k]

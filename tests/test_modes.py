@@ -1,0 +1,159 @@
+"""Modes matched one to one (bayes_rcsa.model.modes) and the discrepancy bookkeeping built on them.
+
+The two-mode case with swapped prominence is built on purpose: the measured FRF's highest peak is its
+upper mode, the model's highest peak its lower mode.  Comparing highest peak with highest peak would give a
+frequency error of about -15 % between two different modes; mode k against mode k gives the true,
+small errors.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bayes_rcsa.discrepancy.detect import compare_peaks
+from bayes_rcsa.discrepancy.workflow import mode_entries, prediction_usability
+from bayes_rcsa.errors import ModelError
+from bayes_rcsa.model.modes import find_modes, match_modes, mode_windows, track_modes
+from bayes_rcsa.model.natural_frequencies import natural_frequency
+
+F = np.arange(900.0, 2100.0, 2.0)
+
+
+def sdof(f, fn, zeta=0.02, k=1e6):
+    w, wn = 2 * np.pi * f, 2 * np.pi * fn
+    return 1 / (k * (1 - (w / wn) ** 2 + 2j * zeta * w / wn))
+
+
+def two_mode(f_lo, f_hi, k_lo, k_hi, f=F):
+    return sdof(f, f_lo, k=k_lo) + sdof(f, f_hi, k=k_hi)
+
+
+# measured: the upper mode (1627 Hz) is the more prominent; model: the lower one (1385 Hz)
+MEASURED = two_mode(1390.0, 1627.0, 1.3e6, 1.0e6)
+MODEL = two_mode(1385.0, 1640.0, 1.0e6, 1.3e6)
+
+
+def _peak(f, h):
+    return f[np.argmax(np.abs(h))]
+
+
+def test_find_modes_lists_both_modes_at_their_frequencies():
+    modes = find_modes(F, MEASURED)
+    assert len(modes) == 2
+    # a sum of two 2 %-damped modes 17 % apart: the other mode's tail moves each peak by up to ~0.4 %
+    assert modes[0].frequency_hz == pytest.approx(1390.0, rel=5e-3)
+    assert modes[1].frequency_hz == pytest.approx(1627.0, rel=5e-3)
+    assert modes[1].height > modes[0].height
+    # the windows cut at the minimum between the modes and together cover the band
+    (a0, b0), (a1, b1) = mode_windows(modes)
+    assert a0 == 0 and b1 == F.size - 1 and b0 == a1 and 1390 < F[b0] < 1627
+
+
+def test_noise_does_not_make_modes():
+    rng = np.random.default_rng(11)
+    h = sdof(F, 1500.0)
+    counts = []
+    for _ in range(30):
+        noisy = h + 0.02 * np.abs(h) / np.sqrt(2) * (rng.standard_normal(F.size) + 1j * rng.standard_normal(F.size))
+        noisy = noisy + 1e-9 * (rng.standard_normal(F.size) + 1j * rng.standard_normal(F.size))
+        counts.append(len(find_modes(F, noisy)))
+    # 2 % relative noise is 0.02 in ln|h|, ten times below the prominence threshold: never a spurious mode
+    assert counts == [1] * 30
+
+
+def test_match_keeps_order_and_gates_far_modes():
+    meas, model = find_modes(F, MEASURED), find_modes(F, MODEL)
+    assert match_modes(model, meas) == [(0, 0), (1, 1)]
+    # a model with only the lower mode: the upper measured mode stays unmatched, not paired across 17 %
+    lone = find_modes(F, sdof(F, 1385.0))
+    assert match_modes(lone, meas) == [(0, 0)]
+    # a model mode 30 % away from every measured mode is not the same mode
+    far = find_modes(F, sdof(F, 1000.0))
+    assert match_modes(far, find_modes(F, sdof(F, 1500.0))) == []
+
+
+def test_track_modes_follows_each_mode_through_draws():
+    ref = find_modes(F, MODEL)
+    shifts = np.array([0.99, 1.0, 1.01])
+    draws = np.stack([two_mode(1385.0 * s, 1640.0 * s, 1.0e6, 1.3e6) for s in shifts])
+    out = track_modes(F, draws, mode_windows(ref))
+    # each tracked frequency moves with its own mode (same parabola rule as natural_frequency)
+    assert out[:, 0] == pytest.approx(1385.0 * shifts, rel=3e-3)
+    assert out[:, 1] == pytest.approx(1640.0 * shifts, rel=3e-3)
+    # a draw whose upper mode leaves the band's last window ends on the window edge: NaN, counted by callers
+    gone = track_modes(F, two_mode(1385.0, 2150.0, 1.0e6, 1.3e6)[None], mode_windows(ref))
+    assert np.isfinite(gone[0, 0]) and np.isnan(gone[0, 1])
+
+
+def test_swapped_prominence_is_detected_and_no_error_is_computed_across_modes():
+    cross = 100 * (_peak(F, MODEL) - _peak(F, MEASURED)) / _peak(F, MEASURED)
+    assert cross < -10  # what "highest peak minus highest peak" would report
+    r = compare_peaks(F, MEASURED, MODEL)
+    assert r["prominent_mode_differs"]
+    assert any("more prominent mode differs" in s for s in r["findings"])
+    # headline: the measured highest peak (1627 Hz) against *its* model mode (1640 Hz): +0.8 %
+    assert r["frequency_error_pct"] == pytest.approx(100 * (1640 - 1627) / 1627, abs=0.15)
+    errs = sorted(m["frequency_error_pct"] for m in r["modes"])
+    assert errs == pytest.approx([100 * (1385 - 1390) / 1390, 100 * (1640 - 1627) / 1627], abs=0.15)
+    # the same measurement without the swap: no such finding
+    assert not compare_peaks(F, MEASURED, two_mode(1385.0, 1640.0, 1.3e6, 1.0e6))["prominent_mode_differs"]
+
+
+def _draws(rng, n=200, spread=0.002):
+    s = 1 + spread * rng.standard_normal(n)
+    return np.stack([two_mode(1385.0 * x, 1640.0 * x, 1.0e6, 1.3e6) for x in s])
+
+
+def test_mode_entries_report_every_mode_with_consistent_intervals():
+    rng = np.random.default_rng(3)
+    hd = _draws(rng)
+    noise = 0.02 * np.abs(hd) / np.sqrt(2) * (rng.standard_normal(hd.shape) + 1j * rng.standard_normal(hd.shape))
+    me = mode_entries(F, MEASURED, MODEL, hd, hd + noise)
+    assert me["prominent_mode_differs"] and me["unmatched_measured_hz"] == [] and len(me["modes"]) == 2
+    for m in me["modes"]:
+        q, qp = m["model_interval"], m["predictive_interval"]
+        assert q["q05"] <= m["model_hz"] <= q["q95"]  # the point estimate inside its own interval
+        assert qp["q95"] - qp["q05"] >= q["q95"] - q["q05"]  # noise only widens
+        assert m["error_pct"] == pytest.approx(100 * (m["model_hz"] - m["measured_hz"]) / m["measured_hz"])
+    top = [m for m in me["modes"] if m["most_prominent_measured"]]
+    assert len(top) == 1 and top[0]["measured_hz"] == pytest.approx(1627.0, rel=3e-3)
+    assert not top[0]["most_prominent_model"]
+
+
+def test_mode_bookkeeping_error_is_caught_before_any_plot():
+    # draws of a *different* structure (both modes 5 % lower): the MAP lies outside its own interval
+    rng = np.random.default_rng(4)
+    hd = np.stack([two_mode(1385.0 * 0.95 * x, 1640.0 * 0.95 * x, 1.0e6, 1.3e6)
+                   for x in 1 + 0.001 * rng.standard_normal(50)])
+    with pytest.raises(ModelError, match="outside its own 90 % interval"):
+        mode_entries(F, MEASURED, MODEL, hd, hd)
+
+
+def _eval(fitted_cover=True, unmatched=(), gap=0.01):
+    mode = {"measured_hz": 1500.0, "covered_predictive_90": fitted_cover,
+            "predictive_interval": {"q05": 1490.0, "q50": 1495.0, "q95": 1499.0}}
+    m = {"fitted": True, "direction": "x", "clamping_length": 0.025, "modes": [mode],
+         "unmatched_measured_hz": [u for u, _ in unmatched], "unmatched_measured_rel_height": [r for _, r in unmatched]}
+    return {"measurements": [m], "gap": gap}
+
+
+def test_prediction_usability_rules():
+    before = {"gap": 0.02}
+    assert prediction_usability(_eval(), before, 0.001) == (True, [])
+    ok, why = prediction_usability(_eval(fitted_cover=False), before, 0.001)
+    assert not ok and "misses it" in why[0] and "1500 Hz" in why[0]
+    ok, why = prediction_usability(_eval(unmatched=[(1627.0, 0.9)]), before, 0.001)
+    assert not ok and "1627 Hz has no counterpart" in why[0]
+    assert prediction_usability(_eval(unmatched=[(1627.0, 0.1)]), before, 0.001)[0]  # weak peaks do not count
+    ok, why = prediction_usability(_eval(gap=0.05), before, 0.001)
+    assert not ok and "grew" in why[0]
+
+
+def test_single_mode_agrees_with_the_natural_frequency_rule():
+    h = sdof(F, 1234.0)
+    (m,) = find_modes(F, h)
+    assert m.frequency_hz == pytest.approx(float(natural_frequency(F, h)), abs=1e-9)
+    assert math.isfinite(m.width_hz) and m.width_hz == pytest.approx(2 * 0.02 * 1234.0, rel=0.05)
