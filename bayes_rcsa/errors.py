@@ -13,6 +13,7 @@ __all__ = [
     "SetupError",
     "ModelError",
     "ConvergenceError",
+    "OutputError",
     "DataWarning",
 ]
 
@@ -35,6 +36,14 @@ class ModelError(BayesRCSAError, ValueError):
 
 class ConvergenceError(BayesRCSAError, RuntimeError):
     """A sampler or optimiser did not reach the requested convergence."""
+
+
+class OutputError(BayesRCSAError, RuntimeError):
+    """An output folder or file cannot be written (full disk, read-only or vanished folder, no permission).
+
+    Raised instead of a bare :class:`OSError` by the writers of :mod:`bayes_rcsa.io.atomic`, with the folder
+    and the errno meaning named (``"DIR: cannot write: No space left on device (ENOSPC)"``).
+    """
 
 
 class DataWarning(UserWarning):

@@ -165,6 +165,9 @@ def sampler_int(table: dict, key: str, default, path):
     v = table[key]
     if isinstance(v, bool) or not isinstance(v, int) or v < 1:
         raise SetupError(f"{path}: [sampler] {key} = {v!r}: expected a positive integer")
+    from ..io.limits import check_count
+
+    check_count(key, v, f"{path}: [sampler] {key} =")
     return v
 
 
@@ -195,6 +198,9 @@ def check_output_path(path, option: str = "--out", kind: str = "dir") -> Path:
             if not parent.is_dir():
                 raise SetupError(f"{option} {path}: {parent} is a file, not a directory")
             break
+    from ..io.atomic import check_writable
+
+    check_writable(path, option)  # a read-only or forbidden folder is refused before any work
     return path
 
 
@@ -203,16 +209,24 @@ def check_arguments(args: argparse.Namespace) -> None:
 
     - every float option is finite (argparse's ``type=float`` accepts
       ``nan`` and ``inf``);
-    - ``--seed`` is >= 0 (:func:`numpy.random.default_rng` refuses negative seeds);
+    - ``--seed`` is >= 0 (:func:`numpy.random.default_rng` refuses negative seeds) and below 2**63;
+    - counts (``--walkers``, ``--draws``, ...) are within :data:`bayes_rcsa.io.limits.COUNT_LIMITS`;
     - ``--out`` can be written: a directory, or a file for commands that set
       ``out_kind="file"`` in their defaults.
     """
     for name, value in vars(args).items():
         if isinstance(value, float) and not math.isfinite(value):
             raise SetupError(f"--{name.replace('_', '-')} {value!r}: expected a finite number")
+    from ..io.limits import MAX_SEED, check_count
+
     seed = getattr(args, "seed", None)
     if isinstance(seed, int) and not isinstance(seed, bool) and seed < 0:
         raise SetupError(f"--seed {seed}: expected an integer >= 0")
+    if isinstance(seed, int) and not isinstance(seed, bool) and seed > MAX_SEED:
+        raise SetupError(f"--seed {seed}: at most 2**63 - 1 = {MAX_SEED} is allowed (seeds are stored as 64-bit "
+                         "integers; every smaller seed gives its own random stream)")
+    for name, value in vars(args).items():
+        check_count(name, value)  # documented limits on counts (docs/cli-reference.md, "Limits")
     out = getattr(args, "out", None)
     if out is not None:
         check_output_path(out, "--out", getattr(args, "out_kind", "dir"))

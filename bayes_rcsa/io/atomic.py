@@ -3,21 +3,123 @@
 from __future__ import annotations
 
 import contextlib
+import errno
 import fcntl
 import glob
 import os
+import re
 import shutil
 import tempfile
 import time
 from pathlib import Path
-from typing import Iterator
+from typing import Iterable, Iterator
 
-from ..errors import SetupError
+from ..errors import OutputError, SetupError
 
 __all__ = [
     "atomic_path", "atomic_write_text", "atomic_write_bytes", "begin_directory",
     "directory_lock", "new_output_directory", "clean_stale_temporaries", "pid_alive", "directory_is_empty",
+    "os_error_reason", "output_error", "is_io_error", "make_parents", "remove_empty_directories", "check_writable",
 ]
+
+
+_ERRNO_IN_TEXT = re.compile(r"errno\s*=\s*(\d+)")
+
+
+def is_io_error(exc: BaseException) -> bool:
+    """Whether ``exc`` is a failed file operation: an :class:`OSError`, or HDF5's RuntimeError that carries one.
+
+    HDF5 (h5py, h5netcdf) reports a write that failed while flushing or closing a file as ``RuntimeError``
+    with ``errno = 28`` in its text.
+    """
+    return isinstance(exc, OSError) or (isinstance(exc, RuntimeError) and bool(_ERRNO_IN_TEXT.search(str(exc))))
+
+
+def os_error_reason(exc: BaseException) -> str:
+    """The errno meaning of ``exc`` as ``"No space left on device (ENOSPC)"``.
+
+    HDF5 reports its I/O errors as an :class:`OSError` without ``errno`` but
+    with ``errno = 28`` in the text; that number is used then.  Without any
+    errno the exception's first line is returned.
+    """
+    code = getattr(exc, "errno", None)
+    if not code:
+        m = _ERRNO_IN_TEXT.search(str(exc))
+        code = int(m.group(1)) if m else None
+    if code:
+        return f"{os.strerror(code)} ({errno.errorcode.get(code, f'errno {code}')})"
+    text = (getattr(exc, "strerror", None) or str(exc) or type(exc).__name__).strip().splitlines()
+    return text[0] if text else type(exc).__name__
+
+
+def output_error(exc: BaseException, folder, what: str = "cannot write") -> OutputError:
+    """An :class:`OutputError` for ``exc`` met while writing into ``folder``: one line naming the folder.
+
+    When the failing path lies outside ``folder`` (an input read inside the
+    writing block), that path is named instead.
+    """
+    folder = Path(folder)
+    name = getattr(exc, "filename", None)
+    if name is not None:
+        try:
+            inside = Path(os.fsdecode(name)).resolve().is_relative_to(folder.resolve())
+        except (OSError, ValueError, TypeError):
+            inside = True
+        if not inside:
+            return OutputError(f"{os.fsdecode(name)}: {os_error_reason(exc)}")
+    return OutputError(f"{folder}: {what}: {os_error_reason(exc)}")
+
+
+def check_writable(path, option: str = "--out") -> None:
+    """Refuse an output path whose folder cannot be written (read-only, no permission), before any work.
+
+    Creates and removes an empty temporary file in ``path`` when it is an
+    existing directory, else in its nearest existing ancestor (where the
+    missing folders would be made); nothing else is created.  A full disk
+    usually still allows an empty file; it is met, and undone, at the first
+    real write.
+
+    Raises
+    ------
+    OutputError
+        ``"--out DIR: cannot write in FOLDER: Read-only file system (EROFS)"``.
+    """
+    path = Path(path).absolute()
+    folder = path if path.is_dir() else next((p for p in path.parents if p.exists()), None)
+    if folder is None or not folder.is_dir():
+        return  # a file in the way is named by the caller's own check
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".bayes-rcsa-probe.", dir=folder)
+    except OSError as exc:
+        raise OutputError(f"{option} {path}: cannot write in {folder}: {os_error_reason(exc)}") from exc
+    os.close(fd)
+    os.unlink(probe)
+
+
+def make_parents(path) -> list[Path]:
+    """Create the missing directories of ``path`` (itself included); return the ones created, outermost first."""
+    path = Path(path)
+    missing = []
+    for p in (path, *path.parents):
+        if p.exists():
+            break
+        missing.append(p)
+    missing.reverse()
+    for p in missing:
+        try:
+            p.mkdir()
+        except FileExistsError:  # made by a concurrent process meanwhile: not ours to remove
+            missing = missing[missing.index(p) + 1:]
+    return missing
+
+
+def remove_empty_directories(dirs: Iterable[Path]) -> None:
+    """Remove each directory of ``dirs`` that is (still) empty, innermost first; others are left alone."""
+    for d in reversed(list(dirs)):
+        try:
+            d.rmdir()
+        except OSError:  # not empty (a later command wrote there) or already gone: leave it
+            continue
 
 #: Name of the lock file when it has to live inside the output directory (see :func:`directory_lock`).
 _INNER_LOCK = ".bayes-rcsa.lock"
@@ -48,18 +150,29 @@ def atomic_path(path, suffix: str | None = None) -> Iterator[Path]:
     that libraries that choose a format by extension (matplotlib, h5py) work.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix if suffix is not None else path.suffix, dir=path.parent)
-    os.close(fd)
-    tmp_path = Path(tmp)
-    # mkstemp creates 0600; give the final file the permissions a plain open() would.
-    os.chmod(tmp_path, 0o666 & ~_umask())
+    created: list[Path] = []
+    tmp_path = None
     try:
+        try:
+            created = make_parents(path.parent)
+        except OSError as exc:
+            raise output_error(exc, path.parent, "cannot create the folder") from exc
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix if suffix is not None else path.suffix,
+                                   dir=path.parent)
+        os.close(fd)
+        tmp_path = Path(tmp)
+        # mkstemp creates 0600; give the final file the permissions a plain open() would.
+        os.chmod(tmp_path, 0o666 & ~_umask())
         yield tmp_path
         os.replace(tmp_path, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            tmp_path.unlink()
+    except BaseException as exc:
+        if tmp_path is not None:
+            with contextlib.suppress(OSError):
+                tmp_path.unlink()
+        remove_empty_directories(created)
+        if is_io_error(exc):
+            # a full disk, a read-only or vanished folder: one line naming the folder, not the temporary file
+            raise output_error(exc, path.parent, f"cannot write {path.name}") from exc
         raise
 
 
@@ -184,8 +297,29 @@ def directory_lock(out_dir, option: str = "--out") -> Iterator[Path]:
         Another process holds the lock: ``"DIR is in use by PID n"``.
     """
     out_dir = Path(out_dir).resolve()
-    if not out_dir.parent.exists():
-        out_dir.parent.mkdir(parents=True)
+    created: list[Path] = []
+    try:
+        created = make_parents(out_dir.parent)
+        fd, lock = _acquire(out_dir, option)
+    except OSError as exc:
+        # read-only or vanished parent, no permission, full disk: nothing of ours may stay behind
+        remove_empty_directories(created)
+        raise output_error(exc, out_dir.parent, f"cannot create the lock file for {option} {out_dir}") from exc
+    except BaseException:
+        remove_empty_directories(created)
+        raise
+    try:
+        yield out_dir
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(lock)
+        os.close(fd)
+        # parents made for a run that then wrote nothing (it failed early) go again
+        remove_empty_directories(created)
+
+
+def _acquire(out_dir: Path, option: str) -> tuple[int, Path]:
+    """Open and flock the lock file of ``out_dir``; write our PID into it.  Returns (fd, lock path)."""
     lock = _lock_file(out_dir)
     while True:
         fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
@@ -216,28 +350,50 @@ def directory_lock(out_dir, option: str = "--out") -> Iterator[Path]:
     try:
         os.ftruncate(fd, 0)
         os.write(fd, f"{os.getpid()}\n".encode("ascii"))
-        yield out_dir
-    finally:
-        with contextlib.suppress(FileNotFoundError):
+    except OSError:
+        with contextlib.suppress(OSError):
             os.unlink(lock)
         os.close(fd)
+        raise
+    return fd, lock
 
 
 @contextlib.contextmanager
-def new_output_directory(out_dir, option: str = "--out") -> Iterator[Path]:
+def new_output_directory(out_dir, option: str = "--out", keep_on_interrupt: Iterable[str] = ()) -> Iterator[Path]:
     """Create ``out_dir`` if needed for a command that writes into it in place; undo on failure.
 
-    If the block raises and this call created the directory, the directory
-    is removed again when it is still empty, so an early failure leaves
-    nothing behind.  Take :func:`directory_lock` around it.
+    If the block raises, every entry of ``out_dir`` that was not there when
+    the block began is removed (files, and folders with what is in them),
+    then ``out_dir`` itself and the parents this call created if they are
+    empty: a failed run, a full disk or a folder turned read-only leaves
+    nothing behind, and a rerun is not blocked.  Entries named in
+    ``keep_on_interrupt`` stay when the failure is a keyboard interrupt (the
+    checkpoint of ``identify``, which ``--resume`` continues).  An
+    :class:`OSError` raised in the block becomes one :class:`OutputError`
+    line naming the folder and the errno meaning.  Take
+    :func:`directory_lock` around it.
     """
     out_dir = Path(out_dir)
-    created = not out_dir.exists()
-    out_dir.mkdir(parents=True, exist_ok=True)
+    keep = set(keep_on_interrupt)
+    try:
+        before = {p.name for p in out_dir.iterdir()} if out_dir.is_dir() else set()
+        created = make_parents(out_dir)
+    except OSError as exc:
+        raise output_error(exc, out_dir, "cannot create the output folder") from exc
     try:
         yield out_dir
-    except BaseException:
-        if created:
-            with contextlib.suppress(OSError):
-                out_dir.rmdir()  # only succeeds when empty
+    except BaseException as exc:
+        interrupted = isinstance(exc, KeyboardInterrupt)
+        with contextlib.suppress(OSError):
+            for p in list(out_dir.iterdir()):
+                if p.name in before or (interrupted and p.name in keep):
+                    continue
+                if p.is_dir() and not p.is_symlink():
+                    shutil.rmtree(p, ignore_errors=True)
+                else:
+                    with contextlib.suppress(OSError):
+                        p.unlink()
+        remove_empty_directories(created)
+        if is_io_error(exc):
+            raise output_error(exc, out_dir) from exc
         raise

@@ -22,6 +22,7 @@ from ..errors import DataError
 from ..model.receptance import FRF
 from .atomic import atomic_path
 from .checks import check_magnitude
+from .limits import check_input_size
 
 __all__ = [
     "read_frf_csv", "write_frf_csv", "read_csv_columns", "format_float", "check_finite_columns",
@@ -39,6 +40,7 @@ def _read_text(path: Path, what: str) -> str:
         raise DataError(f"{path}: {what} not found (no such file)")
     if not path.is_file():
         raise DataError(f"{path}: {what} is not a regular file")
+    check_input_size(path, what)
     try:
         # utf-8-sig: spreadsheet programs often prepend a byte-order mark.
         return path.read_text(encoding="utf-8-sig")

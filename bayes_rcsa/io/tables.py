@@ -101,6 +101,9 @@ def load_document(path, what: str = "setup file") -> dict:
         raise SetupError(f"{path}: {what} not found (no such file)")
     if not path.is_file():
         raise SetupError(f"{path}: {what} is not a regular file")
+    from .limits import check_input_size
+
+    check_input_size(path, what, SetupError)
     try:
         text = path.read_bytes().decode("utf-8")
     except UnicodeDecodeError as exc:

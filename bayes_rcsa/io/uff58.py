@@ -57,6 +57,9 @@ def _open(path: Path):
         raise DataError(f"{path}: FRF file not found (no such file)")
     if not path.is_file():
         raise DataError(f"{path}: FRF file is not a regular file")
+    from .limits import check_input_size
+
+    check_input_size(path, "FRF file")
     try:
         uff = pyuff.UFF(str(path))
         types = [int(t) for t in uff.get_set_types()]
