@@ -125,7 +125,12 @@ def run(args) -> Summary:
         progress=not args.quiet,
     )
     if bayesian:
-        settings.walkers(problem.priors.ndim)  # refuses an odd or too small walker count now
+        from ..io.limits import check_memory
+
+        n_walkers = settings.walkers(problem.priors.ndim)  # refuses an odd or too small walker count now
+        # the chain is kept in memory (twice while it grows) until the run ends
+        check_memory(2 * 8.0 * settings.max_steps * n_walkers * (problem.priors.ndim + 1),
+                     f"--max-steps {settings.max_steps} x {n_walkers} walkers", "lower --max-steps or --walkers")
     spindle_samples = None
     if args.spindle_uncertainty is not None:
         from ..spindle.uncertainty import load_spindle_samples
@@ -135,17 +140,20 @@ def run(args) -> Summary:
         if missing:
             raise SetupError(f"--spindle-uncertainty {args.spindle_uncertainty}: no samples for direction(s) "
                              f"{missing}; the file has {spindle_samples.directions}")
-    with directory_lock(args.out), new_output_directory(
-            check_output_directory(args.out, args.force, args.resume, resumable=bayesian)):
+    with directory_lock(args.out):
+        check_output_directory(args.out, args.force, args.resume, resumable=bayesian)
         if args.force and not args.resume:
             # an earlier run's results must not survive beside the new ones (a deterministic rerun writes no
             # posterior.nc, and predict would read the old one)
             for name in EARLIER_OUTPUTS:
                 (args.out / name).unlink(missing_ok=True)
-        result = identify(problem, seed=args.seed, settings=settings,
-                          checkpoint_path=ckpt if bayesian else None, resume=args.resume,
-                          spindle_samples=spindle_samples)
-        write_outputs(result, args.out, plots=not args.no_plots)
+        # a failure removes what this run wrote (a checkpoint too: a rerun must not be blocked by it), except the
+        # checkpoint after Ctrl-C, which --resume continues
+        with new_output_directory(args.out, keep_on_interrupt=("chain.h5", "chain.mirror.h5")):
+            result = identify(problem, seed=args.seed, settings=settings,
+                              checkpoint_path=ckpt if bayesian else None, resume=args.resume,
+                              spindle_samples=spindle_samples)
+            write_outputs(result, args.out, plots=not args.no_plots)
     s = result.summary
     status = "converged" if s["converged"] else "NOT converged"
     return Summary(

@@ -108,6 +108,9 @@ def parse_speeds(text: str, option: str = "--speeds") -> np.ndarray:
             raise SetupError(f"{option} {text!r}: COUNT must be an integer") from None
     if stop <= start or count < 2:
         raise SetupError(f"{option} {text!r}: expected STOP > START and COUNT >= 2")
+    from ..io.limits import check_count
+
+    check_count("speed_points", count, f"{option} {text!r}: COUNT")
     return np.linspace(start, stop, count)
 
 
@@ -206,7 +209,7 @@ def run(args: argparse.Namespace) -> Summary:
     from ..stability.outputs import lobes_document, write_lobes_outputs
     from ..stability.progress import ProgressBar
     from ..stability.tests_io import read_cutting_tests
-    from ..io.atomic import directory_is_empty, directory_lock
+    from ..io.atomic import directory_is_empty, directory_lock, new_output_directory
 
     cutting, kt_tol, warnings = _cutting(args)
     speeds = parse_speeds(args.speeds)
@@ -225,7 +228,16 @@ def run(args: argparse.Namespace) -> Summary:
     impl = STABILITY_METHODS.get(args.method, "--method")
     impl.check(MethodOptions(intervals=args.intervals, max_modes=args.max_modes))
     tests = read_cutting_tests(args.tests) if args.tests is not None else None
+    from ..io.limits import check_memory
+
+    n_cells = speeds.size * args.depth_points
+    check_memory(8.0 * (8 * args.draws * speeds.size + 4 * n_cells), f"--draws {args.draws} x --speeds "
+                 f"{speeds.size} x --depth-points {args.depth_points}", "use fewer draws, speeds or depth points, or "
+                 "split the speed range into several runs")
     frf = _dynamics(args)  # validates before any output is written
+    check_memory(8.0 * (8 * frf.n_draws * speeds.size + 4 * n_cells) + 16.0 * 6 * frf.n_draws * frf.frequency_hz.size,
+                 f"{frf.n_draws} draw(s) x {frf.frequency_hz.size} frequency lines x --speeds {speeds.size}",
+                 "use fewer --draws or a coarser speed grid, or split the speed range into several runs")
     if not args.force and not directory_is_empty(args.out):
         check_output_directory(args.out)  # refused before the lobes are computed (checked again under the lock)
     flute = flute if flute is not None else frf.flute_length_m
@@ -251,8 +263,7 @@ def run(args: argparse.Namespace) -> Summary:
     title = f"{cutting.flutes} flutes, {res.method.upper()}, " + (
         "measured FRFs" if frf.source["mode"] == "measured" else f"{frf.n_draws} draws"
     )
-    with directory_lock(args.out):
-        check_output_directory(args.out, args.force)
+    with directory_lock(args.out), new_output_directory(check_output_directory(args.out, args.force)):
         path = write_lobes_outputs(args.out, res, doc, tests, title, max_depth=max_depth)
     rec = res.recommended
     msg = f"wrote {path}, p_stable.npz, lobes.png"

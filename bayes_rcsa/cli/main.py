@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import importlib
 import json
 import re
@@ -140,11 +141,43 @@ def _one_line_warnings(command: str):
         yield
 
 
+@contextlib.contextmanager
+def _unraisable_as_lines(command: str):
+    """Errors Python cannot raise (a destructor failing, e.g. h5py closing a file on a full disk) as one line each.
+
+    A write that failed on a full or read-only disk leaves file handles whose
+    destructors fail again with the same :class:`OSError`; Python would print
+    each with a traceback after the one error line.  After a failed command
+    (exit status 2) these echoes of the reported failure are dropped;
+    anything else is printed as one ``warning:`` line.  Yields a list to which
+    the caller appends the exit status.
+    """
+    seen: list = []
+    status: list[int] = []
+    previous = sys.unraisablehook, sys.excepthook
+    sys.unraisablehook = lambda u: seen.append(u.exc_value)
+    # Cython prints a destructor's traceback through sys.excepthook before reporting it as unraisable; nothing
+    # else calls the hook while a command runs (its exceptions propagate to _run)
+    sys.excepthook = lambda kind, value, tb: seen.append(value)
+    try:
+        yield status
+        gc.collect()  # destructors of objects kept in cycles run now, under this hook
+    finally:
+        sys.unraisablehook, sys.excepthook = previous
+    seen = list({id(e): e for e in seen}.values())
+    for exc in seen:
+        if isinstance(exc, OSError) and status and status[0] == 2:
+            continue
+        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        print(f"bayes-rcsa {command}: warning: ignored error while releasing a resource: {first}", file=sys.stderr)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    with _one_line_warnings(args.command):
-        return _run(args)
+    with _one_line_warnings(args.command), _unraisable_as_lines(args.command) as status:
+        status.append(_run(args))
+    return status[0]
 
 
 def _run(args) -> int:
@@ -156,8 +189,13 @@ def _run(args) -> int:
         return int(result or 0)  # a command that prints its own closing lines
     except BayesRCSAError as exc:
         return _error(args, " ".join(str(exc).split()))
-    except (FileNotFoundError, IsADirectoryError, NotADirectoryError, FileExistsError, PermissionError) as exc:
-        return _error(args, f"{exc.strerror or exc}: {exc.filename}")
+    except OSError as exc:
+        # a file or folder the command's own checks did not name (a write site outside io.atomic, a read
+        # that failed after the checks): its name and the errno meaning, on one line
+        from ..io.atomic import os_error_reason
+
+        where = exc.filename if getattr(exc, "filename", None) is not None else "file system"
+        return _error(args, f"{where}: {os_error_reason(exc)}")
     except KeyboardInterrupt:
         print(f"bayes-rcsa {args.command}: interrupted", file=sys.stderr)
         return 130

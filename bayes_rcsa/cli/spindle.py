@@ -82,7 +82,7 @@ def run(args) -> Summary:
                          f"{sorted(setup.measurements)}")
     if args.workers < 1:
         raise SetupError(f"--workers {args.workers}: expected an integer >= 1")
-    from ..io.atomic import directory_is_empty, directory_lock
+    from ..io.atomic import directory_is_empty, directory_lock, new_output_directory
 
     if not args.force and not directory_is_empty(args.out):
         check_output_directory(args.out)  # refused before the identification runs (checked again under the lock)
@@ -104,8 +104,7 @@ def run(args) -> Summary:
     finally:
         if bar is not None:
             bar.close()
-    with directory_lock(args.out):
-        check_output_directory(args.out, args.force)
+    with directory_lock(args.out), new_output_directory(check_output_directory(args.out, args.force)):
         summary = write_outputs(setup, results, args.out, plots=not args.no_plots, seed=args.seed)
     if not args.quiet:
         for d, s in summary["directions"].items():

@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SetupError
+from ..io.atomic import is_io_error, output_error
 
 __all__ = ["Checkpoint", "CheckpointState"]
 
@@ -69,6 +70,22 @@ class CheckpointState:
         return int(self.chain.shape[0])
 
 
+@contextlib.contextmanager
+def _writing(path: Path, tmp: Path | None = None):
+    """A failed checkpoint write (full disk, read-only or vanished folder) becomes one line naming the folder;
+    the temporary copy ``tmp`` goes.  The run's own files are removed by the command (see
+    :func:`bayes_rcsa.io.atomic.new_output_directory`), which knows whether they existed before."""
+    try:
+        yield
+    except (OSError, RuntimeError) as exc:
+        if not is_io_error(exc):
+            raise
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+        raise output_error(exc, path.parent, f"cannot write the checkpoint {path.name}") from exc
+
+
 class Checkpoint:
     """A pair of HDF5 files (primary and mirror) holding one emcee run.
 
@@ -98,7 +115,7 @@ class Checkpoint:
         import h5py
 
         tmp = path.with_name("." + path.name + ".tmp")
-        with h5py.File(tmp, "w", locking=False) as f:
+        with _writing(path, tmp), h5py.File(tmp, "w", locking=False) as f:
             g = f.create_group(_GROUP)
             g.attrs["version"] = emcee.__version__
             g.attrs["nwalkers"] = n_walkers
@@ -112,7 +129,8 @@ class Checkpoint:
                              chunks=(64, n_walkers))
             m = f.create_group(_META)
             m.attrs["meta"] = json.dumps(meta, sort_keys=True)
-        os.replace(tmp, path)
+        with _writing(path, tmp):
+            os.replace(tmp, path)
 
     # -- writing ----------------------------------------------------------
     def append(self, coords: np.ndarray, log_prob: np.ndarray, accepted: np.ndarray, random_state) -> None:
@@ -136,7 +154,7 @@ class Checkpoint:
 
         # No HDF5 file lock: a reader (a user, or a monitor) holding the file open must not
         # crash the run; the two alternating copies protect against reading a torn write.
-        with h5py.File(path, "a", locking=False) as f:
+        with _writing(path), h5py.File(path, "a", locking=False) as f:
             g = f[_GROUP]
             it = int(g.attrs["iteration"])
             n = coords.shape[0]
@@ -196,8 +214,9 @@ class Checkpoint:
         for p, s in states.items():
             if p != source and (s is None or s.iteration != best.iteration):
                 tmp = p.with_name("." + p.name + ".tmp")
-                shutil.copyfile(source, tmp)
-                os.replace(tmp, p)
+                with _writing(p, tmp):
+                    shutil.copyfile(source, tmp)
+                    os.replace(tmp, p)
 
     def open(self) -> CheckpointState:
         """:meth:`read` the most complete copy and :meth:`repair` the other one."""

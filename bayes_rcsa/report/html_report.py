@@ -341,8 +341,6 @@ def write_report_html(paths: Sequence, out, seed: int = 0, title: str | None = N
     """Build the report (everything validated first) and write it atomically to ``out``; returns the path."""
     text = build_report(paths, seed=seed, title=title)
     out = Path(out)
-    if out.parent and not out.parent.exists():
-        out.parent.mkdir(parents=True)
-    atomic_write_text(out, text)
+    atomic_write_text(out, text)  # makes the missing folders, and removes them again if the write fails
     return out
 
