@@ -157,3 +157,38 @@ def test_single_mode_agrees_with_the_natural_frequency_rule():
     (m,) = find_modes(F, h)
     assert m.frequency_hz == pytest.approx(float(natural_frequency(F, h)), abs=1e-9)
     assert math.isfinite(m.width_hz) and m.width_hz == pytest.approx(2 * 0.02 * 1234.0, rel=0.05)
+
+
+def test_remainder_bias_moves_fitted_intervals_onto_the_data_and_widens_between():
+    from bayes_rcsa.discrepancy.mode_bias import correct_mode_frequencies
+
+    rng = np.random.default_rng(8)
+    n = 400
+    lengths = (0.025, 0.030, 0.040)
+    bias = {0.025: 15.0, 0.040: 30.0}  # the model is 15 and 30 Hz low at the fitted lengths
+    meas, draws = [], []
+    for l in lengths:
+        f_model = 1000.0 + 10000.0 * (l - 0.025)
+        fd = f_model + 0.5 * rng.standard_normal((n, 1))
+        fp = fd + 1.0 * rng.standard_normal((n, 1))  # measured-peak noise: 1 Hz
+        fm = f_model + bias.get(l, 20.0)
+        q = {"q05": 0.0, "q50": 0.0, "q95": 0.0}
+        meas.append({"fitted": l in bias, "direction": "x", "clamping_length": l,
+                     "modes": [{"measured_hz": fm, "model_hz": f_model, "error_pct": 0.0, "model_interval": q,
+                                "predictive_interval": q}]})
+        draws.append((fd, fp))
+    notes = correct_mode_frequencies(meas, draws, rng)
+    assert len(notes) == 1 and "+15.0, +30.0 Hz" in notes[0]
+    for m in meas:
+        md = m["modes"][0]
+        q = md["model_interval"]
+        assert q["q05"] <= md["model_hz"] <= q["q95"]  # the corrected point inside its corrected interval
+        if m["fitted"]:
+            # on the data within the 1 Hz peak noise (GP noise variance 1 Hz^2 against an amplitude ~24 Hz)
+            assert md["bias_hz"]["mean"] == pytest.approx(bias[m["clamping_length"]], abs=0.5)
+            # the posterior sd is at most the peak noise (1 Hz), estimated from 400 draws (~7 % sampling error)
+            assert md["covered_predictive_90"] and md["bias_hz"]["sd"] < 1.15
+        else:
+            # between fitted lengths the bias is uncertain: wider than at the fitted lengths, still covering
+            assert md["bias_hz"]["sd"] > 2.0 and md["covered_model_90"]
+            assert md["uncorrected_model_interval"] == {"q05": 0.0, "q50": 0.0, "q95": 0.0}
