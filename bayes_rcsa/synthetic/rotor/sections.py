@@ -21,6 +21,7 @@ Written for the rotor bench alone (no code shared with :mod:`bayes_rcsa.model`).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -247,6 +248,16 @@ def jourawski_kappa(points: np.ndarray, n_slices: int = 1200) -> float:
     return float(inertia**2 / (area * integral))
 
 
+@lru_cache(maxsize=64)
+def _profile_geometry(diameter: float, profile: FluteProfile) -> tuple[float, float, float]:
+    """Area (m²), mean second moment (m⁴) and κ_J(profile)/κ_J(circle) of a flute profile (cached)."""
+    pts = flute_polygon(diameter, profile)
+    area, Ixx, Iyy = polygon_area_inertia(pts)
+    t = np.linspace(0.0, 2 * np.pi, pts.shape[0], endpoint=False)
+    circle = 0.5 * diameter * np.column_stack([np.cos(t), np.sin(t)])
+    return area, 0.5 * (Ixx + Iyy), jourawski_kappa(pts) / jourawski_kappa(circle)
+
+
 def flute_section(material: RotorMaterial, diameter: float, profile: FluteProfile,
                   modulus_scale: float = 1.0) -> tuple[BeamSection, dict]:
     """Section of a fluted end mill from its profile.
@@ -268,12 +279,8 @@ def flute_section(material: RotorMaterial, diameter: float, profile: FluteProfil
         ``area_equivalent_diameter_ratio`` (√area_ratio),
         ``inertia_equivalent_diameter_ratio`` (inertia_ratio^¼), ``kappa``.
     """
-    pts = flute_polygon(diameter, profile)
-    area, Ixx, Iyy = polygon_area_inertia(pts)
-    inertia = 0.5 * (Ixx + Iyy)
-    t = np.linspace(0.0, 2 * np.pi, pts.shape[0], endpoint=False)
-    circle = 0.5 * diameter * np.column_stack([np.cos(t), np.sin(t)])
-    kappa = cowper_kappa(material.poisson_ratio) * jourawski_kappa(pts) / jourawski_kappa(circle)
+    area, inertia, kappa_ratio = _profile_geometry(float(diameter), profile)
+    kappa = cowper_kappa(material.poisson_ratio) * kappa_ratio
     a_circ = np.pi / 4 * diameter**2
     i_circ = np.pi / 64 * diameter**4
     geometry = {

@@ -134,7 +134,10 @@ def modal_solution(structure: Structure, dofs, cutoff_hz: float = 40e3, min_mode
     B = np.block([[Kr, zero], [zero, -eye]])
     lam, Y = sla.eig(-B, A)
     norm = np.einsum("ir,ij,jr->r", Y, A, Y)
-    Y = Y / np.sqrt(norm)[None, :]
+    # a (numerically) defective pair has y^T A y = 0 and no partial fraction of its own; never met in
+    # practice with distinct damped poles, dropped rather than divided by zero
+    ok = np.abs(norm) > 1e-14 * np.abs(norm).max()
+    lam, Y = lam[ok], Y[:, ok] / np.sqrt(norm[ok])[None, :]
     X = Y[:m]
     shapes = Phi[dofs] @ X
     # static flexibility of the full model minus that of the kept modes
