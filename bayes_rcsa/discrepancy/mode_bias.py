@@ -115,6 +115,7 @@ def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Gen
                        "uncorrected_predictive_interval": md["predictive_interval"],
                        "bias_hz": {"mean": float(mu), "sd": float(math.sqrt(v))},
                        "model_interval": q, "predictive_interval": qp,
+                       "predictive_sd_hz": float(np.nanstd(fp + shift)),
                        "covered_model_90": bool(q["q05"] <= fm <= q["q95"]),
                        "covered_predictive_90": bool(qp["q05"] <= fm <= qp["q95"])})
         notes.append(f"mode {r + 1} ({direction}): bias {', '.join(f'{v:+.1f}' for v in y)} Hz at the fitted "
