@@ -19,8 +19,32 @@ from ..errors import SetupError
 __all__ = [
     "parse_float", "parse_float_list", "parse_frequency_grid", "positive_int", "nonnegative_int", "finite_float",
     "sampler_int", "check_output_path", "check_arguments", "MAX_FREQUENCY_LINES", "Summary", "add_force_argument",
-    "check_output_directory",
+    "check_output_directory", "command_warnings", "merge_warnings",
 ]
+
+#: Warnings issued while the current command runs (a stack: ``demo`` runs commands inside a command).  Filled by
+#: :func:`bayes_rcsa.cli.main.main`, which prints them only when the command succeeds (an error is one line).
+WARNING_BUFFERS: list[list[str]] = []
+
+
+def command_warnings() -> list[str]:
+    """The warnings issued so far by the running command (data plausibility, numerics), one line each.
+
+    Commands add them to the files they write (summary.json, lobes.json) so that every warning printed on
+    stderr also travels with the results.
+    """
+    return list(WARNING_BUFFERS[-1]) if WARNING_BUFFERS else []
+
+
+def merge_warnings(*groups) -> list[str]:
+    """The warnings of ``groups`` in order, each once (compared as one-line text)."""
+    out: list[str] = []
+    for group in groups:
+        for w in group:
+            text = " ".join(str(w).split())
+            if text not in out:
+                out.append(text)
+    return out
 
 
 @dataclasses.dataclass(frozen=True)

@@ -6,8 +6,8 @@ import argparse
 from pathlib import Path
 
 from ..errors import SetupError
-from ._common import (Summary, add_force_argument, check_output_directory, finite_float, nonnegative_int,
-                      positive_int, sampler_int)
+from ._common import (Summary, add_force_argument, check_output_directory, command_warnings, finite_float,
+                      merge_warnings, nonnegative_int, positive_int, sampler_int)
 
 __all__ = ["register", "run"]
 
@@ -86,9 +86,29 @@ def register(subparsers) -> None:
     p.add_argument("--spindle-uncertainty", type=Path, default=None, metavar="FILE",
                    help="spindle samples (spindle_samples.npz from `bayes-rcsa spindle`): the predicted "
                         "natural-frequency intervals mix posterior draws with spindle samples (Bayesian methods)")
+    p.add_argument("--allow-no-resonance", action="store_true",
+                   help="proceed (with a warning) when a measurement holds no resonance in its band (default: "
+                        "refuse; such a file cannot determine the contact)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress output on stderr")
     p.set_defaults(func=run)
+
+
+def _check_resonances(problem, allow: bool) -> None:
+    """Refuse (or, with ``allow``, warn about) a fitted measurement without a resonance in its band."""
+    import warnings
+
+    from ..errors import DataError, DataWarning
+    from ..io.checks import resonance_problem
+
+    for _, frf in problem.measurements:
+        why = resonance_problem(frf.frequency_hz, frf.values)
+        if why is None:
+            continue
+        if not allow:
+            raise DataError(f"{frf.source}: {why}; --allow-no-resonance proceeds anyway")
+        warnings.warn(f"{frf.source}: {why}; the posterior of the contact mostly restates its prior", DataWarning,
+                      stacklevel=2)
 
 
 def run(args) -> Summary:
@@ -97,6 +117,7 @@ def run(args) -> Summary:
     from ..inference.sampler import SamplerSettings
     from ..io.atomic import directory_lock, new_output_directory
     from ..io.setup import load_setup
+    from ..posterior.setup_match import GEOMETRY_KEY, setup_geometry
 
     # Everything that can be checked without sampling is checked before --out is touched.
     if args.ess_min <= 0:
@@ -114,6 +135,7 @@ def run(args) -> Summary:
     setup = load_setup(args.setup)
     options = IdentificationOptions.from_setup(setup.extra, method=args.method, lengths=args.lengths, band=args.band)
     problem = build_problem_from_setup(setup, options)
+    _check_resonances(problem, args.allow_no_resonance)
     sampler_extra = dict(setup.extra.get("sampler", {}) or {})
     pick = lambda cli, key, default: cli if cli is not None else sampler_int(sampler_extra, key, default, setup.path)  # noqa: E731
     settings = SamplerSettings(
@@ -153,6 +175,10 @@ def run(args) -> Summary:
             result = identify(problem, seed=args.seed, settings=settings,
                               checkpoint_path=ckpt if bayesian else None, resume=args.resume,
                               spindle_samples=spindle_samples)
+            # the data-plausibility warnings printed on stderr travel with the results too
+            result.summary["warnings"] = merge_warnings(command_warnings(), result.summary.get("warnings", []))
+            # what predict and lobes compare their setup with (a changed tool length, diameter or modulus)
+            result.summary[GEOMETRY_KEY] = setup_geometry(setup)
             write_outputs(result, args.out, plots=not args.no_plots)
     s = result.summary
     status = "converged" if s["converged"] else "NOT converged"

@@ -14,8 +14,8 @@ import sys
 import numpy as np
 
 from ..errors import SetupError
-from ._common import (Summary, add_force_argument, check_output_directory, nonnegative_int, parse_float,
-                      parse_float_list, positive_int)
+from ._common import (Summary, add_force_argument, check_output_directory, command_warnings, merge_warnings,
+                      nonnegative_int, parse_float, parse_float_list, positive_int)
 
 __all__ = ["register", "run", "parse_speeds", "parse_fraction", "parse_coefficient"]
 
@@ -176,7 +176,14 @@ def _dynamics(args):
     if measured:
         if args.measured_x is None or args.measured_y is None:
             raise SetupError("measured mode needs both --measured-x and --measured-y")
-        return measured_frf_pair(args.measured_x, args.measured_y)
+        from pathlib import Path
+
+        from ..io.checks import warn_all, xy_pair_warnings
+
+        pair = measured_frf_pair(args.measured_x, args.measured_y)
+        warn_all(xy_pair_warnings(Path(args.measured_x).name, Path(args.measured_y).name, pair.frequency_hz,
+                                  pair.frf_x[0], pair.frf_y[0]))
+        return pair
     if args.setup is None or args.posterior is None or args.clamping_length is None:
         raise SetupError(
             "give --measured-x FX --measured-y FY, or SETUP --posterior FILE --clamping-length M for posterior draws"
@@ -184,6 +191,12 @@ def _dynamics(args):
     clamping = parse_float(args.clamping_length, "--clamping-length", positive=True)
     if args.draws < 1:
         raise SetupError(f"--draws {args.draws}: expected >= 1")
+    from ..io.checks import warn_all
+    from ..io.setup import load_setup
+    from ..posterior.setup_match import posterior_setup_warnings
+
+    # a posterior identified for another geometry or material says so (the setup's files are read later)
+    warn_all(posterior_setup_warnings(args.posterior, load_setup(args.setup, load_data=False, load_spindle=False)))
     return posterior_frf_draws(args.setup, args.posterior, clamping, args.draws, np.random.default_rng(args.seed),
                                tool=getattr(args, "tool", None))
 
@@ -259,6 +272,7 @@ def run(args: argparse.Namespace) -> Summary:
     finally:
         if bar is not None:
             bar.close()
+    warnings = merge_warnings(command_warnings(), warnings)  # the data warnings printed on stderr go into lobes.json
     doc = lobes_document(res, cutting, frf.source, tests, warnings, max_depth=max_depth, flute_length=flute)
     title = f"{cutting.flutes} flutes, {res.method.upper()}, " + (
         "measured FRFs" if frf.source["mode"] == "measured" else f"{frf.n_draws} draws"

@@ -4,7 +4,8 @@ Every sub-command lives in its own module in this package and exposes
 ``register(subparsers)``, which adds its parser and sets ``func`` to a
 callable ``run(args)`` returning a :class:`~bayes_rcsa.cli._common.Summary`
 (or, for commands not converted yet, an exit status ``int``).  ``main``
-prints a Summary the same way for every command: its warnings and ONE human
+prints a Summary the same way for every command: its warnings (and every
+warning issued while it ran, which also go into the ``--json`` object) and ONE human
 line on stderr (``bayes-rcsa CMD: ...``) and, with ``--json`` (before or
 after the command name), ONE JSON object on stdout and nothing else there.
 Errors derived from :class:`bayes_rcsa.errors.BayesRCSAError` (and
@@ -26,7 +27,7 @@ import warnings
 
 from .. import __version__
 from ..errors import BayesRCSAError
-from ._common import Summary, check_arguments
+from ._common import WARNING_BUFFERS, Summary, check_arguments, command_warnings, merge_warnings
 
 __all__ = ["main", "build_parser", "COMMANDS", "HelpFormatter", "HELP_WIDTH"]
 
@@ -130,15 +131,27 @@ def build_parser() -> argparse.ArgumentParser:
 
 @contextlib.contextmanager
 def _one_line_warnings(command: str):
-    """Show every warning as one ``bayes-rcsa CMD: warning: ...`` line (no source line, no file path)."""
+    """Collect every warning as one line (no source line, no file path) for :func:`_report`.
+
+    They are printed as ``bayes-rcsa CMD: warning: ...`` lines when the command
+    succeeds and added to its ``--json`` output; after an error only the
+    error line is printed (a warning issued on the way to a refusal would
+    name a misleading cause).
+    """
+    buffer: list[str] = []
 
     def show(message, category, filename, lineno, file=None, line=None):
         text = " ".join(str(message).split())
-        print(f"bayes-rcsa {command}: warning: {text}", file=sys.stderr if file is None else file)
+        if text not in buffer:
+            buffer.append(text)
 
-    with warnings.catch_warnings():
-        warnings.showwarning = show
-        yield
+    WARNING_BUFFERS.append(buffer)
+    try:
+        with warnings.catch_warnings():
+            warnings.showwarning = show
+            yield
+    finally:
+        WARNING_BUFFERS.pop()
 
 
 @contextlib.contextmanager
@@ -186,6 +199,8 @@ def _run(args) -> int:
         result = args.func(args)
         if isinstance(result, Summary):
             return _report(args, result)
+        for w in command_warnings():
+            print(f"bayes-rcsa {args.command}: warning: {w}", file=sys.stderr)
         return int(result or 0)  # a command that prints its own closing lines
     except BayesRCSAError as exc:
         return _error(args, " ".join(str(exc).split()))
@@ -215,11 +230,13 @@ def _error(args, message: str) -> int:
 
 def _report(args, summary: Summary) -> int:
     """Print ``summary``: warnings and one line on stderr; with --json one JSON object on stdout."""
-    for w in summary.warnings:
-        print(f"bayes-rcsa {args.command}: warning: {' '.join(str(w).split())}", file=sys.stderr)
+    # the data-plausibility (and any other) warnings issued on the way, then the command's own
+    warns = merge_warnings(command_warnings(), summary.warnings)
+    for w in warns:
+        print(f"bayes-rcsa {args.command}: warning: {w}", file=sys.stderr)
     print(f"bayes-rcsa {args.command}: {' '.join(summary.human.split())}", file=sys.stderr)
     if _wants_json(args):
-        data = {"command": args.command, **summary.data, "warnings": list(summary.warnings)}
+        data = {"command": args.command, **summary.data, "warnings": warns}
         print(json.dumps(data, default=str, allow_nan=False))
     return summary.status
 

@@ -68,6 +68,10 @@ def run(args: argparse.Namespace) -> Summary:
     if not args.posterior.is_file():
         raise SetupError(f"--posterior {args.posterior}: no such file (posterior.nc written by 'bayes-rcsa identify')")
     setup = load_setup(args.setup)
+    from ..io.checks import warn_all
+    from ..posterior.setup_match import posterior_setup_warnings
+
+    warn_all(posterior_setup_warnings(args.posterior, setup))  # a posterior of another geometry says so
     if args.lengths is not None:
         lengths = parse_float_list(args.lengths, "--lengths", positive=True)
     else:

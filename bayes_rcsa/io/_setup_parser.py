@@ -108,6 +108,16 @@ def _check_campaign(setup: Setup) -> None:
     """
     entries = [(m.file.name, m.clamping_length, m.direction, m.tool, m.frf.frequency_hz, m.frf.values)
                for m in setup.measurements if m.frf is not None]
+    # rad/s first: a file in rad/s also trips every later check, which would name a wrong cause
+    for m in setup.measurements:
+        if m.frf is None:
+            continue
+        refs = [(Path(s.source).name, s.frequency_hz, None) for s in setup.spindle.values()]
+        refs += [(o.file.name, o.frf.frequency_hz, o.frf.values) for o in setup.measurements
+                 if o.frf is not None and o is not m]
+        problem = checks.radians_problem(m.file.name, m.frf.frequency_hz, m.frf.values, refs)
+        if problem is not None:
+            raise DataError(f"{setup.path}: [[measurement]] file = {problem}")
     checks.warn_all(checks.check_campaign(entries))
     if not setup.spindle:
         return

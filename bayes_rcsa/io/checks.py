@@ -39,6 +39,10 @@ __all__ = [
     "likely_cause",
     "dominant_frequency",
     "check_campaign",
+    "radians_problem",
+    "xy_pair_warnings",
+    "XY_PEAK_TOLERANCE",
+    "resonance_problem",
     "MAX_RECEPTANCE",
     "MAX_FREQUENCY_HZ",
     "RECIPROCITY_WARN",
@@ -351,6 +355,96 @@ def check_campaign(entries: Sequence[tuple[str, float, str, str, np.ndarray, np.
                 "although a longer clamping length (shorter overhang) raises it: clamping lengths swapped or "
                 "mislabelled?")
     return out
+
+
+#: Tolerance of the 2π ratio between frequency ranges that marks a file in rad/s (analysers end their ranges on
+#: round numbers; a 2π ratio within 4 % by chance is unlikely, and the dominant peaks must agree too).
+RADIANS_TOLERANCE = 0.04
+
+
+def radians_problem(name: str, frequency_hz, values, references: Sequence[tuple[str, np.ndarray, np.ndarray | None]]
+                    ) -> str | None:
+    """Why the frequency column of ``name`` looks like rad/s rather than Hz, or ``None``.
+
+    Parameters
+    ----------
+    name : file name for the message
+    frequency_hz, values : the file's lines and receptance
+    references : (name, frequency_hz, values or None) of files of the same campaign in Hz (the spindle
+        receptance, the other measurements)
+
+    Notes
+    -----
+    Rule: the last line of the file is 2π times the last line of a reference (within
+    :data:`RADIANS_TOLERANCE`) and, when the reference has values, its dominant peak lies 4-9 times higher.
+    """
+    f = np.asarray(frequency_hz, dtype=float)
+    if f.size < 2:
+        return None
+    two_pi = 2 * math.pi
+    for ref_name, ref_f, ref_v in references:
+        ref_f = np.asarray(ref_f, dtype=float)
+        if ref_f.size < 2 or not ref_f[-1] > 0:
+            continue
+        if abs(f[-1] / ref_f[-1] / two_pi - 1) > RADIANS_TOLERANCE:
+            continue
+        if ref_v is not None:
+            ratio = dominant_frequency(f, values) / dominant_frequency(ref_f, ref_v)
+            if not 4.0 < ratio < 9.0:
+                continue
+        return (f"{name}: the frequencies look like rad/s, not Hz: the lines end at {f[-1]:.6g}, 2π times the "
+                f"{ref_f[-1]:.6g} Hz of {ref_name} (divide the frequency column by 2π)")
+    return None
+
+
+def resonance_problem(frequency_hz, values) -> str | None:
+    """Why a tool-point FRF holds no resonance to identify anything from, or ``None``.
+
+    A file whose largest |H| lies at its first or last lines (e.g. one cut to a
+    few lines below the first mode) has no resonance inside its band: the
+    contact stiffness is not determined by it, and a "converged" posterior would
+    only restate the prior.
+    """
+    v = np.abs(np.asarray(values))
+    f = np.asarray(frequency_hz, dtype=float)
+    n = v.size
+    if n < 5:
+        return f"only {n} frequency line(s): no resonance can be seen"
+    k = int(np.argmax(v))
+    edge = max(1, n // 100)
+    if k < edge or k >= n - edge:
+        where = "first" if k < edge else "last"
+        return (f"no resonance inside its band {f[0]:g}-{f[-1]:g} Hz: the largest |H| is at its {where} line "
+                f"({f[k]:g} Hz), so the file cannot determine the contact (measure over a band that holds the first "
+                "tool mode)")
+    return None
+
+
+#: Relative difference of the dominant natural frequencies of X and Y tool-point FRFs beyond which they are said
+#: to come from different clamping lengths: X and Y of one clamping differ by well under 1 % on a symmetric tool
+#: and a few per cent on an asymmetric spindle, while 5 mm of clamping length moves the tool mode by 10 % or more.
+XY_PEAK_TOLERANCE = 0.08
+
+
+def xy_pair_warnings(name_x: str, name_y: str, frequency_hz, values_x, values_y) -> list[str]:
+    """Warnings for the X and Y tool-point FRFs of one clamping (``lobes`` in measured mode).
+
+    - the same data in both files (one file given twice: the lobes would assume a symmetric tool without
+      saying so);
+    - dominant natural frequencies more than :data:`XY_PEAK_TOLERANCE` apart (files of different clamping
+      lengths or setups).
+    """
+    f = np.asarray(frequency_hz, dtype=float)
+    vx, vy = np.asarray(values_x), np.asarray(values_y)
+    if vx.shape == vy.shape and np.array_equal(vx, vy):
+        return [f"{name_x} and {name_y} hold the same data: the same measurement given for X and Y? (the lobes then "
+                "assume a tool that is equally stiff in both directions)"]
+    px, py = dominant_frequency(f, vx), dominant_frequency(f, vy)
+    if math.isfinite(px) and math.isfinite(py) and abs(px - py) > XY_PEAK_TOLERANCE * min(px, py):
+        return [f"the dominant natural frequencies of {name_x} ({px:.1f} Hz) and {name_y} ({py:.1f} Hz) differ by "
+                f"{100 * abs(px - py) / min(px, py):.0f} % (X and Y of one clamping stay within a few per cent): "
+                "files of different clamping lengths or setups?"]
+    return []
 
 
 def warn_all(messages: Iterable[str]) -> None:

@@ -13,6 +13,7 @@ column.
 from __future__ import annotations
 
 import csv
+import re
 from pathlib import Path
 from typing import Iterable, Sequence
 
@@ -42,12 +43,35 @@ def _read_text(path: Path, what: str) -> str:
         raise DataError(f"{path}: {what} is not a regular file")
     check_input_size(path, what)
     try:
-        # utf-8-sig: spreadsheet programs often prepend a byte-order mark.
-        return path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise DataError(f"{path}: {what} is not UTF-8/ASCII text ({exc.reason} at byte {exc.start})") from exc
+        raw = path.read_bytes()
     except OSError as exc:
         raise DataError(f"{path}: cannot read {what}: {exc.strerror or exc}") from exc
+    if b"\0" in raw:
+        raise DataError(f"{path}: {what} is not a text file (it holds binary data)")
+    try:
+        # utf-8-sig: spreadsheet programs often prepend a byte-order mark.
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        pass
+    # DAQ software on Windows writes comments and headers in Windows-1252 or Latin-1 ("Beschleunigung in m/s²",
+    # "°C"); numbers are ASCII in every one of them and are still parsed strictly.  Windows-1252 leaves five bytes
+    # undefined, which Latin-1 maps to control characters.
+    try:
+        return raw.decode("cp1252")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+_HEADER_FIELD = re.compile(r"^[^\W\d][\w ()\[\]/.°%-]{0,40}$")
+
+
+def _looks_like_header(fields: Sequence[str]) -> bool:
+    """Whether a line is a CSV header (two or more short names), so that it may be quoted in a message.
+
+    Anything else (a line of a file that is not a measurement, e.g. a symbolic link to a system file) is
+    never echoed.
+    """
+    return len(fields) >= 2 and all(_HEADER_FIELD.match(f.strip()) for f in fields)
 
 
 def _parse_number(text: str, path: Path, line: int, column: str) -> float:
@@ -114,6 +138,13 @@ def read_csv_columns(
                 raise DataError(f"{path}: line {header_line}: column {name!r} appears twice in the header")
             index[name] = k
     missing = [name for name in required if name not in index]
+    if missing and not index and not _looks_like_header(rows[0]):
+        # not a header of this format at all: say so without echoing the line (the file may be anything,
+        # e.g. a symlink to a system file)
+        raise DataError(
+            f"{path}: line {header_line}: no header with the columns {', '.join(required)}; the first line that is "
+            f"not a '#' comment must name them (is it really a {what}?)"
+        )
     if missing:
         raise DataError(
             f"{path}: line {header_line}: missing column(s) {', '.join(repr(m) for m in missing)}; "

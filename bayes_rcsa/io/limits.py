@@ -16,7 +16,7 @@ from ..errors import DataError, SetupError
 
 __all__ = [
     "MAX_SEED", "COUNT_LIMITS", "MAX_INPUT_BYTES", "INPUT_LIMIT_ENV", "MEMORY_FRACTION", "check_count",
-    "check_input_size", "max_input_bytes", "available_memory", "check_memory", "format_bytes",
+    "check_input_size", "max_input_bytes", "format_count", "available_memory", "check_memory", "format_bytes",
 ]
 
 #: Seeds are stored as signed 64-bit integers (HDF5 attributes, netCDF); every seed below gives its own stream.
@@ -26,7 +26,7 @@ MAX_SEED = 2**63 - 1
 #: absurd numbers before they become allocations.
 COUNT_LIMITS: dict[str, tuple[int, str]] = {
     "walkers": (10_000, "a few times the number of parameters is enough"),
-    "max_steps": (10_000_000, "continue a checkpointed run with --resume instead"),
+    "max_steps": (10_000_000, "a chain that has not converged by then will not; check the model and the priors"),
     "check_every": (10_000_000, "a check every few hundred steps is enough"),
     "draws": (100_000, "run the command several times with different --seed and pool the results"),
     "depth_points": (100_000, "zoom in with --max-depth instead"),
@@ -55,7 +55,12 @@ def check_count(name: str, value: int, option: str | None = None) -> None:
     limit, how = COUNT_LIMITS[name]
     if value > limit:
         option = option or "--" + name.replace("_", "-")
-        raise SetupError(f"{option} {value}: at most {limit:_} is allowed ({how})".replace("_", " "))
+        raise SetupError(f"{option} {value}: at most {format_count(limit)} is allowed ({how})")
+
+
+def format_count(n: int) -> str:
+    """``10 000 000``: thousands separated by spaces (the SI way, unambiguous in every locale)."""
+    return f"{n:,}".replace(",", " ")
 
 
 def max_input_bytes() -> int:

@@ -21,13 +21,14 @@ A directory holding none of them but sub-directories that do (the output of
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
 from ..errors import DataError
 
-__all__ = ["RunDir", "KINDS", "detect_kind", "collect_runs"]
+__all__ = ["RunDir", "KINDS", "REQUIRED_KEYS", "detect_kind", "collect_runs"]
 
 # kind -> the file that identifies it (and is loaded as its document)
 KINDS = {
@@ -74,14 +75,52 @@ def detect_kind(path) -> str | None:
     return None
 
 
+#: kind -> top-level keys its document always has (the writers put them there) and the report relies on.
+REQUIRED_KEYS = {
+    "identify": ("method", "converged", "parameters", "warnings"),
+    "predict": ("predictions", "posterior", "setup"),
+    "lobes": ("method", "recommended", "warnings"),
+}
+
+
+def _first_nan(value, where: str = "") -> str | None:
+    """The key path of the first NaN or infinity in ``value`` (None if there is none)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return where or "(top level)"
+    if isinstance(value, dict):
+        items = value.items()
+    elif isinstance(value, list):
+        items = ((f"[{i}]", v) for i, v in enumerate(value))
+    else:
+        return None
+    for k, v in items:
+        found = _first_nan(v, f"{where}{'' if str(k).startswith('[') or not where else '.'}{k}")
+        if found:
+            return found
+    return None
+
+
 def _load(kind: str, path: Path) -> RunDir:
     f = path / KINDS[kind]
     try:
-        doc = json.loads(f.read_text(encoding="utf-8"))
+        text = f.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataError(f"{f}: cannot read it ({exc.strerror if isinstance(exc, OSError) else 'not UTF-8'})") from None
+    try:
+        doc = json.loads(text)
     except ValueError as exc:
         raise DataError(f"{f}: not valid JSON ({exc})") from None
     if not isinstance(doc, dict):
         raise DataError(f"{f}: expected a JSON object, got {type(doc).__name__}")
+    missing = [k for k in REQUIRED_KEYS.get(kind, ()) if k not in doc]
+    if missing:
+        raise DataError(f"{f}: missing key(s) {', '.join(repr(k) for k in missing)} that every {kind} run writes "
+                        "(an incomplete or edited file; rerun the command)")
+    bad = _first_nan(doc)
+    if bad:
+        # the writers never write NaN (strict JSON): the file was edited or damaged, and a report would show it
+        raise DataError(f"{f}: key {bad!r} is NaN or infinite (the commands write null for a missing value; "
+                        "rerun the command)")
     return RunDir(kind, path, doc)
 
 
