@@ -73,7 +73,40 @@ def cli_reference() -> str:
            _help(parser), "```\n"]
     for n in names:
         out += [f"\n## bayes-rcsa {n}\n\n```text\n", _help(subparsers.choices[n]), "```\n"]
+    out.append(_limits_section())
     return "".join(out)
+
+
+def _limits_section() -> str:
+    """The documented limits (bayes_rcsa.io.limits) and the error rules every command follows."""
+    from bayes_rcsa.io import limits as L
+
+    rows = "".join(f"| `--{name.replace('_', '-')}` | {L.format_count(value)} | {how} |\n"
+                   for name, (value, how) in L.COUNT_LIMITS.items() if name != "speed_points")
+    speed, speed_how = L.COUNT_LIMITS["speed_points"]
+    return (
+        "\n## Limits and errors\n\n"
+        "Sizes and counts are checked against these limits before anything is allocated; going past one is "
+        "refused with one line that names the limit and the way past it.  The same names in a setup's "
+        "`[sampler]` table follow the same limits.\n\n"
+        "| option | at most | way past it |\n| --- | --- | --- |\n" + rows +
+        f"| `lobes --speeds` COUNT | {L.format_count(speed)} | {speed_how} |\n" +
+        "| `--seed` | 2**63 - 1 | seeds are stored as 64-bit integers; every smaller seed is its own stream |\n"
+        f"| input file (CSV, UFF, TOML) | {L.MAX_INPUT_BYTES // 2**20} MB | environment variable "
+        f"`{L.INPUT_LIMIT_ENV}=<MB>` |\n\n"
+        f"Besides, `identify` (chain kept in memory) and `lobes` (draws x speeds x depth points) estimate the memory "
+        f"of their largest arrays and refuse a job that needs more than {L.MEMORY_FRACTION:.0%} of the memory "
+        "available, naming the options that make it smaller.\n\n"
+        "Errors: every refusal is ONE line `bayes-rcsa CMD: error: ...` on stderr (with `--json` also "
+        "`{\"command\", \"error\"}` on stdout) and exit status 2.  A full disk, a read-only, forbidden or vanished "
+        "output folder, or a lock file that cannot be made, names the folder and the errno meaning, e.g. "
+        "`--out /mnt/ro/run: cannot write in /mnt/ro: Read-only file system (EROFS)`; nothing the run wrote stays "
+        "in `--out` (no partial file, no `chain.h5`, no empty folder, no lock), so a rerun in the same place is not "
+        "blocked.  Only Ctrl-C keeps the checkpoint of `identify`, for `--resume`.  Warnings (data plausibility, "
+        "convergence) are printed as `bayes-rcsa CMD: warning: ...` lines when the command succeeds, and also go "
+        "into its `--json` object and into summary.json (identify) and lobes.json (lobes); after an error only "
+        "the error line is printed.\n"
+    )
 
 
 def _first_line(obj) -> str:
