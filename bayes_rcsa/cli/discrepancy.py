@@ -75,14 +75,15 @@ def run(args: argparse.Namespace) -> Summary:
     gap = f"systematic gap {pct('gap_before')} -> {pct('gap_after')}"
     if r["named_effect"]:
         extra = f" (confounded with {', '.join(r['confounded_with'])})" if r["confounded_with"] else ""
-        human = f"named {r['named_effect']}{extra}: {gap}; wrote {out}/discrepancy.json and setup.amended.toml"
+        both = " + ".join([r["named_effect"], *r["also_named"]])
+        human = f"named {both}{extra}: {gap}; wrote {out}/discrepancy.json and setup.amended.toml"
     elif r["adequate"]:
         human = f"model adequate, nothing named (systematic gap {pct('gap_before')}); wrote {out}/discrepancy.json"
     else:
         human = f"model inadequate and no known effect explains it: statistical discrepancy added ({gap}); " \
                 f"wrote {out}/discrepancy.json"
     data = {"out": str(out), "files": [str(f) for f in files], "adequate": r["adequate"],
-            "named_effect": r["named_effect"], "confounded_with": r["confounded_with"],
+            "named_effect": r["named_effect"], "also_named": r["also_named"], "confounded_with": r["confounded_with"],
             "gap_before": r["gap_before"], "gap_after": r["gap_after"], "gap_grew": r["gap_grew"],
             "usable_for_prediction": r["usable_for_prediction"]}
     warnings = tuple(r["warnings"])

@@ -80,7 +80,8 @@ def embed_baseline(baseline: ModelFit, problem: Problem) -> np.ndarray:
     bounds = problem.priors.optimisation_bounds()
     for j, name in enumerate(pm.names):
         prior = problem.priors[name]
-        if name in baseline.values and pm[name].term is None:
+        # the base fit's own values, its terms' included (a second round starts from the named model)
+        if name in baseline.values:
             value = baseline.values[name]
         else:
             value = pm[name].baseline

@@ -39,11 +39,11 @@ from ..model.assembly import ConfigurationStack
 from ..model.modes import MODE_RULE, find_modes, match_modes, mode_windows, track_modes
 from ..params.forward import ForwardModel
 from ..params.terms import get_term, known_terms
-from .detect import UNMATCHED_REL_HEIGHT, Detection, detect_from_fit, transfer_failures
+from .detect import TAU_MAX, UNMATCHED_REL_HEIGHT, Detection, detect_from_fit, transfer_failures
 from .fit import ModelFit, fit_baseline, fit_variant, laplace_draws, with_robust_covariance
 from .mode_bias import BIAS_RULE, correct_mode_frequencies
 from .screen import embed_baseline, score_test
-from .select import (GAP_LAGS, bound_warnings, decide, fitted_systematic_gap, gap, refit_candidate, separating_test,
+from .select import (GAP_LAGS, LN_BF_NAME, MIN_SYSTEMATIC_REDUCTION, bound_warnings, decide, fitted_systematic_gap, gap, refit_candidate, separating_test,
                      systematic_gap)
 
 __all__ = ["DiscrepancyOptions", "DiscrepancyResult", "run_discrepancy", "write_discrepancy", "validate",
@@ -98,6 +98,7 @@ class DiscrepancyResult:
     evaluation: dict
     timing: dict
     report: dict = field(default_factory=dict)
+    second: dict = field(default_factory=dict)
 
 
 def default_candidates(existing: Sequence[str] = (), model=None) -> tuple[str, ...]:
@@ -443,6 +444,37 @@ def _leave_one_length_out(setup, base_opts, problem: Problem, tempering: float) 
     return out
 
 
+def _second_effect(setup, base_opts, first, cands, decision, options, say, require_misfit: bool = True) -> dict:
+    """A second round with the named term in the model: does a second known effect remain?
+
+    Run when the named model still leaves a systematic misfit (residual correlation above
+    :data:`~.detect.TAU_MAX` and a systematic gap above the noise floor on the fitted lines).  The remaining
+    candidates (neither the named one nor those confounded with it) are screened and refitted against the
+    named model exactly as the first round against the baseline, with the same decision rules.
+
+    Returns
+    -------
+    dict with ``ran`` (bool), ``reason``, and when it ran ``scores``, ``refits``, ``decision``, ``named``.
+    """
+    fit = first.fit
+    sysgap = first.systematic or {}
+    if require_misfit and (fit.correlation_length <= TAU_MAX or sysgap.get("at_noise_floor", True)
+                           or not sysgap.get("gap")):
+        return {"ran": False, "reason": f"the named model leaves no systematic misfit (residual correlation "
+                                        f"{fit.correlation_length:.1f} lines)", "refits": [], "named": None}
+    rest = [c for c in cands if c != first.effect and c not in decision["confounded_with"]]
+    if not rest:
+        return {"ran": False, "reason": "no candidate left", "refits": [], "named": None}
+    problems = {c: _problem(setup, base_opts, [first.effect, c]) for c in rest}
+    scores = sorted((score_test(fit, problems[c], c) for c in rest), key=lambda s: -s.statistic)
+    refits = [refit_candidate(fit, problems[s.effect], s) for s in scores[: options.n_refit]]
+    dec = decide(refits, gap(fit.problem.likelihood.data, fit.model_frf()), fitted_systematic_gap(fit))
+    say(f"second round (with {first.effect}): " + ", ".join(f"{r.effect} {r.criterion:+.1f}" for r in dec["ranked"])
+        + f" -> named: {dec['named']}")
+    return {"ran": True, "reason": f"the named model leaves residuals correlated over {fit.correlation_length:.1f} "
+                                   "lines", "scores": scores, "refits": refits, "decision": dec, "named": dec["named"]}
+
+
 def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), progress=None) -> DiscrepancyResult:
     """Run the whole loop on a loaded setup (measurements loaded).
 
@@ -499,9 +531,38 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
         + f" -> named: {named}")
 
     t0 = time.perf_counter()
+    second: dict = {}
+    if named is None and decision.get("partial"):
+        # each known effect alone explains only part: do two together explain it?  (e.g. a tip mass and a
+        # spindle-file error; either alone removes less than half of the systematic gap)
+        part = decision["partial"][0]["effect"]
+        first = next(r for r in refits if r.effect == part)
+        second = _second_effect(setup, base_opts, first, cands, decision, options, say, require_misfit=False)
+        joint = next((r for r in second["refits"] if r.effect == second["named"]), None)
+        base_sys = fitted_systematic_gap(baseline)
+        if joint is not None and joint.fit.log_evidence - baseline.log_evidence > LN_BF_NAME and (
+                base_sys["at_noise_floor"] or joint.systematic["gap"] <= (1 - MIN_SYSTEMATIC_REDUCTION) * base_sys["gap"]):
+            named = part
+            decision["named"] = part
+            decision["partial"] = [p for p in decision["partial"] if p["effect"] != part]
+            others = [r for r in decision["ranked"] if r.effect != part]
+            decision["runner_up"] = others[0].effect if others else None
+            decision["margin"] = (first.criterion - others[0].criterion) if others else None
+            second["reason"] = (f"{part} alone removes less than half of the systematic gap; with "
+                                f"{second['named']} the two remove {100 * (1 - joint.systematic['gap'] / base_sys['gap']):.0f} %"
+                                if base_sys["gap"] > 0 else f"{part} and {second['named']} together")
+            detection.adequate = False
+        else:
+            second = {**second, "named": None}
+            if second.get("ran"):
+                second["reason"] = f"{part} with a second known effect does not halve the systematic gap either"
     if named is not None:
-        final = with_robust_covariance(next(r.fit for r in refits if r.effect == named))
-        label = named
+        first = next(r for r in refits if r.effect == named)
+        if not second:
+            second = _second_effect(setup, base_opts, first, cands, decision, options, say)
+        win2 = second.get("named")
+        final = with_robust_covariance(next(r.fit for r in second["refits"] if r.effect == win2) if win2 else first.fit)
+        label = named if not win2 else f"{named}+{win2}"
     elif not detection.adequate:
         terms = remainder_terms(setup, problem)
         p = _problem(setup, base_opts, terms)
@@ -516,7 +577,7 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
     after = evaluate(final, rng_final, correct_bias=label == "statistical_discrepancy")
     t["add_and_show_s"] = time.perf_counter() - t0
     res = DiscrepancyResult(setup, options, baseline, detection, scores, refits, decision, final, label,
-                            {"before": before, "after": after}, t)
+                            {"before": before, "after": after}, t, second=second)
     res.report = build_report(res)
     return res
 
@@ -524,6 +585,18 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
 def _term_names(fit: ModelFit) -> list[str]:
     pm = fit.problem.parameters
     return list(dict.fromkeys(pm[n].term for n in pm.names if pm[n].term))
+
+
+def _second_round_report(second: dict) -> dict:
+    if not second:
+        return {"ran": False, "reason": "nothing was named in the first round"}
+    out = {"ran": second["ran"], "reason": second["reason"], "named": second.get("named")}
+    if second["ran"]:
+        dec = second["decision"]
+        out.update({"candidates": [{"effect": r.effect, "score": r.score.statistic, "criterion": r.criterion,
+                                    "systematic_gap_fitted_lines": r.systematic.get("gap")} for r in dec["ranked"]],
+                    "confounded_with": list(dec["confounded_with"]), "partially_explained_by": dec.get("partial", [])})
+    return out
 
 
 def build_report(res: DiscrepancyResult) -> dict:
@@ -557,6 +630,9 @@ def build_report(res: DiscrepancyResult) -> dict:
     out = {
         "adequate": bool(res.detection.adequate),
         "named_effect": named,
+        # a second known effect named in a second round with the first in the model (both are in the final model)
+        "also_named": [res.second["named"]] if res.second.get("named") else [],
+        "second_round": _second_round_report(res.second),
         "confounded_with": list(dec["confounded_with"]),
         "candidates": cands,
         "gap_metric": GAP_METRIC,
@@ -605,8 +681,9 @@ def build_report(res: DiscrepancyResult) -> dict:
 # -- files ----------------------------------------------------------------------
 
 
-def amended_setup_document(setup, out_dir: Path, term: str) -> dict:
-    """The user's setup document with ``term`` added to ``[model] terms`` and file names relative to ``out_dir``."""
+def amended_setup_document(setup, out_dir: Path, term) -> dict:
+    """The user's setup document with ``term`` (a name or a list of names) added to ``[model] terms`` and file
+    names relative to ``out_dir``."""
     from ..io.tables import load_document
 
     doc = load_document(setup.path)
@@ -622,9 +699,11 @@ def amended_setup_document(setup, out_dir: Path, term: str) -> dict:
             m["file"] = rel(m["file"])
     model = dict(doc.get("model", {}) or {})
     terms = list(model.get("terms", []) or [])
-    if term in terms:
-        raise SetupError(f"{setup.path}: [model] terms already contains {term!r}")
-    model["terms"] = terms + [term]
+    new = [term] if isinstance(term, str) else list(term)
+    for t in new:
+        if t in terms:
+            raise SetupError(f"{setup.path}: [model] terms already contains {t!r}")
+    model["terms"] = terms + new
     doc["model"] = model
     return doc
 
@@ -647,8 +726,13 @@ def summary_markdown(report: dict) -> str:
                          "To tell them apart: " + "; ".join(report["separating_test"].values()) + ".")
         elif report["runner_up"]:
             lines.append(f"Next best explanation: `{report['runner_up']}` (behind by {report['margin']:.1f} log units).")
+        for also in report.get("also_named", []):
+            desc2 = get_term(also).description
+            lines += ["", f"**A second effect was found with it: `{also}`** — {desc2} (second round, with "
+                      f"`{named}` in the model)."]
         lines.append("")
-        lines.append("`setup.amended.toml` adds it to the model; use it for the next `bayes-rcsa identify`.")
+        lines.append("`setup.amended.toml` adds " + ("them" if report.get("also_named") else "it")
+                     + " to the model; use it for the next `bayes-rcsa identify`.")
     else:
         lines.append("The model disagrees with the measurements, and none of the known effects explains it. "
                      "A statistical discrepancy term was added to widen the stiffness and frequency intervals. "
@@ -743,7 +827,8 @@ def write_discrepancy(result: DiscrepancyResult, out_dir, plots: bool = True, ov
     try:
         names = []
         if result.decision["named"]:
-            doc = amended_setup_document(result.setup, final_dir, result.decision["named"])
+            doc = amended_setup_document(result.setup, final_dir,
+                                         [result.decision["named"], *result.report.get("also_named", [])])
             (tmp / "setup.amended.toml").write_text(
                 "# The setup with the effect named by `bayes-rcsa discrepancy` added to [model].\n" + dump_toml(doc),
                 encoding="utf-8")
