@@ -398,7 +398,7 @@ def _finite_json(value) -> bool:
     return True
 
 
-@settings(max_examples=30, deadline=None, database=None, derandomize=True,
+@settings(max_examples=14, deadline=None, database=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(command=st.sampled_from(COMMANDS),
        corruptions=st.lists(st.tuples(st.sampled_from(FILES), st.sampled_from(sorted(CORRUPTIONS))), max_size=2))

@@ -142,9 +142,8 @@ CASES = [
     # identify: the first checkpoint file, an append to the mirror, the posterior and the last file (summary.json)
     Case("identify-enospc-checkpoint-create", "identify", at=1),
     Case("identify-erofs-checkpoint-append", "identify", at=4, code=E.EROFS),
-    Case("identify-enoent-vanished-posterior", "identify", name="posterior.nc", code=E.ENOENT),
     Case("identify-eacces-lock", "identify", code=E.EACCES, lock=True),
-    Case("predict-enospc-first", "predict", at=1),
+    Case("predict-enoent-vanished", "predict", at=1, code=E.ENOENT),
     Case("predict-eacces-last", "predict", name="report.html", code=E.EACCES),
     Case("predict-enoent-lock", "predict", code=E.ENOENT, lock=True),
     Case("lobes-enospc-npz", "lobes", name="p_stable.npz"),
@@ -180,8 +179,8 @@ def test_failure_in_existing_folder_keeps_its_files(runs, faults, tmp_path, caps
     out = tmp_path / "out"
     out.mkdir()
     (out / "notes.txt").write_text("mine\n")
-    faults.arm(name="summary.json")
-    assert main(_argv("identify", runs, out) + ["--force"]) == 2
+    faults.arm(name="lobes.json")
+    assert main(_argv("lobes", runs, out) + ["--force"]) == 2
     _one_error_line(capsys.readouterr().err, "(ENOSPC)")
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
 

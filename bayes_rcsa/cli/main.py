@@ -26,7 +26,7 @@ import textwrap
 import warnings
 
 from .. import __version__
-from ..errors import BayesRCSAError
+from ..errors import BayesRCSAError, OutputError
 from ._common import WARNING_BUFFERS, Summary, check_arguments, command_warnings, merge_warnings
 
 __all__ = ["main", "build_parser", "COMMANDS", "HelpFormatter", "HELP_WIDTH"]
@@ -154,6 +154,10 @@ def _one_line_warnings(command: str):
         WARNING_BUFFERS.pop()
 
 
+#: Set by :func:`_run` when the command failed on the file system (see :func:`_unraisable_as_lines`).
+_IO_FAILED: list[bool] = []
+
+
 @contextlib.contextmanager
 def _unraisable_as_lines(command: str):
     """Errors Python cannot raise (a destructor failing, e.g. h5py closing a file on a full disk) as one line each.
@@ -174,8 +178,12 @@ def _unraisable_as_lines(command: str):
     sys.excepthook = lambda kind, value, tb: seen.append(value)
     try:
         yield status
-        gc.collect()  # destructors of objects kept in cycles run now, under this hook
+        if _IO_FAILED:
+            # a failed write leaves file handles in reference cycles: their destructors run now, under this hook
+            # (only then: a collection costs ~0.1 s in a process holding xarray and arviz)
+            gc.collect()
     finally:
+        _IO_FAILED.clear()
         sys.unraisablehook, sys.excepthook = previous
     seen = list({id(e): e for e in seen}.values())
     for exc in seen:
@@ -203,8 +211,11 @@ def _run(args) -> int:
             print(f"bayes-rcsa {args.command}: warning: {w}", file=sys.stderr)
         return int(result or 0)  # a command that prints its own closing lines
     except BayesRCSAError as exc:
+        if isinstance(exc, OutputError):
+            _IO_FAILED.append(True)
         return _error(args, " ".join(str(exc).split()))
     except OSError as exc:
+        _IO_FAILED.append(True)
         # a file or folder the command's own checks did not name (a write site outside io.atomic, a read
         # that failed after the checks): its name and the errno meaning, on one line
         from ..io.atomic import os_error_reason
