@@ -101,13 +101,13 @@ from dataclasses import dataclass
 from typing import Mapping
 
 import numpy as np
-from scipy.optimize import least_squares, nnls
 
 from ...errors import ModelError
 from ..parameter import Parameter
 from ..priors import Uniform
 from . import register_term
 from .base import ModelTerm
+from .flange_modal import fit_poles, peaks
 
 __all__ = ["SpindleRotationOmitted", "FlangeModes", "flange_modes", "model_flange_modes", "MAX_MODES", "S_MAX",
            "GAMMA_WARN"]
@@ -118,7 +118,6 @@ MAX_MODES = 3
 S_MAX = 50.0
 #: Below this residue scale the fitted modes carry clearly more damping than the file: warn.
 GAMMA_WARN = 0.5
-_ZETA_BOUNDS = (1e-4, 0.3)
 _CACHE: dict[bytes, "FlangeModes"] = {}
 _CACHE_SIZE = 16
 
@@ -168,48 +167,6 @@ class FlangeModes:
         return self.residue[None] / (wr**2 - w**2 + 2j * z * wr * w)
 
 
-def _basis(omega: np.ndarray, wr: np.ndarray, z: np.ndarray) -> np.ndarray:
-    """Columns ``1/D_r``, 1, ``-1/w^2`` (n, N + 2) complex."""
-    w = omega[:, None]
-    cols = 1.0 / (wr[None] ** 2 - w**2 + 2j * z[None] * wr[None] * w)
-    return np.concatenate([cols, np.ones_like(w, dtype=complex), (-1.0 / w**2).astype(complex)], axis=1)
-
-
-def _project(x: np.ndarray, n: int, omega: np.ndarray, h: np.ndarray, wt: np.ndarray):
-    """Variable projection: poles from ``x`` (log w_r, log zeta_r), non-negative linear coefficients by NNLS."""
-    wr, z = np.exp(x[:n]), np.exp(x[n:])
-    b = _basis(omega, wr, z) * wt[:, None]
-    a = np.concatenate([b.real, b.imag])
-    y = np.concatenate([(h * wt).real, (h * wt).imag])
-    scale = np.linalg.norm(a, axis=0)
-    scale[scale == 0] = 1.0
-    c, _ = nnls(a / scale, y)
-    c = c / scale
-    return a @ c - y, c, wr, z
-
-
-def _peaks(f: np.ndarray, mag: np.ndarray, n: int) -> list[float]:
-    """The ``n`` largest local maxima of ``mag`` (Hz) away from the ends of the file."""
-    i = np.flatnonzero((mag[1:-1] > mag[:-2]) & (mag[1:-1] >= mag[2:])) + 1
-    i = i[(i > 2) & (i < f.size - 3)]
-    return [float(f[j]) for j in i[np.argsort(-mag[i])][:n]]
-
-
-def _fit(omega: np.ndarray, h: np.ndarray, wt: np.ndarray, starts_hz: list[float]):
-    n = len(starts_hz)
-    lo, hi = np.log(omega[0]), np.log(omega[-1])
-    x0 = np.concatenate([np.log(2 * np.pi * np.asarray(starts_hz, dtype=float)), np.full(n, np.log(0.02))])
-    if n:
-        lb = np.concatenate([np.full(n, lo), np.full(n, np.log(_ZETA_BOUNDS[0]))])
-        ub = np.concatenate([np.full(n, hi), np.full(n, np.log(_ZETA_BOUNDS[1]))])
-        x0 = np.clip(x0, lb + 1e-9, ub - 1e-9)
-        x = least_squares(lambda v: _project(v, n, omega, h, wt)[0], x0, bounds=(lb, ub), x_scale=1.0).x
-    else:
-        x = x0
-    res, c, wr, z = _project(x, n, omega, h, wt)
-    return float(res @ res), c, wr, z
-
-
 def flange_modes(receptance, max_modes: int = MAX_MODES, n_modes: int | None = None,
                  start_hz: list[float] | None = None) -> FlangeModes:
     """Modal fit of a spindle file's translational receptance (cached per file content).
@@ -249,14 +206,14 @@ def flange_modes(receptance, max_modes: int = MAX_MODES, n_modes: int | None = N
     # relative weighting, floored at a tenth of the median so that anti-resonances do not dominate
     wt = 1.0 / np.maximum(mag, 0.1 * np.median(mag))
     n_res = 2 * f.size
-    peaks = _peaks(f, mag, max(max_modes, n_modes or 0))
-    candidates = (list(start_hz or []) + [p for p in peaks if not start_hz])
+    found = peaks(f, mag, max(max_modes, n_modes or 0))
+    candidates = (list(start_hz or []) + [p for p in found if not start_hz])
     counts = [n_modes] if n_modes is not None else range(0, min(max_modes, len(candidates)) + 1)
     best = None
     for n in counts:
         starts = sorted(candidates[:n]) if len(candidates) >= n else sorted(candidates + list(
             np.geomspace(f[2], f[-3], n - len(candidates))))
-        chi2, c, wr, z = _fit(omega, h, wt, starts)
+        chi2, (c,), wr, z = fit_poles(omega, [(h, wt, True)], starts)
         # a zero residue is no mode (BIC search); a fixed count keeps its modes so that the slopes match by order
         keep = c[:n] > 0 if n_modes is None else np.ones(n, dtype=bool)
         bic = n_res * np.log(max(chi2, 1e-300) / n_res) + (3 * int(keep.sum()) + 2) * np.log(n_res)
