@@ -1,104 +1,95 @@
 """``spindle_error``: the spindle file comes from a spindle whose bearings are stiffer or softer than the real ones.
 
 Spindle receptances are identified once (from a model or a test on another
-day, with other bearing preload or temperature) and reused.  The bench's
-``spindle_error`` exports the flange receptance of a spindle whose
-bearings are ``1 + e`` times stiffer than the real ones.
+day, with other bearing preload or temperature) and reused.  The file then
+holds the flange block ``S = [[h, l], [n, p]]`` of a spindle whose bearings
+differ from the real ones.
 
 Physics
 -------
-Only the flange block ``S = [[h, l], [n, p]]`` of the file is available, so
-a bearing-stiffness change is represented by what it looks like from the
-flange.  A bearing at distance ``a`` *behind* the flange (the beam axis z
-runs from the spindle towards the tool, so the bearing sits at ``z = -a``)
-moves by ``u_b = u - a psi`` when the shaft between it and the flange is
-rigid; a change ``dk`` of its radial stiffness stores ``dk (u - a psi)^2 / 2``
-and adds to the flange's support stiffness::
+The spindle alone is a damped structure with modes; at the flange, in and
+near the file band (:mod:`.flange_modal`, fitted once per file)::
 
-    dK = dk v v^T,   v = (1, -a)^T,   i.e.  dK = dk [[1, -a], [-a, a^2]]
+    S(w) = sum_r R_r / D_r(w) + S_res(w),   D_r = w_r^2 (1 + i eta_r) - w^2 + 2 i zeta_r w_r w
 
-    S' = (S^-1 + dK)^-1 = S - S W S,   W = dK (I + S dK)^-1
+with ``R_r = phi_r phi_r^T`` (``phi_r`` the mass-normalised flange
+translation and rotation of mode ``r``) and ``S_res`` everything the modes
+do not carry (modes far outside the band, the fit's remainder).  A change
+``dK_b`` of the bearing stiffnesses changes mode ``r`` to first order by
+``d(w_r^2) = phi_r^T dK_b phi_r = kappa_r w_r^2`` (Rayleigh), where
+``kappa_r = e_r * (fraction of the mode's strain energy stored in the
+changed bearings)`` and ``e_r`` is the bearings' relative change; the
+mass-normalised shape changes only through the coupling to the other
+modes, ``phi_s^T dK_b phi_r / (w_r^2 - w_s^2)``, which is small for
+well-separated modes.  So each flange mode keeps its residue (its modal
+mass) and its damping, and its modal stiffness ``k_r = w_r^2 / R_r`` and
+``w_r^2`` change by the same factor ``1 + kappa_r``::
 
-(Woodbury form, :func:`add_support_stiffness`: no inverse of ``S`` is
-needed and ``dk = 0`` returns ``S`` exactly).  A change at a *single* point
-is rank one at the flange whatever the (massless) shaft between them, so a
-flexible shaft only moves the effective lever ``a``; the two front bearings
-of a spindle (a few centimetres apart) act as one effective bearing, and
-the rear bearing, seen through the flexible shaft, adds little.  The
-bearing stiffness of a machine spindle differs between x and y (housing,
-preload); a relative error ``e`` of all bearings then changes the support
-by ``e k_x`` and ``e k_y``, so the change has one ``dk`` per direction of
-the setup's spindle files and one shared lever.
+    Delta(w) = sum_r R_r [1 / (D_r + kappa_r w_r^2) - 1 / D_r]
 
-Why this form (measured on the bench, file bearings 15 % stiffer, fitted
-lengths 25 and 40 mm in x and y, noise-free data, MAP of contact + term):
+(measured on the project's bench, spindle alone, bearings 15 % stiffer: the
+662 Hz mode moves +7.2 %, the 1917 Hz mode +0.26 %, while the flange
+residues change by < 1.6 %; for the front bearings only +6.7 / +0.12 %, for
+the rear bearing only +0.7 / +0.14 % with the 470 Hz rear-rocking mode
++6.2 %: *which* bearings changed shows up only in *how much* each mode
+moves, so one free change per mode follows all of them, where the earlier
+lever form assumed one effective bearing).  The change is the same in x
+and y: a relative bearing change (preload, temperature, identification)
+and each mode's bearing participation do not depend on the direction up to
+the bearings' anisotropy, so ``kappa_r`` is shared by the x and y files
+(their modes matched by frequency order).  Modes above the file band keep
+their frequency (part of ``S_res``: a bearing change moves mostly the
+low, bearing-dominated modes).
 
-=====================================  ==========  ============  ==============
-form (parameters)                      tool-point  k_xf bias at  k_xf bias at
-                                       gap to the  25 mm         40 mm
-                                       truth
-=====================================  ==========  ============  ==============
-none (baseline)                        0.0147      -0.29 %       -0.07 %
-``diag(dk_u, dk_psi)`` (2, previous)   0.0042      -0.071 %      -0.049 %
-full symmetric 2x2 (3)                 0.0027      +0.003 %      +0.047 %
-rank one, one ``dk`` (2)               0.0039      +0.002 %      +0.029 %
-rank one, ``dk`` per direction (3)     0.0003      +0.023 %      +0.032 %
-=====================================  ==========  ============  ==============
-
-The diagonal form misses the coupling that the lever creates; the contact
-stiffness absorbs the rest, a k_xf bias of -0.07 % that over replicates
-pushes the truth out of the tempered 90 % intervals (half-width ~0.13 %;
-7/10 covered).  One ``dk`` for both directions misses the x/y difference
-of the bearings (bench: ``y_stiffness_factor`` 0.92; fitted ``dk_y / dk_x``
-= 0.918 noise-free, 0.88-0.99 over 13 noisy campaigns).  In the
-discrepancy workflow (seeds 200-209, 2 % noise) the 90 % intervals of k_xf
-at 25 mm cover the truth in 10/10 campaigns (diagonal form: 7/10), mean
-bias of the median +0.006 % (standard error 0.023 %), and the systematic
-gap falls from 0.010-0.015 to 0-0.0036 (diagonal form, seeds 0-2:
-0.0035-0.005).  At the flange alone (file band 500-3500 Hz, x) the fitted
-rank-one change brings ``h`` within 1.4 % of the true spindle (from 99 %
-off), ``l`` within 5 % and ``p`` within 19 %, with a lever of 26 mm (front
-bearing at 30 mm).  Fitted to the tool point the lever comes
-out at 55-77 mm: the effective change also stands in for the shaft's
-inertia between flange and bearings, which makes the exact flange-equivalent
-change frequency dependent; a constant ``dK`` is exact only in the
-quasi-static limit (limits below).
-
-Properties
-----------
-* Reciprocal: ``S'`` is symmetric when ``S`` is (Woodbury of a symmetric
-  ``dK``).
-* Passive over the *whole* prior range: a real symmetric ``dK`` leaves
-  ``Im(S'^-1) = Im(S^-1)``, so ``-Im S' = S' Im(S^-1) S'^H`` is positive
-  semi-definite whenever the file's is (a stiffness change adds no
-  damping, as on the bench).
-* Vanishes exactly at ``dk = 0`` whatever the lever.
-
-Limits
-------
-* The shaft between the flange and the bearings is treated quasi-statically
-  (massless); near a spindle mode with much shaft motion behind the
-  flange the exact equivalent change varies with frequency, which the
-  fitted constant ``dK`` only averages over the fitted band.
-* Bearings far apart that change by different relative amounts (rank two
-  at the flange) are represented by one effective bearing.
-* A change of bearing *damping* is not represented (``dK`` is real).
+Passivity and reciprocity.  The modal prediction ``S + Delta`` is applied
+as a change of the flange dynamic stiffness,
+``dZ = sym((S + Delta)^-1 - S^-1) = sym(-S^-1 Delta (S + Delta)^-1)``, and
+``S' = (S^-1 + dZ')^-1`` (Woodbury, :func:`add_support_stiffness`), where
+``dZ'`` is ``dZ`` with its dissipation limited so that the new flange's
+``Im(S'^-1) = Im(S^-1) + Im(dZ')`` is the projection of
+``Im(S^-1) + Im(dZ)`` onto the positive semi-definite matrices (negative
+eigenvalues removed, closed form per 2x2 line).  Hence ``S'`` is passive
+wherever that projection is positive semi-definite, i.e. at every line and
+for *every* parameter value (the whole prior box), ``S'`` is symmetric
+when ``S`` is, and at ``kappa = 0`` the file is returned exactly.  Where the
+modal change is passive on its own (nearly everywhere) ``S' = S + Delta``.
+A translation-only file (``l = n = p = 0``) gets the scalar version on
+``h``.  Two cheaper constructions were rejected: adding ``Delta`` to the
+file needs the fitted modes to carry no more damping than the file at any
+line (held for 10 % of the residues on the bench's non-proportionally
+damped spindle); keeping only the real part of ``dZ`` ("a stiffness change
+adds no damping") is exact for one mode but left the independent rotor
+bench's flange 26 % off (5 % with the projection), because the condensed
+change of a non-proportionally damped spindle is complex.
 
 Parameters
 ----------
-``spindle_support_dk_u_x``, ``spindle_support_dk_u_y`` (N/m), one per direction of the spindle files
-    Change of the effective bearing stiffness in that direction (negative:
-    the real bearings are softer than in the spindle file).  Prior uniform
-    on ``[-k_u, k_u] / 2`` with ``k_u`` the median magnitude of the x file's
-    translational dynamic stiffness ``1 / |h|`` over its band (the same
-    range for both directions, so neither is favoured); baseline 0.
-``spindle_support_lever_m`` (m)
-    Effective distance of the changed bearings behind the flange.  Prior
-    uniform on ``[0, 0.2]`` m (the front bearing set of a machine-tool
-    spindle sits 20-100 mm behind the nose; 0 is a physical limit, a
-    bearing at the flange face); baseline 0.05 m (the term vanishes at
-    ``dk = 0`` whatever the lever, which is then not identified: the
-    workflow's score test scans it on a grid).
+``spindle_mode{r}_stiffness_change`` (1), one per fitted flange mode ``r = 1..N`` at or below the file's upper
+frequency (ascending; N <= 4, 3 on the project's bench)
+    ``kappa_r``: relative change of mode ``r``'s modal stiffness (and of
+    ``w_r^2``) from the file to the real spindle; negative: the real
+    bearings are softer.  Prior: normal, mean 0, standard deviation 0.2,
+    truncated to [-0.5, 1] (a shrinkage prior: bearing stiffness known
+    within a factor of about two, ``|e| <= 0.5..1``, times a participation
+    in [0, 1]; a mode the data do not see stays near the file).  Baseline 0.
+
+Can represent
+-------------
+Any bearing stiffness change (all bearings, one bearing set, the rear
+bearing, x/y alike) to the extent that it moves the flange modes'
+frequencies without reshaping them; changes of the modes' participation
+differ per mode freely.
+
+Cannot represent
+----------------
+* A change of bearing *damping* (``dZ`` is real by construction).
+* A change large enough to reshape the modes (two modes closer than the
+  change of their frequencies exchange shape), or to move a mode from
+  outside the file band into it beyond the fitted modes (modes above the
+  band are held fixed).
+* Different relative changes in x and y (one ``kappa_r`` for both files).
+* A flange mode the modal fit did not resolve (closer than a half-power
+  bandwidth to another, or invisible in both ``h`` and ``p``).
 """
 
 from __future__ import annotations
@@ -109,16 +100,17 @@ import numpy as np
 
 from ...errors import ModelError
 from ..parameter import Parameter
-from ..priors import Uniform
+from ..priors import Normal
 from . import register_term
 from .base import ModelTerm
+from .flange_modal import BlockModes, model_block_modes
 
-__all__ = ["SpindleError", "support_scales", "add_support_stiffness", "LEVER_MAX"]
+__all__ = ["SpindleError", "support_scales", "add_support_stiffness", "changing_modes", "KAPPA_PRIOR"]
 
-#: Upper bound of the lever prior, m (front bearing sets sit 20-100 mm behind the spindle nose).
-LEVER_MAX = 0.2
-#: Baseline lever, m (any value: the term vanishes at dk = 0).
-LEVER_BASELINE = 0.05
+#: Prior of every relative modal stiffness change: normal(0, 0.2) truncated to [-0.5, 1].
+KAPPA_PRIOR = Normal(0.0, 0.2, -0.5, 1.0)
+#: Most flange modes given a change (the workflow's evidence pays for every parameter).
+MAX_CHANGING = 4
 
 
 def support_scales(model) -> tuple[float, float]:
@@ -147,6 +139,7 @@ def add_support_stiffness(spindle: np.ndarray, dk_u, dk_psi, dk_coupling=None) -
     dk_psi : array broadcastable to (B, n), N m/rad
     dk_coupling : array broadcastable to (B, n), N/rad (= N m/m), optional
         Off-diagonal of the symmetric support change (0 if omitted).
+        Real (a stiffness change) or complex (stiffness and damping, ``K + i w C``).
 
     Returns
     -------
@@ -154,9 +147,9 @@ def add_support_stiffness(spindle: np.ndarray, dk_u, dk_psi, dk_coupling=None) -
     The input is not modified.
     """
     s = np.asarray(spindle)
-    a = np.asarray(dk_u, dtype=float)
-    b = np.asarray(dk_psi, dtype=float)
-    c = np.zeros_like(a) if dk_coupling is None else np.asarray(dk_coupling, dtype=float)
+    a = np.asarray(dk_u)
+    b = np.asarray(dk_psi)
+    c = np.zeros_like(a) if dk_coupling is None else np.asarray(dk_coupling)
     s00, s01, s10, s11 = s[..., 0, 0], s[..., 0, 1], s[..., 1, 0], s[..., 1, 1]
     # M = I + S dK
     m00 = 1.0 + s00 * a + s01 * c
@@ -182,52 +175,142 @@ def add_support_stiffness(spindle: np.ndarray, dk_u, dk_psi, dk_coupling=None) -
     return out
 
 
-def _dk_name(direction: str) -> str:
-    return f"spindle_support_dk_u_{direction}"
+
+
+def changing_modes(modes: BlockModes, f_max_hz: float) -> np.ndarray:
+    """Indices of the modes given a stiffness change: those at or below ``f_max_hz`` (at most MAX_CHANGING)."""
+    idx = np.flatnonzero(modes.omega / (2 * np.pi) <= f_max_hz * (1 + 1e-9))
+    return idx[:MAX_CHANGING]
+
+
+def _names(n: int) -> list[str]:
+    return [f"spindle_mode{r + 1}_stiffness_change" for r in range(n)]
+
+
+def _file_modes(model) -> tuple[dict[str, BlockModes], np.ndarray]:
+    """Block modes per direction and the indices of the changing modes (from the first file)."""
+    modes = model_block_modes(model)
+    first = "x" if "x" in modes else next(iter(modes))
+    f_max = float(model.spindle[first].frequency_hz[-1])
+    return modes, changing_modes(modes[first], f_max)
+
+
+def _negative_part(a, b, c):
+    """Negative part ``sum_(lambda < 0) lambda v v^T`` of real symmetric 2x2 ``[[a, b], [b, c]]`` (elementwise arrays)."""
+    mean, rad = 0.5 * (a + c), np.hypot(0.5 * (a - c), b)
+    lo, hi = mean - rad, mean + rad
+    # one negative eigenvalue: lo v v^T with v v^T = (A - hi I) / (lo - hi); two: A itself
+    gap = np.where(rad > 0, lo - hi, -1.0)
+    one = (lo < 0) & (hi >= 0)
+    two = hi < 0
+    f = np.where(one, lo / gap, 0.0)
+    n00 = np.where(two, a, f * (a - hi))
+    n01 = np.where(two, b, f * b)
+    n11 = np.where(two, c, f * (c - hi))
+    return n00, n01, n11
+
+
+def _inv2(a00, a01, a10, a11):
+    det = a00 * a11 - a01 * a10
+    return a11 / det, -a01 / det, -a10 / det, a00 / det
 
 
 @register_term
 class SpindleError(ModelTerm):
-    """Bearing stiffness changed relative to the spindle file, seen at the flange through a lever (spindle kind)."""
+    """Bearing stiffness changed relative to the spindle file: each flange mode's stiffness shifted (spindle kind)."""
 
     name = "spindle_error"
     kind = "spindle"
     description = ("the spindle file comes from a spindle with stiffer or softer bearings than the real one "
                    "(other day, preload, temperature, identification error)")
-    #: a bearing at the flange face (lever 0) is a physical limit, not a chosen range
-    physical_bounds = {"spindle_support_lever_m": (0.0,)}
+
+    def __init__(self) -> None:
+        self._ctx_cache: tuple | None = None  # (ctx, per-line modal data)
+
+    def __getstate__(self) -> dict:
+        # the per-context cache holds the whole model: rebuilt on first use after unpickling
+        return {**self.__dict__, "_ctx_cache": None}
 
     def parameters(self, model) -> tuple[Parameter, ...]:
-        k_u, _ = support_scales(model)
-        dks = tuple(
-            Parameter(_dk_name(d), unit="N/m", role="term", prior=Uniform(-0.5 * k_u, 0.5 * k_u),
-                      label=f"spindle bearing stiffness change {d} [N/m]", baseline=0.0, term=self.name,
-                      description=f"change of the effective bearing (support) stiffness in {d}, acting "
-                                  f"spindle_support_lever_m behind the flange; negative: the real bearings are "
-                                  f"softer than in the spindle file")
-            for d in sorted(model.spindle)
-        )
-        return dks + (
-            Parameter("spindle_support_lever_m", unit="m", role="term", prior=Uniform(0.0, LEVER_MAX),
-                      label="spindle bearing lever [m]", baseline=LEVER_BASELINE, term=self.name,
-                      description="effective distance of the changed bearings behind the flange"),
-        )
+        modes, idx = _file_modes(model)
+        if idx.size == 0:
+            raise ModelError("spindle_error: the spindle file shows no flange mode in or below its band; a bearing "
+                             "change cannot be located")
+        ref = modes["x" if "x" in modes else next(iter(modes))]
+        out = []
+        for r, name in zip(idx, _names(idx.size)):
+            fr = ref.omega[r] / (2 * np.pi)
+            out.append(Parameter(name, unit="1", role="term", prior=KAPPA_PRIOR, baseline=0.0, term=self.name,
+                                 label=f"stiffness change of the {fr:.0f} Hz spindle mode",
+                                 description=f"relative change of the modal stiffness (and squared frequency) of "
+                                             f"the spindle's flange mode at {fr:.0f} Hz from the spindle file to the "
+                                             f"real spindle; negative: the real bearings are softer"))
+        return tuple(out)
+
+    def _line_data(self, ctx):
+        """Per-line ``w_r^2`` (n_lines, N), ``1 / D_r`` (n_lines, N) and residues (n_lines, N, 2, 2), cached."""
+        if self._ctx_cache is not None and self._ctx_cache[0] is ctx:
+            return self._ctx_cache[1]
+        modes, idx = _file_modes(ctx.model)
+        omega = np.asarray(ctx.omega, dtype=float)
+        n = idx.size
+        w2 = np.zeros((omega.size, n))
+        d = np.ones((omega.size, n), dtype=complex)
+        res = np.zeros((omega.size, n, 2, 2))
+        line_config = np.asarray(ctx.line_config)
+        for j, cfg in enumerate(ctx.configurations):  # a few configurations, each vectorised over its lines
+            lines = np.flatnonzero(line_config == j)
+            m = modes[cfg.direction] if cfg.direction in modes else next(iter(modes.values()))
+            w2[lines] = m.omega[idx] ** 2
+            d[lines] = m.denominators(omega[lines])[:, idx]
+            res[lines] = m.residue[idx]
+        data = (w2, d, res)
+        self._ctx_cache = (ctx, data)
+        return data
 
     def spindle(self, values: Mapping[str, np.ndarray], spindle: np.ndarray, ctx) -> np.ndarray:
-        """Flange blocks with the bearing change, (n_sets, n_lines, 2, 2).
+        """Flange blocks of the real spindle, (n_sets, n_lines, 2, 2).
 
-        ``values[name]`` is (n_sets,); ``spindle`` is (B, n_lines, 2, 2) with
-        B = 1 or n_sets.  Each line gets the change of its configuration's
-        direction.
+        ``values[name]`` is (n_sets,); ``spindle`` is (B, n_lines, 2, 2) with B = 1 or n_sets.
         """
-        dirs = sorted({c.direction for c in ctx.configurations})
-        missing = [d for d in dirs if _dk_name(d) not in values]
+        w2, d, res = self._line_data(ctx)
+        names = _names(w2.shape[1])
+        missing = [k for k in names if k not in values]
         if missing:
-            raise ModelError(f"spindle_error: no parameter {[_dk_name(d) for d in missing]} for the measured "
-                             f"direction(s) {missing}; the term's parameters follow the setup's spindle files")
-        cfg_dir = np.array([dirs.index(c.direction) for c in ctx.configurations])
-        line_dir = cfg_dir[np.asarray(ctx.line_config)]  # (n_lines,) index into dirs
-        dk_by_dir = np.stack([np.asarray(values[_dk_name(d)], dtype=float) for d in dirs], axis=-1)  # (n_sets, n_dir)
-        dk = dk_by_dir[:, line_dir]  # (n_sets, n_lines)
-        a = np.asarray(values["spindle_support_lever_m"], dtype=float)[:, None]
-        return add_support_stiffness(spindle, dk, dk * a * a, -dk * a)
+            raise ModelError(f"spindle_error: no value for {missing}; the term's parameters follow the modes of the "
+                             f"setup's spindle files")
+        kappa = np.stack([np.asarray(values[k], dtype=float) for k in names], axis=-1)  # (n_sets, N)
+        shift = kappa[:, None, :] * w2[None]  # (n_sets, n_lines, N) rad^2/s^2
+        # 1/(D + shift) - 1/D = -shift / (D (D + shift)): exactly 0 where kappa = 0
+        g = -shift / (d[None] * (d[None] + shift))
+        # Delta = sum_r g_r R_r (symmetric), component by component
+        d00 = (g * res[None, :, :, 0, 0]).sum(axis=-1)  # (n_sets, n_lines)
+        s = np.asarray(spindle)
+        s00, s01, s10, s11 = s[..., 0, 0], s[..., 0, 1], s[..., 1, 0], s[..., 1, 1]
+        fixed = np.all(kappa == 0, axis=-1)[:, None]  # sets at the baseline: the file itself, bit for bit
+        if not (np.any(s01) or np.any(s10) or np.any(s11)):
+            # translation-only file: the scalar change dz = -delta_h / (h (h + delta_h)) on h; its dissipation
+            # Im(1/h + dz) kept >= 0
+            z = 1.0 / s00
+            dz = -d00 / (s00 * (s00 + d00))
+            dz = dz - 1j * np.minimum(z.imag + dz.imag, 0.0)
+            dz = np.where(fixed, 0.0, dz)
+            zero = np.zeros_like(dz)
+            return add_support_stiffness(s, dz, zero, zero)
+        d01 = (g * res[None, :, :, 0, 1]).sum(axis=-1)
+        d11 = (g * res[None, :, :, 1, 1]).sum(axis=-1)
+        # dZ = (S + Delta)^-1 - S^-1 = -S^-1 Delta (S + Delta)^-1, symmetrised
+        i00, i01, i10, i11 = _inv2(s00, s01, s10, s11)
+        j00, j01, j10, j11 = _inv2(s00 + d00, s01 + d01, s10 + d01, s11 + d11)
+        e00 = d00 * j00 + d01 * j10  # Delta (S + Delta)^-1
+        e01 = d00 * j01 + d01 * j11
+        e10 = d01 * j00 + d11 * j10
+        e11 = d01 * j01 + d11 * j11
+        z00 = -(i00 * e00 + i01 * e10)
+        z11 = -(i10 * e01 + i11 * e11)
+        z01 = -0.5 * (i00 * e01 + i01 * e11 + i10 * e00 + i11 * e10)
+        # dissipation of the new flange, Im(S^-1) + Im(dZ), projected onto the positive semi-definite cone
+        n00, n01, n11 = _negative_part(i00.imag + z00.imag,
+                                       0.5 * (i01.imag + i10.imag) + z01.imag, i11.imag + z11.imag)
+        z00, z01, z11 = (np.where(fixed, 0.0, z - 1j * n) for z, n in ((z00, n00), (z01, n01), (z11, n11)))
+        return add_support_stiffness(s, z00, z11, z01)
