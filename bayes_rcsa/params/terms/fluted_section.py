@@ -1,33 +1,81 @@
-"""``fluted_section``: the fluted part of the tool is thinner (or thicker) in bending than declared.
+"""``fluted_section``: the fluted part of the tool has another area and bending stiffness than declared.
 
-The setup describes a fluted length by its effective bending diameter,
-``diameter * diameter_ratio`` (typically 0.75-0.85 of the shank diameter for
-end mills, from a handbook rule).  The true value depends on the flute
-count, core diameter and helix and is easily off by 10 %.  This term
-scales the effective diameter of every fluted tool segment (those with
-``diameter_ratio < 1``) by one factor.
+A setup describes a fluted length by a circle: its effective diameter
+``diameter * diameter_ratio`` (a handbook rule, typically 0.75-0.85), or,
+often, the nominal diameter (a flute declared solid).  A real flute profile
+is not a circle: its area ``A`` (mass ``rho A``, shear ``kappa G A``) and
+its second moment ``I`` (bending ``E I``, rotary inertia ``rho I``) are
+two independent numbers, so no single circle gets both right.
 
-Physics.  A solid circular section of diameter ``d`` has EI, kappa G A,
-rho A, rho I proportional to ``d^4, d^2, d^2, d^4`` (Cowper's kappa of a solid
-circle does not depend on ``d``), so scaling ``d`` by ``s`` scales the
-four section properties by ``s^4, s^2, s^2, s^4``.  The tool-overhang
-two-port is then recomputed with exact Timoshenko segment dynamic
-stiffnesses, vectorised over parameter sets and lines (one small linear
-solve per set and line, no loop over either).  A thinner fluted section
-loses mass at the tip and bending stiffness; with a compliant joint the
-lighter tip usually wins and the tool mode moves *up*
-(docs/synthetic.md).
+Which segments
+--------------
+Per tool: its segments with ``diameter_ratio < 1`` (declared fluted); if it
+has none but two or more segments, its tip segment (the first one, a flute
+declared solid).  A tool with a single segment has nothing to act on; if no
+tool of the setup has such a segment, :meth:`FlutedSection.parameters`
+raises :class:`~bayes_rcsa.errors.ModelError` (the discrepancy workflow
+reads this as "not applicable").  Acted segments that reach into the holder
+are refused when evaluated (the holder two-port would change too).
 
-Parameter
----------
-``flute_diameter_scale`` (1)
-    True / declared effective diameter of the fluted segments.  Prior
-    uniform on [0.6, 1.15] (the ratio 0.8 of the setup may be anywhere
-    from about 0.5 to a solid section); baseline 1, where the declared
-    tool two-port is returned unchanged (bit for bit).
+Physics
+-------
+For the acted segments, with ``a`` and ``i`` the true/declared ratios of
+area and second moment::
 
-Limits: fluted segments clamped inside the holder are refused (the holder
-two-port would change too); flutes are assumed to stay circular-equivalent.
+    rho A -> a rho A,   kappa G A -> a kappa G A,   E I -> i E I,   rho I -> i rho I
+
+and the tool-overhang two-port is recomputed with exact Timoshenko segment
+dynamic stiffnesses, vectorised over parameter sets and lines (one small
+linear solve per set and line, no loop over either).  The former
+one-parameter form (a diameter scale ``s``: ``a = s^2``, ``i = s^4``) is the
+special case ``i = a^2``; real flute profiles lie off that curve (table
+below), which is why an independently built fluted section was not
+explained by it.
+
+Plausible ranges (computed for this docstring): a section of unit
+radius with ``n`` flutes, each a circular arc through the rim at
+``+-g pi / n`` (flute width ``g`` of the pitch at the rim, 0.4-0.7) and the
+core circle (radius ``c``), integrated on a 1201 x 1201 grid:
+
+======  ===========  ===============  ===============================
+flutes  core c       A / A_solid      I / I_solid
+======  ===========  ===============  ===============================
+2       0.5-0.8      0.67-0.90        0.27-0.68 (weak) .. 0.84-0.97 (strong axis)
+3       0.5-0.8      0.56-0.90        0.42-0.82
+4       0.5-0.8      0.53-0.89        0.38-0.82
+5       0.5-0.8      0.49-0.89        0.33-0.81
+6       0.5-0.8      0.44-0.88        0.29-0.80
+======  ===========  ===============  ===============================
+
+So over 2-6 flutes and core ratios 0.5-0.8, ``A / A_solid`` lies in
+[0.44, 0.90] and ``I / I_solid`` in [0.27, 0.97] (``I / I_solid`` about
+``(A / A_solid)^1.5`` for three or more flutes; a circle would give the
+square).  The priors are these ranges, widened to [0.40, 0.92] and
+[0.25, 0.97], divided by the declared circle's ``ratio^2`` and
+``ratio^4``.
+
+Parameters
+----------
+``flute_area_ratio`` (1)
+    True / declared area of the acted segments (mass per length and shear
+    stiffness).  Prior uniform on ``[0.40 / r^2, max(0.92 / r^2, 1)]``,
+    ``r`` the acted segments' declared diameter ratio (smallest and largest
+    over the tools); baseline 1.
+``flute_inertia_ratio`` (1)
+    True / declared second moment of area (bending stiffness and rotary
+    inertia).  Prior uniform on ``[0.25 / r^4, max(0.97 / r^4, 1)]``;
+    baseline 1.  At both baselines the declared tool two-port is returned
+    unchanged (bit for bit).
+
+Can represent: any fluted cross-section that stays uniform along the
+flutes, with any area and second moment in the physical range, declared as
+an effective circle or as solid.
+
+Cannot represent: a change of the shear coefficient with the profile (kappa
+is kept; shear is a small part of a tool's compliance), the x/y anisotropy
+of a two-flute section (one ``I`` for both directions), helix-induced
+coupling of the bending planes, a flute length other than declared, and
+fluted parts inside the holder.
 """
 
 from __future__ import annotations
@@ -44,8 +92,13 @@ from ..priors import Uniform
 from . import register_term
 from .base import ModelTerm, Substructures
 
-__all__ = ["FlutedSection", "batched_segment_stiffness", "batched_free_free"]
+__all__ = ["FlutedSection", "batched_segment_stiffness", "batched_free_free", "acted_segments", "AREA_RANGE",
+           "INERTIA_RANGE"]
 
+#: Physical range of A / A_solid of fluted sections (2-6 flutes, core ratio 0.5-0.8), widened.
+AREA_RANGE = (0.40, 0.92)
+#: Physical range of I / I_solid of the same sections, widened.
+INERTIA_RANGE = (0.25, 0.97)
 
 def batched_segment_stiffness(length: float, EI, kGA, rhoA, rhoI, omega) -> np.ndarray:
     """Exact dynamic stiffness of a uniform Timoshenko segment for batches of sections.
@@ -118,15 +171,26 @@ def batched_free_free(pieces: Sequence[tuple[float, tuple]], omega) -> TwoPort:
     return TwoPort.from_matrix(cols[..., ends, :])
 
 
+def acted_segments(tool) -> list[bool]:
+    """Per segment of ``tool`` (tip first): whether the term acts on it (see the module docstring)."""
+    fluted = [seg.diameter_ratio < 1.0 for seg in tool.segments]
+    if any(fluted):
+        return fluted
+    if len(tool.segments) >= 2:
+        return [True] + [False] * (len(tool.segments) - 1)
+    return [False]
+
+
 def _fluted_flags(tool, clamping_length: float) -> list[bool]:
-    """Whether each overhang piece (base -> tip, as :func:`tool_overhang_segments`) is fluted."""
+    """Whether each overhang piece (base -> tip, as :func:`tool_overhang_segments`) is acted on."""
     overhang = tool.total_length - clamping_length
+    acted = acted_segments(tool)
     flags, pos = [], 0.0
-    for seg in tool.segments:  # from the tip
+    for seg, on in zip(tool.segments, acted):  # from the tip
         piece = min(pos + seg.length, overhang) - pos
         if piece > 1e-9 * overhang:
-            flags.append(seg.diameter_ratio < 1.0)
-        if seg.diameter_ratio < 1.0 and pos + seg.length > overhang * (1 + 1e-9):
+            flags.append(on)
+        if on and pos + seg.length > overhang * (1 + 1e-9):
             raise ModelError(
                 f"fluted_section: tool {tool.name!r} has a fluted segment reaching into the holder at clamping "
                 f"length {clamping_length * 1e3:g} mm; this term handles fluted overhangs only")
@@ -136,29 +200,42 @@ def _fluted_flags(tool, clamping_length: float) -> list[bool]:
 
 @register_term
 class FlutedSection(ModelTerm):
-    """Effective diameter of the fluted tool segments scaled by one factor (substructure kind)."""
+    """Area and second moment of the fluted tool segments scaled independently (substructure kind)."""
 
     name = "fluted_section"
     kind = "substructure"
-    description = "the fluted part of the tool is thinner (or thicker) in bending than its declared diameter ratio"
+    description = ("the fluted part of the tool has another area and bending stiffness than its declared "
+                   "(effective or solid) circle")
 
     def parameters(self, model) -> tuple[Parameter, ...]:
-        if not any(s.diameter_ratio < 1 for t in model.tools.values() for s in t.segments):
-            raise ModelError("fluted_section: no tool of the setup has a fluted segment (diameter_ratio < 1)")
+        ratios = [seg.diameter_ratio for t in model.tools.values()
+                  for seg, on in zip(t.segments, acted_segments(t)) if on]
+        if not ratios:
+            raise ModelError("fluted_section: no tool of the setup has a fluted segment (diameter_ratio < 1) or a "
+                             "tip segment of its own; a single-segment tool has no flute to act on")
+        r_lo, r_hi = min(ratios), max(ratios)
+        a = (AREA_RANGE[0] / r_hi**2, max(AREA_RANGE[1] / r_lo**2, 1.0))
+        i = (INERTIA_RANGE[0] / r_hi**4, max(INERTIA_RANGE[1] / r_lo**4, 1.0))
         return (
-            Parameter("flute_diameter_scale", unit="1", role="term", prior=Uniform(0.6, 1.15),
-                      label="fluted diameter scale", baseline=1.0, term=self.name,
-                      description="true / declared effective bending diameter of the fluted segments"),
+            Parameter("flute_area_ratio", unit="1", role="term", prior=Uniform(*a), label="fluted area ratio",
+                      baseline=1.0, term=self.name,
+                      description="true / declared cross-section area of the fluted segments (mass, shear)"),
+            Parameter("flute_inertia_ratio", unit="1", role="term", prior=Uniform(*i),
+                      label="fluted second-moment ratio", baseline=1.0, term=self.name,
+                      description="true / declared second moment of area of the fluted segments (bending "
+                                  "stiffness, rotary inertia)"),
         )
 
     def substructures(self, values: Mapping[str, np.ndarray], subs: Substructures, ctx) -> Substructures:
-        """Tool two-ports recomputed with the scaled fluted sections, blocks (n_sets, n_lines, 2, 2)."""
-        s = np.asarray(values["flute_diameter_scale"], dtype=float)
-        at_base = s == 1.0
+        """Tool two-ports recomputed with the changed fluted sections, blocks (n_sets, n_lines, 2, 2)."""
+        ra = np.asarray(values["flute_area_ratio"], dtype=float)
+        ri = np.asarray(values["flute_inertia_ratio"], dtype=float)
+        ra, ri = np.broadcast_arrays(ra, ri)
+        at_base = (ra == 1.0) & (ri == 1.0)
         if np.all(at_base):
             return subs
-        s2, s4 = (s * s)[:, None], (s**4)[:, None]
-        n_sets = s.size
+        ra1, ri1 = ra[:, None], ri[:, None]
+        n_sets = ra.size
         tool = subs.tool
         out = {k: np.array(np.broadcast_to(getattr(tool, k), (n_sets,) + getattr(tool, k).shape[1:]))
                for k in ("r11", "r12", "r21", "r22")}
@@ -171,11 +248,13 @@ class FlutedSection(ModelTerm):
             flags = _fluted_flags(t, cfg.clamping_length)
             if len(flags) != len(segs):
                 raise ModelError(f"fluted_section: could not match the overhang segments of tool {t.name!r}")
+            if not any(flags):
+                continue
             pieces = []
             for seg, fluted in zip(segs, flags):
                 p = seg.section
                 if fluted:
-                    pieces.append((seg.length, (p.EI * s4, p.kGA * s2, p.rhoA * s2, p.rhoI * s4)))
+                    pieces.append((seg.length, (p.EI * ri1, p.kGA * ra1, p.rhoA * ra1, p.rhoI * ri1)))
                 else:
                     one = np.ones((1, 1))
                     pieces.append((seg.length, (p.EI * one, p.kGA * one, p.rhoA * one, p.rhoI * one)))
