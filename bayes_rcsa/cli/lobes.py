@@ -43,10 +43,19 @@ def register(subparsers) -> None:
     src.add_argument("setup", nargs="?", metavar="SETUP", help="setup TOML (posterior mode)")
     src.add_argument("--posterior", metavar="FILE", help="posterior.nc of 'bayes-rcsa identify' (posterior mode)")
     src.add_argument("--clamping-length", metavar="M", help="clamping length in m (posterior mode)")
-    src.add_argument("--draws", type=positive_int, default=500, metavar="N", help="posterior draws used (default 500)")
-    src.add_argument("--seed", type=nonnegative_int, default=0, help="seed for choosing posterior draws (default 0)")
-    src.add_argument("--measured-x", metavar="FX", help="measured tool-point FRF in X (CSV frequency_hz,real,imag or UFF58)")
-    src.add_argument("--measured-y", metavar="FY", help="measured tool-point FRF in Y (CSV frequency_hz,real,imag or UFF58)")
+    src.add_argument("--draws", type=positive_int, default=500, metavar="N",
+                     help="posterior draws used, or FRF realisations drawn from the measurement's random error in "
+                     "measured mode (default 500)")
+    src.add_argument("--seed", type=nonnegative_int, default=0,
+                     help="seed for choosing posterior draws or drawing FRF realisations (default 0)")
+    src.add_argument("--measured-x", metavar="FX[,FX2,...]",
+                     help="measured tool-point FRF in X (CSV frequency_hz,real,imag[,coherence] or UFF58); several "
+                     "comma-separated files (or UFF58 records) are repeated hits at the same point")
+    src.add_argument("--measured-y", metavar="FY[,FY2,...]", help="measured tool-point FRF in Y (as --measured-x)")
+    src.add_argument("--averages", metavar="N",
+                     help="impacts averaged per measured FRF (default: the files' '# averages = N' header line); "
+                     "with a coherence column it gives the FRF's random error (Bendat & Piersol) and "
+                     "probabilistic lobes")
     cut = p.add_argument_group("cutting conditions")
     cut.add_argument("--flutes", type=positive_int, required=True, metavar="N", help="number of teeth")
     cut.add_argument("--kt", required=True, metavar="PA[±TOL]",
@@ -80,7 +89,10 @@ def register(subparsers) -> None:
     grid.add_argument("--intervals", type=positive_int, metavar="M",
                       help="SDM intervals per tooth period (default: 30 per cycle of the highest mode, >= 30)")
     grid.add_argument("--max-modes", type=int, default=4, metavar="N", help="largest mode count of the SDM modal fit (default 4)")
-    grid.add_argument("--level", default="0.95", metavar="P", help="P(stable) required over the neighbourhood (default 0.95)")
+    grid.add_argument("--level", metavar="P", help="P(stable) required over the neighbourhood (default 0.95)")
+    grid.add_argument("--confidence", metavar="C",
+                      help="confidence of the robust envelope (the depth below which P(stable) >= C at each speed, "
+                      "written to lobes.json and drawn) and of the recommendation; sets --level (default: --level)")
     grid.add_argument("--budget", default=str(DEFAULT_BUDGET_S), metavar="S",
                       help=f"run time in s above which the estimate printed before the job comes with advice on "
                       f"cutting it (default {DEFAULT_BUDGET_S:g})")
@@ -167,7 +179,8 @@ def _cutting(args):
 
 def _dynamics(args):
     """FRF draws in X and Y (FRFInput)."""
-    from ..stability.posterior_frf import measured_frf_pair, posterior_frf_draws
+    from ..stability.measured import interpolate_lines
+    from ..stability.posterior_frf import measured_frf_draws, posterior_frf_draws
 
     measured = args.measured_x is not None or args.measured_y is not None
     posterior = args.setup is not None or args.posterior is not None or args.clamping_length is not None
@@ -180,14 +193,31 @@ def _dynamics(args):
 
         from ..io.checks import warn_all, xy_pair_warnings
 
-        pair = measured_frf_pair(args.measured_x, args.measured_y)
-        warn_all(xy_pair_warnings(Path(args.measured_x).name, Path(args.measured_y).name, pair.frequency_hz,
-                                  pair.frf_x[0], pair.frf_y[0]))
+        averages = None
+        if args.averages is not None:
+            try:
+                averages = int(args.averages)
+            except ValueError:
+                raise SetupError(f"--averages {args.averages!r}: expected a whole number >= 1 (impacts averaged "
+                                 "per FRF)") from None
+            if averages < 1:
+                raise SetupError(f"--averages {args.averages!r}: expected a whole number >= 1 (impacts averaged "
+                                 "per FRF)")
+        pair = measured_frf_draws(args.measured_x, args.measured_y, averages, args.draws,
+                                  np.random.default_rng(args.seed))
+        mx, my = pair.measured
+        warn_all(pair.source["notes"])
+        warn_all(xy_pair_warnings(Path(mx.files[0]).name, Path(my.files[0]).name, mx.frequency_hz, mx.mean,
+                                  interpolate_lines(my.mean, my.frequency_hz, mx.frequency_hz)[0]
+                                  if mx.frequency_hz.shape != my.frequency_hz.shape
+                                  or not np.allclose(mx.frequency_hz, my.frequency_hz) else my.mean))
         return pair
     if args.setup is None or args.posterior is None or args.clamping_length is None:
         raise SetupError(
             "give --measured-x FX --measured-y FY, or SETUP --posterior FILE --clamping-length M for posterior draws"
         )
+    if args.averages is not None:
+        raise SetupError(f"--averages {args.averages}: only for measured FRFs (--measured-x/--measured-y)")
     clamping = parse_float(args.clamping_length, "--clamping-length", positive=True)
     if args.draws < 1:
         raise SetupError(f"--draws {args.draws}: expected >= 1")
@@ -226,9 +256,16 @@ def run(args: argparse.Namespace) -> Summary:
 
     cutting, kt_tol, warnings = _cutting(args)
     speeds = parse_speeds(args.speeds)
-    level = parse_float(args.level, "--level", positive=True)
+    level = parse_float(args.level if args.level is not None else "0.95", "--level", positive=True)
     if level > 1:
         raise SetupError(f"--level {args.level}: expected a probability in (0, 1]")
+    if args.confidence is not None:
+        confidence = parse_float(args.confidence, "--confidence", positive=True)
+        if not (0.5 <= confidence < 1):
+            raise SetupError(f"--confidence {args.confidence}: expected a probability in [0.5, 1) (e.g. 0.95)")
+        if args.level is not None and abs(confidence - level) > 1e-12:
+            raise SetupError(f"--confidence {args.confidence} and --level {args.level} differ; give one of them")
+        level = confidence
     max_depth = parse_float(args.max_depth, "--max-depth", positive=True) if args.max_depth is not None else None
     flute = parse_float(args.flute_length, "--flute-length", positive=True) if args.flute_length is not None else None
     tol = Tolerances(parse_fraction(args.speed_tolerance, "--speed-tolerance", 0.0, 0.2),
@@ -272,8 +309,17 @@ def run(args: argparse.Namespace) -> Summary:
     finally:
         if bar is not None:
             bar.close()
+    fit_report = None
+    if args.method == "sdm" and frf.measured is not None:
+        from ..io.checks import warn_all
+        from ..stability.modal_quality import measured_fit_report
+
+        fit_report, fit_warnings = measured_fit_report(frf.measured, res.modal_fits, args.max_modes)
+        warn_all(fit_warnings)
     warnings = merge_warnings(command_warnings(), warnings)  # the data warnings printed on stderr go into lobes.json
     doc = lobes_document(res, cutting, frf.source, tests, warnings, max_depth=max_depth, flute_length=flute)
+    if fit_report is not None:
+        doc["modal_fit"] = fit_report
     title = f"{cutting.flutes} flutes, {res.method.upper()}, " + (
         "measured FRFs" if frf.source["mode"] == "measured" else f"{frf.n_draws} draws"
     )
@@ -289,8 +335,21 @@ def run(args: argparse.Namespace) -> Summary:
                 f"{rec.margin_depth_m * 1e3:.3f} mm; limited by {rec.binding})")
     else:
         msg += f"; no recommendation: {res.note}"
+    med = res.median_recommended
+    if rec is not None and med is not None and res.depth_limit_m.shape[0] > 1:
+        msg += (f"; at P(stable) >= 0.5 it would be {med.spindle_speed_rpm:.0f} rpm, {med.depth_m * 1e3:.3f} mm "
+                f"(confidence {res.level:g} costs {(med.depth_m - rec.depth_m) * 1e3:.3f} mm)")
+    if frf.source.get("deterministic"):
+        msg += "; " + frf.source["deterministic_note"]
+    elif frf.measured is not None:
+        msg += "; FRF random error: " + ", ".join(
+            f"{d} {m.model} ({len(m.files)} file(s){'' if m.averages is None else f', {m.averages} averages'})"
+            for d, m in zip("XY", frf.measured)) + f", {frf.n_draws} realisations"
     recommended = None if rec is None else {
         "spindle_speed_rpm": rec.spindle_speed_rpm, "depth_m": rec.depth_m,
         "p_stable": rec.p_stable_neighbourhood, "binding": rec.binding}
     return Summary(msg, {"out": str(args.out), "lobes": str(path), "recommended": recommended,
+                         "robust_envelope_confidence": res.level,
+                         "deterministic": bool(res.depth_limit_m.shape[0] == 1),
+                         "uncertainty": doc.get("uncertainty"),
                          "posterior_converged": status.get("converged")}, warnings=tuple(warnings))

@@ -13,11 +13,15 @@
 - :mod:`.compare`        the paper's comparison metrics (Tables 8 and 9)
 
 See docs/stability.md for the theory, conventions and the verification.
+
+The names of :mod:`.modal_fit` (scipy.optimize) and :mod:`.sdm` (the compiled
+kernel) are imported on first use, so that a ZOA run does not pay for them.
 """
+
+import importlib as _importlib
 
 from .compare import disagreement, limits_disagreement, stable_at, test_error
 from .cutting import CuttingConditions, directional_matrix, interval_directional_matrices, mean_directional_matrix
-from .modal_fit import ModalFit, ModalModel, fit_modal_model
 from .methods import STABILITY_METHODS, MethodOptions, MethodResult, method_names
 from .probabilistic import (
     ProbabilisticLobes,
@@ -28,7 +32,6 @@ from .probabilistic import (
     recommend_operating_point,
 )
 from .recommend import Recommendation, Tolerances, level_limit, recommend
-from .sdm import SDMResult, default_intervals, periodic_dde_radius, sdm_depth_limit, sdm_stability_map, spectral_radius
 from . import sdm_draws as _sdm_draws  # noqa: F401  (registers the "sdm" method)
 from .timedomain import TimeDomainResult, simulate_milling
 from .zoa import ZOAResult, oriented_eigenvalues, zoa_lobes, zoa_minimum_depth
@@ -72,3 +75,18 @@ __all__ = [
     "stable_at",
     "test_error",
 ]
+
+_LAZY = {
+    "ModalFit": "modal_fit", "ModalModel": "modal_fit", "fit_modal_model": "modal_fit",
+    "SDMResult": "sdm", "default_intervals": "sdm", "periodic_dde_radius": "sdm", "sdm_depth_limit": "sdm",
+    "sdm_stability_map": "sdm", "spectral_radius": "sdm",
+}
+
+
+def __getattr__(name):
+    """Import the names of :mod:`.modal_fit` and :mod:`.sdm` on first use (PEP 562)."""
+    if name in _LAZY:
+        value = getattr(_importlib.import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -10,6 +10,13 @@
   with ``recommended_note``;
 - ``pointwise_optimum``: the optimum at P(stable) >= level without tolerance or margin;
 - ``alternatives``: the best robust point of each of the three largest stable pockets;
+- ``robust_envelope``: {``confidence`` (= level), ``depth_limit_m`` (n_speed,)}: the depth below which
+  P(stable) >= confidence at each speed (the lower (1 - confidence) quantile over the draws; the limit
+  itself when deterministic);
+- ``median_recommended``: the robust point at P(stable) >= 0.5 with the same tolerances, and
+  ``confidence_cost`` {``depth_m``, ``relative``}: the depth the confidence costs against it;
+- ``uncertainty`` (measured mode): the random-error model per direction, or why there is none;
+  ``modal_fit_spread`` (SDM with several draws): median and 5-95 % of f_n, ζ, k per mode;
 - ``level``, ``method``, ``n_draws``, ``deterministic``, ``depth_grid_m`` {min, max, count},
   ``cutting`` (coefficients, geometry, tolerance), ``source``, ``warnings``, ``modal_fit`` (SDM) and,
   with cutting tests, ``tests`` and ``test_error``.
@@ -40,7 +47,7 @@ def _finite_list(a):
 
 
 def lobes_document(res, cutting, source: dict, tests=None, warnings=(), max_depth=None, flute_length=None) -> dict:
-    """The JSON-able content of ``lobes.json`` for a ProbabilisticLobes result."""
+    """The JSON-able content of ``lobes.json`` for a ProbabilisticLobes result (keys: module notes)."""
     q = res.quantiles
     phi_in, phi_out = cutting.angles
     rec = res.recommended
@@ -73,6 +80,17 @@ def lobes_document(res, cutting, source: dict, tests=None, warnings=(), max_dept
         "warnings": list(warnings),
         "notes": _NOTES,
     }
+    if res.envelope is not None:
+        out["robust_envelope"] = {"confidence": res.level, "depth_limit_m": _finite_list(res.envelope)}
+    med = res.median_recommended
+    out["median_recommended"] = None if med is None else med.as_dict()
+    if med is not None and rec is not None:
+        out["confidence_cost"] = {"depth_m": med.depth_m - rec.depth_m,
+                                  "relative": (med.depth_m - rec.depth_m) / med.depth_m if med.depth_m > 0 else None,
+                                  "median_speed_rpm": med.spindle_speed_rpm}
+    if "uncertainty" in source:
+        out["uncertainty"] = {**source["uncertainty"], "deterministic": bool(source.get("deterministic")),
+                              "note": source.get("deterministic_note", "")}
     if rec is None:
         out["recommended_note"] = res.note
     if res.method_info:
@@ -88,6 +106,10 @@ def lobes_document(res, cutting, source: dict, tests=None, warnings=(), max_dept
             }
             for d, fit in (("x", fx), ("y", fy))
         }
+        if len(res.modal_fits) > 1:
+            from .modal_quality import modal_fit_spread
+
+            out["modal_fit_spread"] = modal_fit_spread(res.modal_fits)
     if tests is not None:
         ts, td, tst = tests
         per_draw = np.array([stable_at(res.speed_rpm, lim, ts, td) for lim in res.depth_limit_m])
@@ -102,6 +124,13 @@ def lobes_document(res, cutting, source: dict, tests=None, warnings=(), max_dept
     return out
 
 
+def _dumps(document: dict) -> str:
+    """JSON text with one top-level key per line, each value in compact form (the C encoder: the per-speed lists
+    of a fine grid would take ten times longer with ``indent``)."""
+    items = [f" {json.dumps(k)}: {json.dumps(v)}" for k, v in document.items()]
+    return "{\n" + ",\n".join(items) + "\n}\n"
+
+
 def write_lobes_outputs(outdir, res, document: dict, tests=None, title: str = "", max_depth=None) -> Path:
     """Write lobes.png, p_stable.npz and lobes.json into ``outdir`` (each atomically; the figure first, as the
     step most likely to fail).  Returns the path of lobes.json."""
@@ -113,5 +142,5 @@ def write_lobes_outputs(outdir, res, document: dict, tests=None, title: str = ""
     with atomic_path(outdir / "p_stable.npz") as tmp:
         with open(tmp, "wb") as fh:
             np.savez(fh, spindle_speed_rpm=res.speed_rpm, depth_m=res.depth_m, p_stable=res.p_stable)
-    atomic_write_text(outdir / "lobes.json", json.dumps(document, indent=1) + "\n")
+    atomic_write_text(outdir / "lobes.json", _dumps(document))
     return outdir / "lobes.json"

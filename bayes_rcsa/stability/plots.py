@@ -1,10 +1,38 @@
-"""The lobe diagram figure: P(stable) map, quantile lobes, recommended point, alternatives, tests."""
+"""The lobe diagram figure: P(stable) map, quantile lobes, robust envelope, recommended point, alternatives, tests.
+
+Figures are drawn at display resolution: a speed grid finer than
+:data:`MAX_COLUMNS` speeds (more than the axes have pixel columns) is reduced
+in blocks of consecutive speeds before drawing -- P(stable) by the block
+mean (an image, not one patch per cell), the depth-limit curves by the block
+minimum (which keeps every lobe cusp, the conservative reading).  The JSON and
+npz files keep every speed.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["plot_lobes"]
+__all__ = ["plot_lobes", "display_blocks", "MAX_COLUMNS"]
+
+MAX_COLUMNS = 1200
+
+
+def display_blocks(n_speed: int, max_columns: int = MAX_COLUMNS) -> int:
+    """Speeds per displayed column: 1 up to ``max_columns`` speeds, else ceil(n_speed / max_columns)."""
+    return max(1, -(-int(n_speed) // int(max_columns)))
+
+
+def _reduce(a: np.ndarray, block: int, how: str) -> np.ndarray:
+    """Block-reduce the first axis of ``a`` (block mean or min; the last block may be shorter)."""
+    if block == 1:
+        return a
+    n = a.shape[0]
+    pad = (-n) % block
+    fill = np.nan
+    x = np.concatenate([a, np.full((pad,) + a.shape[1:], fill)]) if pad else a
+    x = x.reshape((-1, block) + a.shape[1:])
+    with np.errstate(all="ignore"):
+        return np.nanmean(x, axis=1) if how == "mean" else np.nanmin(x, axis=1)
 
 
 def plot_lobes(path, res, tests=None, title: str = "", max_depth: float | None = None) -> None:
@@ -25,29 +53,38 @@ def plot_lobes(path, res, tests=None, title: str = "", max_depth: float | None =
     """
     from ..io.figures import new_figure, save_png
 
-    n = res.speed_rpm
+    block = display_blocks(res.speed_rpm.size)
+    n_full = res.speed_rpm
+    n = _reduce(n_full, block, "mean")
     a_mm = res.depth_m * 1e3
-    q = res.quantiles
+    p_map = _reduce(res.p_stable, block, "mean")
+    curve = {k: _reduce(np.where(np.isfinite(v), v * 1e3, np.nan), block, "min") for k, v in res.quantiles.items()}
     deterministic = res.depth_limit_m.shape[0] == 1
     fig = new_figure(9, 5.5)
     ax = fig.add_subplot(1, 1, 1)
-    mesh = ax.pcolormesh(n, a_mm, res.p_stable.T, shading="nearest", cmap="RdYlGn", vmin=0, vmax=1, alpha=0.75)
+    step = np.diff(n)
+    if n.size > 1 and np.allclose(step, step[0], rtol=1e-6) and np.allclose(np.diff(a_mm), a_mm[1] - a_mm[0], rtol=1e-6):
+        dn, da = step[0] / 2, (a_mm[1] - a_mm[0]) / 2 if a_mm.size > 1 else a_mm[0] / 2
+        mesh = ax.imshow(p_map.T, origin="lower", aspect="auto", interpolation="nearest", cmap="RdYlGn", vmin=0,
+                         vmax=1, alpha=0.75, extent=(n[0] - dn, n[-1] + dn, a_mm[0] - da, a_mm[-1] + da))
+    else:
+        mesh = ax.pcolormesh(n, a_mm, p_map.T, shading="nearest", cmap="RdYlGn", vmin=0, vmax=1, alpha=0.75,
+                             rasterized=True)
     fig.colorbar(mesh, ax=ax, label="P(stable)")
     top = a_mm[-1]
-    levels = [v for v in (0.05, 0.5, 0.95) if res.p_stable.min() < v < res.p_stable.max()]
+    levels = [v for v in (0.05, 0.5, 0.95) if p_map.min() < v < p_map.max()]
     if not deterministic and levels:
-        cs = ax.contour(n, a_mm, res.p_stable.T, levels=levels, colors="k", linewidths=0.8)
+        cs = ax.contour(n, a_mm, p_map.T, levels=levels, colors="k", linewidths=0.8)
         ax.clabel(cs, fmt={v: f"P={v:g}" for v in levels}, fontsize=7)
-    for key, style in ((0.5, "-"), (0.05, "--"), (0.95, ":")):
-        y = np.where(np.isfinite(q[key]), q[key] * 1e3, np.nan)
-        ax.plot(n, np.minimum(y, top * 1.05), style, color="navy", lw=1.2,
-                label=("lobe" if deterministic else f"a_lim q{int(key * 100):02d}"))
-        if deterministic:
-            break
+    ax.plot(n, np.minimum(curve[0.5], top * 1.05), "-", color="navy", lw=1.4,
+            label="lobe" if deterministic else "median boundary (q50)")
     if not deterministic:
-        lo = np.where(np.isfinite(q[0.05]), q[0.05] * 1e3, np.nan)
-        hi = np.where(np.isfinite(q[0.95]), q[0.95] * 1e3, np.nan)
-        ax.fill_between(n, np.minimum(lo, top), np.minimum(hi, top), color="navy", alpha=0.15, label="5-95 % band")
+        ax.fill_between(n, np.minimum(curve[0.05], top), np.minimum(curve[0.95], top), color="navy", alpha=0.15,
+                        label="5-95 % band")
+        if res.envelope is not None:
+            env = _reduce(np.where(np.isfinite(res.envelope), res.envelope * 1e3, np.nan), block, "min")
+            ax.plot(n, np.minimum(env, top * 1.05), "--", color="crimson", lw=1.3,
+                    label=f"robust envelope, P(stable) >= {res.level:g}")
     if max_depth is not None and max_depth * 1e3 < top:
         ax.axhline(max_depth * 1e3, color="k", ls=":", lw=1.0, label="--max-depth")
     for k, alt in enumerate(res.alternatives, start=1):
@@ -68,7 +105,7 @@ def plot_lobes(path, res, tests=None, title: str = "", max_depth: float | None =
         s, d, st = tests
         ax.plot(s[st], d[st] * 1e3, "o", mfc="none", mec="darkgreen", ms=7, label="test: stable")
         ax.plot(s[~st], d[~st] * 1e3, "x", color="darkred", ms=7, label="test: chatter")
-    ax.set_xlim(n[0], n[-1])
+    ax.set_xlim(n_full[0], n_full[-1])
     ax.set_ylim(0, top)
     ax.set_xlabel("spindle speed (rpm)")
     ax.set_ylabel("axial depth of cut (mm)")

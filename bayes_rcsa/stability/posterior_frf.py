@@ -8,11 +8,14 @@ units, passivity) applies to ``lobes --measured-x/--measured-y`` as well.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from ..errors import DataError, SetupError
 
-__all__ = ["FRFInput", "posterior_frf_draws", "measured_frf_pair", "common_frequency_grid", "flute_length"]
+__all__ = ["FRFInput", "posterior_frf_draws", "measured_frf_pair", "measured_frf_draws", "common_frequency_grid",
+           "flute_length"]
 
 
 class FRFInput:
@@ -32,6 +35,7 @@ class FRFInput:
         self.frf_y = np.atleast_2d(frf_y)
         self.source = source
         self.flute_length_m = flute_length_m
+        self.measured = None
 
     @property
     def n_draws(self) -> int:
@@ -71,6 +75,61 @@ def measured_frf_pair(path_x, path_y) -> FRFInput:
     fy = read_frf(path_y)
     f, gx, gy = common_frequency_grid(fx, fy)
     return FRFInput(f, gx[None], gy[None], {"mode": "measured", "measured_x": str(path_x), "measured_y": str(path_y)})
+
+
+def measured_frf_draws(spec_x: str, spec_y: str, averages: int | None, n_draws: int, rng) -> FRFInput:
+    """Realisations of the measured X and Y tool-point FRFs on one grid (:mod:`.measured`).
+
+    Parameters
+    ----------
+    spec_x, spec_y : str, ``FILE`` or ``FILE1,FILE2,...`` per direction (repeated hits; UFF58 records count too)
+    averages : int or None, impacts averaged per FRF (``--averages``; else the files' header key)
+    n_draws : int >= 1, realisations drawn when a direction has a random-error model
+    rng : numpy.random.Generator (X drawn first, then Y)
+
+    Returns
+    -------
+    FRFInput
+        (n_draws, n_freq) draws, or one "draw" (the measured FRFs) when neither direction has a
+        random-error model.  ``source["uncertainty"]`` describes the model per direction,
+        ``source["deterministic"]`` says whether the lobes are deterministic and
+        ``source["notes"]`` holds the warnings (one line each).  ``measured`` carries the two
+        :class:`~bayes_rcsa.stability.measured.MeasuredDirection` objects.
+    """
+    from .measured import draw_measured_frf, interpolate_lines, read_measured_direction
+
+    mx = read_measured_direction(spec_x, averages, "--measured-x")
+    my = read_measured_direction(spec_y, averages, "--measured-y")
+    deterministic = mx.model == "none" and my.model == "none"
+    gx = draw_measured_frf(mx, n_draws, rng)
+    gy = draw_measured_frf(my, n_draws, rng)
+    fx, fy = mx.frequency_hz, my.frequency_hz
+    f = fx
+    if not (fx.shape == fy.shape and np.allclose(fx, fy, rtol=1e-12, atol=0)):
+        lo, hi = max(fx[0], fy[0]), min(fx[-1], fy[-1])
+        keep = (fx >= lo) & (fx <= hi)
+        if keep.sum() < 2:
+            raise DataError(f"{mx.files[0]} ({fx[0]:g}-{fx[-1]:g} Hz) and {my.files[0]} ({fy[0]:g}-{fy[-1]:g} Hz) "
+                            "do not share a frequency band")
+        f = fx[keep]
+        gx = gx[:, keep]
+        gy = interpolate_lines(gy, fy, f)
+    gx, gy = np.broadcast_arrays(gx, gy)
+    note = ""
+    if deterministic:
+        coh = [Path(m.files[0]).name for m in (mx, my) if m.has_coherence]
+        note = ("deterministic (P(stable) is 0 or 1): " + (
+            f"{' and '.join(coh)} carry coherence but no number of averages, so no random error is assumed; give "
+            "--averages N (or a '# averages = N' header line)" if coh else
+            "no random error is known for the measured FRFs; give files with a coherence column and --averages N")
+            + ", or repeated hits FILE1,FILE2,...")
+    source = {"mode": "measured", "measured_x": str(spec_x), "measured_y": str(spec_y),
+              "deterministic": deterministic, "deterministic_note": note,
+              "uncertainty": {"x": mx.describe(), "y": my.describe(), "n_draws": int(gx.shape[0])},
+              "notes": mx.notes + my.notes}
+    out = FRFInput(f, gx.copy(), gy.copy(), source)
+    out.measured = (mx, my)
+    return out
 
 
 def flute_length(tool) -> float | None:

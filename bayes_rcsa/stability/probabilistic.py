@@ -62,6 +62,11 @@ class ProbabilisticLobes:
     alternatives : list of dict, best robust point of each of the three largest stable pockets
     note : str, why there is no recommendation (else "")
     method_info : dict, details reported by the method
+    envelope : (n_speed,) m or None, the robust envelope: the depth below which P(stable) >= level at
+        each speed (the lower (1 - level) quantile of the limits over the draws, as the ceil(level N)-th
+        largest limit; +inf where none is found); equal to the limit itself for one draw
+    median_recommended : Recommendation or None, the recommendation at P(stable) >= 0.5 with the same
+        tolerances (what the confidence ``level`` costs is measured against it)
     """
 
     speed_rpm: np.ndarray
@@ -77,6 +82,8 @@ class ProbabilisticLobes:
     alternatives: list = field(default_factory=list)
     note: str = ""
     method_info: dict = field(default_factory=dict)
+    envelope: np.ndarray | None = None
+    median_recommended: Recommendation | None = None
 
 
 def probability_map(depth_limit_m, depth_m, chunk: int = 64) -> np.ndarray:
@@ -268,6 +275,11 @@ def lobes_from_frf_draws(
     if depths_m is None:
         depths = depth_grid(limits, level, depth_points, rec["recommended"], max_depth)
     p = probability_map(limits, depths)
+    if limits.shape[0] == 1 or level == 0.5:
+        median = rec["recommended"]
+    else:
+        median = recommend(speeds, limits, 0.5, tolerances, max_depth=max_depth, flute_length=flute_length,
+                           limits_at=result.limits_at)["recommended"]
     return ProbabilisticLobes(
         speed_rpm=speeds,
         depth_m=depths,
@@ -282,4 +294,6 @@ def lobes_from_frf_draws(
         alternatives=rec["alternatives"],
         note=rec["note"],
         method_info=result.info,
+        envelope=level_limit(limits, level),
+        median_recommended=median,
     )

@@ -27,9 +27,10 @@ import numpy as np
 
 from ..errors import SetupError
 from .methods import STABILITY_METHODS, MethodResult
-from .modal_fit import fit_modal_model, refit_modal_model
-from .sdm import sdm_depth_limits_batch
 from .zoa import zoa_lobes
+
+# .modal_fit (scipy.optimize) and .sdm (the compiled kernel) are imported where used: registering the method
+# must not cost a ZOA run their import time
 
 __all__ = ["SDMMethod"]
 
@@ -89,6 +90,8 @@ def _fit(f, g, max_modes, previous, first, source):
     """Modal fit of one draw: refined from the previous draw's fit (posterior draws differ little), with the
     full BIC search when there is no previous fit or the refit is clearly worse than the first draw's full
     fit (compared with the first, not the previous one, so that a slow drift cannot accumulate)."""
+    from .modal_fit import fit_modal_model, refit_modal_model
+
     if previous is not None:
         fit = refit_modal_model(f, g, previous, source=source)
         if fit.rms_relative <= 1.5 * first.rms_relative + 1e-3:
@@ -97,6 +100,8 @@ def _fit(f, g, max_modes, previous, first, source):
 
 
 def _limits(pairs, gx, gy, f, cutting, speeds, guess, options, progress):
+    from .sdm import sdm_depth_limits_batch
+
     n_draws = len(pairs)
     index = np.repeat(np.arange(n_draws), speeds.size)
     return sdm_depth_limits_batch(pairs, index, cutting, np.tile(speeds, n_draws), guess.ravel(),
