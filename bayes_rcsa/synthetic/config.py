@@ -120,7 +120,13 @@ class BenchConfig:
     noise_floor : float
         m/N, additive standard deviation (sensor/amplifier floor).
     n_averages : int
-        Impacts averaged per measurement (sets the coherence).
+        Impacts averaged per measurement (sets the coherence; written to each
+        tool-point file as a ``# averages = N`` header line).
+    repeats : int
+        Repeated hits per clamping length and direction: 1 writes
+        ``tip_x_25mm.csv``; R > 1 writes ``tip_x_25mm_hit1.csv`` ...
+        ``_hitR.csv``, each with its own noise (same setup, independent
+        measurements), all listed in the setup.
     seed : int
         Seed the command line uses to create the random generator.
 
@@ -168,6 +174,7 @@ class BenchConfig:
     noise_relative: float = 0.02
     noise_floor: float = 1e-8
     n_averages: int = 5
+    repeats: int = 1
     seed: int = 0
     prior_k_xf: tuple[float, float] = (1e5, 1e9)
     prior_k_thetaM: tuple[float, float] = (1e3, 1e8)
@@ -208,6 +215,9 @@ class BenchConfig:
             _positive(self.resolution_hz, "resolution_hz")
         if not (isinstance(self.n_averages, int) and not isinstance(self.n_averages, bool) and self.n_averages >= 1):
             raise SetupError(f"n_averages = {self.n_averages!r}: expected an integer >= 1")
+        if not (isinstance(self.repeats, int) and not isinstance(self.repeats, bool) and self.repeats >= 1):
+            raise SetupError(f"repeats = {self.repeats!r}: expected an integer >= 1 (hits per clamping length and "
+                             "direction)")
         if not (isinstance(self.seed, int) and not isinstance(self.seed, bool) and self.seed >= 0):
             raise SetupError(f"seed = {self.seed!r}: expected an integer >= 0")
         if self.frequency_stop <= self.frequency_start:
@@ -309,7 +319,7 @@ _SCALARS = {
                 "c_thetaM": "c_thetaM", "clamping_range": "clamping_range"},
     "prior": {"translational_stiffness": "prior_k_xf", "rotational_stiffness": "prior_k_thetaM",
               "growth_bound": "growth_bound"},
-    "campaign": {"clamping_lengths": "clamping_lengths", "directions": "directions"},
+    "campaign": {"clamping_lengths": "clamping_lengths", "directions": "directions", "repeats": "repeats"},
     "frequency": {"start": "frequency_start", "stop": "frequency_stop", "step": "frequency_step",
                   "resolution": "resolution_hz"},
     "noise": {"relative": "noise_relative", "floor": "noise_floor", "averages": "n_averages", "seed": "seed"},
@@ -322,7 +332,7 @@ _TABLES = set(_SCALARS) - {""} | {"materials", "holder", "tool", "spindle", "hid
 _PAIRS = {"clamping_range", "prior_k_xf", "prior_k_thetaM"}
 _LISTS = {"clamping_lengths", "directions"}
 _STRINGS = {"name", "contact_model", "extra_mode_location"}
-_INTS = {"n_averages", "seed"}
+_INTS = {"n_averages", "seed", "repeats"}
 
 
 def load_bench_config(path) -> BenchConfig:
