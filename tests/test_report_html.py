@@ -252,6 +252,10 @@ window.addEventListener('load', function () {
 </script>"""
 
 
+_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+          "--disable-background-networking", "--disable-component-update", "--disable-sync")
+
+
 def _browser() -> str | None:
     for name in ("/usr/bin/chromium", "chromium", "chromium-browser", "google-chrome"):
         path = shutil.which(name)
@@ -268,9 +272,7 @@ def _render(html_text: str, tmp_path: Path) -> tuple[str, dict, str]:
                     ".ci/run installs Debian's chromium when apt is available")
     page = tmp_path / "page.html"
     page.write_text(html_text.replace("<head>", "<head>" + _PROBE, 1), encoding="utf-8")
-    cmd = [browser, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-           "--disable-background-networking", "--disable-component-update", "--disable-sync",
-           f"--user-data-dir={tmp_path / 'profile'}", "--enable-logging=stderr", "--v=0",
+    cmd = [browser, *_FLAGS, f"--user-data-dir={tmp_path / 'profile'}", "--enable-logging=stderr", "--v=0",
            "--virtual-time-budget=10000", "--dump-dom", page.as_uri()]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     m = re.search(r'<pre id="__probe">(.*?)</pre>', proc.stdout, re.S)
@@ -301,3 +303,243 @@ def test_chromium_probe_sees_a_broken_image_and_a_console_error(tmp_path):
     _, probe, _ = _render(bad, tmp_path)
     assert probe["images"][0]["w"] == 0
     assert any("boom" in e for e in probe["errors"])
+
+
+# -- the answer first (issue #22, item 4) ----------------------------------------------------------------
+
+VIEWPORT = (1400, 900)
+
+# For every element of the summary block that carries the answer: its box in the viewport (CSS px, page not
+# scrolled), whether the browser renders it (checkVisibility: not display:none, not inside a closed <details>,
+# visibility, opacity), whether it is the topmost element at its centre (not covered or clipped away), its font
+# size and its rendered text.
+_BOXES_JS = """(function () {
+  var sel = {speed: '.answer-speed', depth: '.answer-depth', interval: '.answer-interval',
+             warnings: '#answer-warnings'};
+  var out = {viewport: [window.innerWidth, window.innerHeight], scroll: [window.scrollX, window.scrollY], boxes: {}};
+  for (var k in sel) {
+    var els = document.querySelectorAll(sel[k]), list = [];
+    for (var i = 0; i < els.length; i++) {
+      var e = els[i], r = e.getBoundingClientRect(), st = getComputedStyle(e);
+      var hit = document.elementFromPoint(r.left + r.width / 2, r.top + r.height / 2);
+      list.push({text: e.innerText, left: r.left, top: r.top, right: r.right, bottom: r.bottom,
+                 rendered: e.checkVisibility({opacityProperty: true, visibilityProperty: true}),
+                 on_top: hit !== null && (hit === e || e.contains(hit)), font_px: parseFloat(st.fontSize)});
+    }
+    out.boxes[k] = list;
+  }
+  return out;
+})()"""
+
+
+class _DevTools:
+    """Headless Chromium driven through the DevTools protocol over ``--remote-debugging-pipe``.
+
+    The pipe (fd 3: commands in, fd 4: replies and events out, each message JSON ended by a NUL byte) needs
+    no websocket client.  The viewport is set with ``Emulation.setDeviceMetricsOverride``: exactly
+    1400x900 CSS px, whatever window decorations the headless mode emulates (``--window-size`` with
+    ``--dump-dom`` gives a 1400x757 viewport in Chromium 150).
+    """
+
+    def __init__(self, browser: str, tmp_path: Path):
+        import os
+
+        cmd_r, self._cmd_w = os.pipe()
+        self._out_r, out_w = os.pipe()
+        args = [*_FLAGS, f"--user-data-dir={tmp_path / 'cdp-profile'}", "--remote-debugging-pipe", "about:blank"]
+        # bash, not sh: dash refuses descriptors above 9 in a redirection
+        self.proc = subprocess.Popen(["bash", "-c", f'exec "$0" "$@" 3<&{cmd_r} 4>&{out_w}', browser, *args],
+                                     pass_fds=(cmd_r, out_w), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        os.close(cmd_r)
+        os.close(out_w)
+        self._buf, self._id, self.events = b"", 0, []
+
+    def _read(self, deadline: float) -> dict:
+        import os
+        import select
+        import time
+
+        while b"\0" not in self._buf:
+            wait = deadline - time.monotonic()
+            ready, _, _ = select.select([self._out_r], [], [], max(wait, 0))
+            assert ready, "Chromium's DevTools pipe gave no answer in time"
+            chunk = os.read(self._out_r, 1 << 20)
+            assert chunk, f"Chromium closed its DevTools pipe (exit {self.proc.poll()})"
+            self._buf += chunk
+        msg, self._buf = self._buf.split(b"\0", 1)
+        return json.loads(msg)
+
+    def send(self, method: str, params: dict | None = None, session: str | None = None, timeout: float = 60):
+        """The result of one command (events that arrive meanwhile are kept in :attr:`events`)."""
+        import os
+        import time
+
+        self._id += 1
+        msg = {"id": self._id, "method": method, "params": params or {}}
+        if session:
+            msg["sessionId"] = session
+        os.write(self._cmd_w, json.dumps(msg).encode() + b"\0")
+        deadline = time.monotonic() + timeout
+        while True:
+            reply = self._read(deadline)
+            if reply.get("id") == self._id:
+                assert "error" not in reply, (method, reply["error"])
+                return reply["result"]
+            self.events.append(reply)
+
+    def wait_event(self, method: str, session: str, timeout: float = 60) -> dict:
+        import time
+
+        deadline = time.monotonic() + timeout
+        while True:
+            for i, e in enumerate(self.events):
+                if e.get("method") == method and e.get("sessionId") == session:
+                    return self.events.pop(i)
+            self.events.append(self._read(deadline))
+
+    def open(self, url: str, size: tuple[int, int]) -> str:
+        """A new page of ``size`` CSS px (device scale 1) showing ``url`` after its load event; its session."""
+        target = self.send("Target.createTarget", {"url": "about:blank"})["targetId"]
+        session = self.send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
+        self.send("Emulation.setDeviceMetricsOverride",
+                  {"width": size[0], "height": size[1], "deviceScaleFactor": 1, "mobile": False}, session)
+        self.send("Page.enable", session=session)
+        self.send("Page.navigate", {"url": url}, session)
+        self.wait_event("Page.loadEventFired", session)
+        return session
+
+    def evaluate(self, expression: str, session: str):
+        result = self.send("Runtime.evaluate", {"expression": expression, "returnByValue": True}, session)
+        assert "exceptionDetails" not in result, result["exceptionDetails"]
+        return result["result"]["value"]
+
+    def close(self) -> None:
+        import os
+
+        try:
+            self.send("Browser.close", timeout=10)
+        except AssertionError:
+            self.proc.kill()
+        self.proc.wait(timeout=30)
+        os.close(self._cmd_w)
+        os.close(self._out_r)
+
+
+def _first_screens(pages: list[Path], tmp_path: Path, screenshot: Path | None = None) -> list[dict]:
+    """The answer's boxes (``_BOXES_JS``) in each page rendered at 1400x900; optionally a PNG of the first."""
+    import base64
+
+    browser = _browser()
+    if browser is None:
+        pytest.skip("no Chromium found (/usr/bin/chromium, chromium, chromium-browser, google-chrome); "
+                    ".ci/run installs Debian's chromium when apt is available")
+    cdp = _DevTools(browser, tmp_path)
+    try:
+        out = []
+        for page in pages:
+            session = cdp.open(page.as_uri(), VIEWPORT)
+            rec = cdp.evaluate(_BOXES_JS, session)
+            assert rec["viewport"] == list(VIEWPORT) and rec["scroll"] == [0, 0], rec["viewport"]
+            if screenshot is not None and not out:
+                png = cdp.send("Page.captureScreenshot", {"format": "png"}, session)["data"]
+                screenshot.write_bytes(base64.b64decode(png))
+            out.append(rec)
+        return out
+    finally:
+        cdp.close()
+
+
+def _on_first_screen(box: dict) -> bool:
+    w, h = VIEWPORT
+    return (0 <= box["left"] < box["right"] <= w and 0 <= box["top"] < box["bottom"] <= h and box["rendered"]
+            and box["on_top"] and box["font_px"] >= 12 and box["text"].strip() != "")
+
+
+def test_first_screen_holds_the_speed_depth_and_frequency_intervals(runs, tmp_path):
+    """Acceptance of issue #22 (answer first): in a 1400x900 viewport, as rendered boxes, not the text alone.
+
+    Negative control in the same browser: the page with 1000 px pushed in above the summary block fails.
+    """
+    pushed = tmp_path / "pushed.html"
+    pushed.write_text(runs["html"].read_text(encoding="utf-8").replace(
+        '<section id="answer"', '<div style="height:1000px"></div><section id="answer"', 1), encoding="utf-8")
+    rec, control = _first_screens([runs["html"], pushed], tmp_path, screenshot=tmp_path / "first_screen.png")
+    boxes = rec["boxes"]
+    (speed,), (depth,) = boxes["speed"], boxes["depth"]
+    assert speed["text"].split() == [f"{runs['rec']['spindle_speed_rpm']:.0f}", "rpm"]
+    assert depth["text"].split() == ["0.765", "mm"]  # 0.7654321 mm to 3 digits
+    dominant = [e for e in runs["freqs"]["predictions"] if e["dominant"]]
+    assert len(boxes["interval"]) == len(dominant) == len(LENGTHS)
+    for box, e in zip(boxes["interval"], dominant):
+        lo, hi = (float(t) for t in box["text"].split("–"))
+        assert abs(lo - e["q05_hz"]) <= 0.006 and abs(hi - e["q95_hz"]) <= 0.006, (box["text"], e)
+    # the unconverged chain's warning is on the first screen too
+    assert len(boxes["warnings"]) == 1 and "NOT converge" in boxes["warnings"][0]["text"]
+    for kind, found in boxes.items():
+        for box in found:
+            assert _on_first_screen(box), (kind, box)
+    below = control["boxes"]
+    assert below["speed"] and not any(_on_first_screen(b) for b in below["speed"] + below["interval"])
+
+
+def _answer_section(page: str) -> str:
+    """The summary block of a page, its links to the details made relative to report.html."""
+    m = re.search(r'<section id="answer" class="answer">.*?</section>', page, re.S)
+    assert m, "no summary block"
+    return m.group(0).replace('href="report.html#', 'href="#')
+
+
+def test_the_same_summary_heads_report_index_and_summary_md(runs, tmp_path):
+    from bayes_rcsa.report import write_demo_index
+
+    for kind, name in (("identify", "summary.json"), ("predict", "frequencies.json"), ("lobes", "lobes.json"),
+                       ("discrepancy", "discrepancy.json")):
+        (tmp_path / kind).mkdir()
+        shutil.copy(runs["root"] / kind / name, tmp_path / kind / name)
+    index = write_demo_index(tmp_path).read_text(encoding="utf-8")
+    report = runs["html"].read_text(encoding="utf-8")
+    block = _answer_section(report)
+    assert _answer_section(index) == block
+    for page in (index, report):  # it heads the page: right under the title
+        assert re.search(r"</h1>\s*<section id=\"answer\"", page)
+    md = (tmp_path / "summary.md").read_text(encoding="utf-8")
+    visible = " ".join(" ".join(_parse(block).text).split())
+    rec = runs["rec"]
+    assert f"**{rec['spindle_speed_rpm']:.0f} rpm, axial depth 0.765 mm**" in md
+    for e in runs["freqs"]["predictions"]:
+        if e["dominant"]:
+            row = re.search(rf"^\| {1e3 * e['clamping_length']:g} \| x \| .*$", md, re.M).group(0)
+            cells = [c.strip() for c in row.strip("|").split("|")]
+            assert cells[3] in visible and cells[4] in visible, cells  # the same intervals as the page
+    assert "Model check:** The model misses “tip_mass”" in md and "“tip_mass”" in visible
+    assert "**Convergence:** unconverged ([details](report.html#convergence-1))" in md
+    assert "The sampler did NOT converge" in md and "The sampler did NOT converge" in visible
+
+
+def test_an_unusable_model_check_warns_in_the_summary_escaped(runs, tmp_path, capsys):
+    """A discrepancy run marked not usable for prediction puts its warning in the summary block; user strings
+    (effect names, reasons) are escaped; ``--summary`` writes the same block as Markdown."""
+    disc = dict(runs["disc"], named_effect="<b>tip</b> & mass", also_named=["<i>joint</i>"],
+                usable_for_prediction=False, usable_for_prediction_reasons=["gap <script>x</script> too wide"],
+                final_prior_bound_pile_up=["k_tip"], gap_grew=False, final_model="tip_mass")
+    for name, doc in (("discrepancy", disc), ("lobes", None)):
+        (tmp_path / name).mkdir()
+        if doc is None:
+            shutil.copy(runs["root"] / "lobes" / "lobes.json", tmp_path / name / "lobes.json")
+        else:
+            (tmp_path / name / "discrepancy.json").write_text(json.dumps(doc))
+    out, md = tmp_path / "r.html", tmp_path / "summary.md"
+    assert main(["report", str(tmp_path / "discrepancy"), str(tmp_path / "lobes"), "--out", str(out),
+                 "--summary", str(md)]) == 0
+    block = _answer_section(out.read_text(encoding="utf-8"))
+    assert "<script>" not in block and "<b>tip</b>" not in block and "<i>joint</i>" not in block
+    assert "&lt;b&gt;tip&lt;/b&gt; &amp; mass" in block and "gap &lt;script&gt;x&lt;/script&gt; too wide" in block
+    warn = re.search(r'<div class="answer-warnings".*?</div>', block, re.S).group(0)
+    text = " ".join(" ".join(_parse(warn).text).split())
+    assert "NOT usable for prediction" in text and "gap <script>x</script> too wide" in text
+    assert "k_tip is on a prior bound" in text
+    assert "NOT usable for prediction" in " ".join(_parse(block).text)  # the model check's sentence too
+    text_md = md.read_text(encoding="utf-8")
+    assert "NOT usable for prediction" in text_md and "12346 rpm" in text_md
+    # without an identify or predict run there is no convergence word to give
+    assert "Convergence" not in block

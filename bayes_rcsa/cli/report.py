@@ -9,17 +9,24 @@ from ..errors import SetupError
 from ._common import Summary, check_output_path, nonnegative_int
 
 DESCRIPTION = """\
-Build ONE self-contained HTML file (figures embedded, no external files) from the output directories of
-identify, predict, identifiability, discrepancy, design and lobes; each directory's kind is recognised by
-the files in it, and a 'bayes-rcsa demo' directory stands for its sub-directories.
+Build ONE self-contained HTML file (figures embedded, no external files) from the output directories
+of identify, predict, identifiability, discrepancy, design and lobes; each directory's kind is
+recognised by the files in it, and a 'bayes-rcsa demo' directory stands for its sub-directories.
 
-Sections: setup (geometry drawing with the clamping length; which parameters were sampled and which fixed),
-sampler convergence (R-hat, ESS, autocorrelation time, steps; warnings shown prominently), identified
-parameters, corner plot, FRF bands against the measurements in magnitude and phase around each mode,
-natural frequencies with both the model's credible interval and the predictive interval of a new measured
-peak, identifiability, discrepancy findings, stability lobes with the P(stable) map and the recommended
-point, and the design recommendation.  The zoomed FRF bands need the setup and posterior files the predict
-run names.
+The page opens with the answer: a summary block on its first screen (1400x900) with the recommended
+spindle speed and depth (their margins and the confidence they hold at), the tool-point natural
+frequency at each predicted clamping length with its 90 % interval, the model check's verdict in one
+sentence, convergence in one word and the warnings that change the decision (unconverged, prior
+pile-up, not usable for prediction). --summary MD writes the same block as Markdown.
+
+Then: stability lobes with the P(stable) map and the recommended point, tool-point predictions
+(natural frequencies with both the model's credible interval and the predictive interval of a new
+measured peak; FRF bands against the measurements in magnitude and phase around each mode,
+collapsed), identifiability, discrepancy findings, the design recommendation, the setup (geometry
+drawing with the clamping length; which parameters were sampled and which fixed), and last the
+sampler: convergence verdict and warnings, identified parameters, and the diagnostics collapsed
+(R-hat, ESS, autocorrelation time, steps; corner and trace plots). The zoomed FRF bands need the
+setup and posterior files the predict run names.
 """
 
 
@@ -30,7 +37,10 @@ def register(subparsers) -> None:
     p.add_argument("--out", type=Path, required=True, metavar="FILE", help="the HTML file to write")
     p.add_argument("--title", default=None, help="page title (default: 'bayes_rcsa report')")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the draws behind the FRF bands (default 0)")
-    p.add_argument("--force", action="store_true", help="replace an existing FILE (default: refuse)")
+    p.add_argument("--summary", type=Path, default=None, metavar="MD",
+                   help="also write the report's summary block (recommended point, tool-point frequencies, model "
+                        "check, convergence, decisive warnings) as Markdown to MD")
+    p.add_argument("--force", action="store_true", help="replace an existing FILE (and MD) (default: refuse)")
     p.set_defaults(func=run, out_kind="file")
 
 
@@ -40,5 +50,13 @@ def run(args: argparse.Namespace) -> Summary:
     out = check_output_path(args.out, "--out", kind="file")
     if out.exists() and not args.force:
         raise SetupError(f"--out {out}: exists; use --force to replace it")
-    path = write_report_html(args.runs, out, seed=args.seed, title=args.title)
-    return Summary(f"wrote {path}", {"report": str(path), "runs": [str(r) for r in args.runs]})
+    md = None
+    if args.summary is not None:
+        md = check_output_path(args.summary, "--summary", kind="file")
+        if md.exists() and not args.force:
+            raise SetupError(f"--summary {md}: exists; use --force to replace it")
+    path = write_report_html(args.runs, out, seed=args.seed, title=args.title, summary_md=md)
+    payload = {"report": str(path), "runs": [str(r) for r in args.runs]}
+    if md is not None:
+        payload["summary"] = str(md)
+    return Summary(f"wrote {path}" + (f" and {md}" if md is not None else ""), payload)

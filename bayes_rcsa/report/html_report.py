@@ -13,7 +13,7 @@ not found.
 
 from __future__ import annotations
 
-import math
+import os
 from pathlib import Path
 from typing import Sequence
 
@@ -22,39 +22,13 @@ import numpy as np
 from ..errors import DataError
 from ..io.atomic import atomic_write_text
 from . import figures as F
-from .runs import RunDir, collect_runs
+from .answer import answer_markdown, build_answer, num, template_environment, yes_no
+from .runs import KINDS, RunDir, collect_runs
 
-__all__ = ["build_report", "write_report_html", "num", "yes_no", "FRF_DRAWS"]
+__all__ = ["build_report", "write_report_html", "answer_of_runs", "num", "yes_no", "FRF_DRAWS"]
 
 FRF_DRAWS = 200  # posterior draws behind the zoomed FRF bands (5-95 % quantiles stable to ~1/sqrt(200 * 0.05))
 ZOOM_LINES = 161  # lines of a mode's zoom window
-
-
-def num(x, digits: int = 4) -> str:
-    """A number for people: ``digits`` significant digits, trailing zeros dropped, no exponent between
-    1e-3 and 1e6, integers as integers; ``—`` if missing."""
-    if x is None or isinstance(x, bool):
-        return "—" if x is None else yes_no(x)
-    if isinstance(x, (int, np.integer)):
-        return str(int(x))
-    x = float(x)
-    if not math.isfinite(x):
-        return "—"
-    if x == 0:
-        return "0"
-    if 1e-3 <= abs(x) < 1e6:
-        decimals = max(digits - 1 - int(math.floor(math.log10(abs(x)))), 0)
-        text = f"{x:.{decimals}f}"
-        return text.rstrip("0").rstrip(".") if "." in text else text
-    mantissa, exponent = f"{x:.{digits - 1}e}".split("e")
-    if "." in mantissa:
-        mantissa = mantissa.rstrip("0").rstrip(".")
-    return f"{mantissa}e{int(exponent):+03d}"
-
-
-def yes_no(b) -> str:
-    """``yes``/``no`` for a boolean, ``unknown`` for ``None``."""
-    return "unknown" if b is None else ("yes" if b else "no")
 
 
 def _mm(length_m) -> str:
@@ -291,6 +265,12 @@ def _design_section(run: RunDir) -> dict:
 # -- assembly ------------------------------------------------------------------
 
 
+def answer_of_runs(runs: Sequence[RunDir]):
+    """The summary block (:class:`~bayes_rcsa.report.answer.Answer`) of run directories, numbered as their
+    sections in the report."""
+    return build_answer((r.kind, str(r.path / KINDS[r.kind]), r.document) for r in runs)
+
+
 def build_report(paths: Sequence, seed: int = 0, title: str | None = None) -> str:
     """The report's HTML text from run directories ``paths``.
 
@@ -309,8 +289,6 @@ def build_report(paths: Sequence, seed: int = 0, title: str | None = None) -> st
     DataError
         No run directory, an unreadable or malformed output file.
     """
-    import jinja2
-
     runs = collect_runs(paths)
     by_kind: dict[str, list[RunDir]] = {}
     for r in runs:
@@ -328,19 +306,32 @@ def build_report(paths: Sequence, seed: int = 0, title: str | None = None) -> st
             "discrepancy": [_discrepancy_section(r) for r in by_kind.get("discrepancy", [])],
             "lobes": [_lobes_section(r) for r in by_kind.get("lobes", [])],
             "design": [_design_section(r) for r in by_kind.get("design", [])],
+            "answer": answer_of_runs(runs),
+            "href": "",
         }
     except (KeyError, TypeError) as exc:
         raise DataError(f"an output file lacks an expected entry ({exc!r}); was it written by this bayes_rcsa?") from None
-    env = jinja2.Environment(loader=jinja2.PackageLoader("bayes_rcsa.report", "templates"),
-                             autoescape=jinja2.select_autoescape(["html", "j2"]), undefined=jinja2.StrictUndefined,
-                             trim_blocks=True, lstrip_blocks=True)
-    return env.get_template("report.html.j2").render(**ctx)
+    return template_environment().get_template("report.html.j2").render(**ctx)
 
 
-def write_report_html(paths: Sequence, out, seed: int = 0, title: str | None = None) -> Path:
-    """Build the report (everything validated first) and write it atomically to ``out``; returns the path."""
+def write_report_html(paths: Sequence, out, seed: int = 0, title: str | None = None, summary_md=None) -> Path:
+    """Build the report (everything validated first) and write it atomically to ``out``; returns the path.
+
+    Parameters
+    ----------
+    paths, seed, title
+        As :func:`build_report`.
+    out : path-like
+        The HTML file.
+    summary_md : path-like, optional
+        Also write the report's summary block as Markdown there (:func:`~bayes_rcsa.report.answer.answer_markdown`,
+        links into ``out``).
+    """
     text = build_report(paths, seed=seed, title=title)
     out = Path(out)
     atomic_write_text(out, text)  # makes the missing folders, and removes them again if the write fails
+    if summary_md is not None:
+        summary_md = Path(summary_md)
+        href = os.path.relpath(out.resolve(), summary_md.resolve().parent).replace(os.sep, "/")
+        atomic_write_text(summary_md, answer_markdown(answer_of_runs(collect_runs(paths)), href=href))
     return out
-

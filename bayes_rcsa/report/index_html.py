@@ -1,8 +1,13 @@
-"""The demo's HTML landing page, linking the identify, predict and lobes outputs.
+"""The demo's HTML landing page and ``summary.md``, linking the identify, predict and lobes outputs.
 
-Kept deliberately simple (string formatting, no template engine); the page
-only reads the JSON files the sub-commands write, so it can be rebuilt from
-any output directory with :func:`write_demo_index`.
+The page opens with the summary block of ``report.html`` (:mod:`.answer`:
+the recommended operating point, the tool-point frequencies with their
+90 % intervals, the model check, convergence and the warnings that change
+the decision), its links pointing into ``report.html``; the rest is kept
+deliberately simple (string formatting).  The page only reads the JSON
+files the sub-commands write, so it can be rebuilt from any output
+directory with :func:`write_demo_index`, which also writes ``summary.md``
+(the same block in Markdown).
 """
 
 from __future__ import annotations
@@ -11,9 +16,21 @@ import html
 import json
 from pathlib import Path
 
+from ..errors import DataError
 from ..io.atomic import atomic_write_text
+from .answer import answer_css, answer_html, answer_markdown, build_answer
 
-__all__ = ["demo_index_html", "write_demo_index"]
+__all__ = ["demo_index_html", "demo_answer", "write_demo_index"]
+
+#: sub-directory and file of each kind the demo writes, in the order of ``bayes-rcsa demo``
+DEMO_FILES = (("identify", "identify/summary.json"), ("predict", "predict/frequencies.json"),
+              ("lobes", "lobes/lobes.json"), ("discrepancy", "discrepancy/discrepancy.json"))
+
+
+def demo_answer(summary: dict, freqs: dict, lobes: dict, discrepancy: dict | None = None):
+    """The summary block (:class:`~bayes_rcsa.report.answer.Answer`) of the demo's four documents."""
+    docs = (summary, freqs, lobes, discrepancy)
+    return build_answer((kind, label, doc) for (kind, label), doc in zip(DEMO_FILES, docs) if doc is not None)
 
 
 def demo_index_html(summary: dict, freqs: dict, lobes: dict, discrepancy: dict | None = None) -> str:
@@ -27,6 +44,8 @@ def demo_index_html(summary: dict, freqs: dict, lobes: dict, discrepancy: dict |
         ``predict/frequencies.json``.
     lobes : dict
         ``lobes/lobes.json``.
+    discrepancy : dict, optional
+        ``discrepancy/discrepancy.json``.
 
     Returns
     -------
@@ -76,9 +95,11 @@ def demo_index_html(summary: dict, freqs: dict, lobes: dict, discrepancy: dict |
                 f"<a href=\"discrepancy/discrepancy.json\">discrepancy/discrepancy.json</a></p>")
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>bayes_rcsa demo</title>
-<style>body{{font-family:sans-serif;max-width:1000px;margin:2em auto}}table{{border-collapse:collapse}}
-td,th{{border:1px solid #999;padding:3px 8px;text-align:right}}img{{max-width:100%}}</style></head><body>
+<style>body{{font-family:sans-serif;max-width:1150px;margin:1.5em auto;padding:0 1em}}table{{border-collapse:collapse}}
+td,th{{border:1px solid #999;padding:3px 8px;text-align:right}}img{{max-width:100%}}
+{answer_css()}</style></head><body>
 <h1>bayes_rcsa demo: ER32 collet + 7.94 mm end mill</h1>
+{answer_html(demo_answer(summary, freqs, lobes, discrepancy), href="report.html")}
 <p>Contact identified from the 25 mm and 40 mm hammer tests (x and y); 30 mm and 35 mm are held out.
 Sampler converged: <b>{_yes_no(summary.get('converged'))}</b>. Warnings: <ul>{warnings}</ul></p>
 <h2>Contact stiffness, 90 % credible intervals</h2>
@@ -97,7 +118,8 @@ noisy and is to be compared with the predictive interval of a new measurement.</
 <p>Recommended operating point: {rec_text}</p>
 <img src="lobes/lobes.png" alt="stability lobes">
 {disc}
-<h2>Sampler</h2><img src="identify/trace.png" alt="trace"><img src="identify/corner.png" alt="corner">
+<h2>Sampler</h2><details><summary>trace and corner plots</summary><img src="identify/trace.png" alt="trace">
+<img src="identify/corner.png" alt="corner"></details>
 </body></html>
 """
 
@@ -106,14 +128,28 @@ def _yes_no(b) -> str:
     return "unknown" if b is None else ("yes" if b else "NO")
 
 
+def _read(path: Path) -> dict:
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise DataError(f"{path}: cannot read it as JSON ({exc})") from None
+    if not isinstance(doc, dict):
+        raise DataError(f"{path}: expected a JSON object, got {type(doc).__name__}")
+    return doc
+
+
 def write_demo_index(out) -> Path:
-    """Write ``out/index.html`` from ``out/identify``, ``out/predict``, ``out/lobes`` (and ``out/discrepancy``); returns its path."""
+    """Write ``out/index.html`` and ``out/summary.md`` from ``out/identify``, ``out/predict``, ``out/lobes``
+    (and ``out/discrepancy``); returns the path of ``index.html``.
+
+    Raises
+    ------
+    DataError
+        A document is missing or not a JSON object (its path named).
+    """
     out = Path(out)
-    summary = json.loads((out / "identify" / "summary.json").read_text())
-    freqs = json.loads((out / "predict" / "frequencies.json").read_text())
-    lobes = json.loads((out / "lobes" / "lobes.json").read_text())
-    disc_path = out / "discrepancy" / "discrepancy.json"
-    disc = json.loads(disc_path.read_text()) if disc_path.is_file() else None
+    docs = [_read(out / rel) if kind != "discrepancy" or (out / rel).is_file() else None for kind, rel in DEMO_FILES]
     index = out / "index.html"
-    atomic_write_text(index, demo_index_html(summary, freqs, lobes, disc))
+    atomic_write_text(index, demo_index_html(*docs))
+    atomic_write_text(out / "summary.md", answer_markdown(demo_answer(*docs), href="report.html"))
     return index
