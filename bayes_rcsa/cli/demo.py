@@ -15,8 +15,12 @@ it writes is exactly what a user gets from running them by hand:
 
 and finally ``report.html``, the self-contained report of ``bayes-rcsa
 report`` over the four directories (figures embedded; the page to open or
-mail), and an ``index.html`` landing page that links it and the
-sub-commands' own files (:mod:`bayes_rcsa.report.index_html`).
+mail), an ``index.html`` landing page that links it and the sub-commands'
+own files (:mod:`bayes_rcsa.report.index_html`), and ``summary.md``.  The
+report, the landing page and ``summary.md`` open with the same summary block
+(:mod:`bayes_rcsa.report.answer`): the recommended speed and depth, the
+tool-point frequencies with their 90 % intervals, the model check,
+convergence and the warnings that change the decision.
 """
 
 from __future__ import annotations
@@ -46,14 +50,16 @@ def register(subparsers) -> None:
         "predict the tool point with credible intervals at 25-40 mm (30 and 35 mm held out), and compute "
         "probabilistic stability lobes at 30 mm, and check the model for missing effects (discrepancy).  "
         "Writes DIR/identify, DIR/predict, DIR/lobes, DIR/discrepancy, the "
-        "self-contained report DIR/report.html and the landing page DIR/index.html.  Takes one to two minutes.",
+        "self-contained report DIR/report.html, the landing page DIR/index.html and DIR/summary.md (all three "
+        "open with the answer: recommended speed and depth, tool-point frequencies, model check).  Takes one to "
+        "two minutes.",
     )
     p.add_argument("--out", default=".", metavar="DIR", help="output directory (default: current directory)")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="random seed of the whole run (default 0)")
     p.add_argument("--max-steps", type=positive_int, default=20000, metavar="N", help="sampler step cap (default 20000)")
     p.add_argument("--force", action="store_true",
                    help="replace the outputs of an earlier demo in DIR (identify/, predict/, lobes/, report.html, "
-                        "index.html); default: refuse")
+                        "index.html, summary.md); default: refuse")
     p.set_defaults(func=run)
 
 
@@ -76,7 +82,7 @@ def run(args: argparse.Namespace) -> Summary:
     # the overwrite rule of every command, checked for all steps before the first one runs
     for name in ("identify", "predict", "lobes", "discrepancy"):
         check_output_directory(out / name, args.force)
-    for name in ("report.html", "index.html"):
+    for name in ("report.html", "index.html", "summary.md"):
         if (out / name).exists() and not args.force:
             raise SetupError(f"--out {out}: {name} of an earlier run exists; use --force to replace it")
     force = ["--force"] if args.force else []
@@ -99,5 +105,5 @@ def run(args: argparse.Namespace) -> Summary:
                                out / "report.html", seed=args.seed,
                                title="bayes_rcsa demo: ER32 collet + 7.94 mm end mill")
     index = write_demo_index(out)
-    return Summary(f"demo finished: open {report} (links: {index})", {"out": str(out), "report": str(report),
-                                                                       "index": str(index)})
+    return Summary(f"demo finished: open {report} (links: {index}; the answer: {out / 'summary.md'})",
+                   {"out": str(out), "report": str(report), "index": str(index), "summary": str(out / "summary.md")})
