@@ -273,13 +273,17 @@ def refit_modal_model(frequency_hz, frf, start: ModalFit, source: str = "<frf>")
 def _least_squares_modes(f, gs, p0, lb, ub):
     """Bounded least squares of the scaled modal model against ``gs`` on the complex lines (re, im stacked)."""
 
+    # A trial step of the optimiser may send ln k of a spurious mode (noisy FRFs) far enough for exp to overflow;
+    # the residual is then not finite and the trust region shrinks (scipy's trf), so the overflow is expected.
     def fun(p):
-        m, _ = _modes_and_jac(p, f)
+        with np.errstate(over="ignore", invalid="ignore"):
+            m, _ = _modes_and_jac(p, f)
         d = m - gs
         return np.concatenate([d.real, d.imag])
 
     def jac(p):
-        _, J = _modes_and_jac(p, f)
+        with np.errstate(over="ignore", invalid="ignore"):
+            _, J = _modes_and_jac(p, f)
         return np.concatenate([J.real, J.imag])
 
     return least_squares(fun, p0, jac=jac, bounds=(lb, ub), x_scale="jac", max_nfev=200)
