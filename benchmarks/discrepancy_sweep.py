@@ -28,9 +28,9 @@ def fe_cases():
 
     for name, info in HIDDEN_EFFECTS.items():
         for scale in (0.5, 2.0):
-            mag = info.default * scale
-            if name == "fluted_section":
-                mag = min(mag, 0.3)
+            # half and twice the default, within the effect's own range (the fluted reduction beyond 30 % and
+            # a dropped fraction beyond 1 are not physical)
+            mag = min(info.default * scale, 0.3 if name == "fluted_section" else info.max_magnitude)
             yield f"fe {name}={mag:g}", "fe", {name: mag}, {}
 
 
