@@ -543,3 +543,36 @@ def test_an_unusable_model_check_warns_in_the_summary_escaped(runs, tmp_path, ca
     assert "NOT usable for prediction" in text_md and "12346 rpm" in text_md
     # without an identify or predict run there is no convergence word to give
     assert "Convergence" not in block
+
+
+def test_summary_reads_the_robust_envelope_and_says_when_there_is_no_confidence():
+    """lobes.json keys of the measured/robust mode (robust_envelope, confidence_cost, median_recommended) and a
+    deterministic run; a value that is not a number is refused naming the file and the key."""
+    from bayes_rcsa.errors import DataError
+    from bayes_rcsa.report import answer_markdown, build_answer
+
+    rec = {"spindle_speed_rpm": 9000.4, "depth_m": 4e-4, "p_stable": 0.99, "p_stable_neighbourhood": 0.96,
+           "margin_speed_rpm": {"below": 120.0, "above": None}, "margin_depth_m": 5e-5, "speed_tolerance_rel": 0.02,
+           "speed_window_rpm": [8820.4, 9180.4], "depth_margin_rel": 0.1, "binding_limit": "stability"}
+    robust = {"recommended": rec, "level": 0.95, "method": "sdm", "n_draws": 300, "deterministic": False,
+              "source": {"mode": "measured", "clamping_length_m": 0.03}, "warnings": [],
+              "robust_envelope": {"confidence": 0.95, "depth_limit_m": [4.5e-4]},
+              "median_recommended": dict(rec, depth_m=6e-4, spindle_speed_rpm=9100.0),
+              "confidence_cost": {"depth_m": 2e-4, "relative": 1 / 3, "median_speed_rpm": 9100.0}}
+    (point,) = build_answer([("lobes", "a/lobes.json", robust)]).points
+    facts = dict(point["facts"])
+    assert point["speed"] == "9000" and point["depth"] == "0.4" and "300 measured-FRF draws" in point["source"]
+    assert facts["speed margin"].startswith("120 rpm below and nothing above")
+    assert "8820 – 9180 rpm" in facts["speed margin"] and facts["depth margin"].startswith("0.05 mm below")
+    assert "lowest 0.96; 0.99 at the point" in facts["confidence"] and "95 % confidence" in facts["confidence"]
+    assert facts["cost of the confidence"].startswith("0.2 mm (33 %) of depth against the median point (0.6 mm")
+    det = dict(robust, deterministic=True, n_draws=1)
+    del det["confidence_cost"]
+    md = answer_markdown(build_answer([("lobes", "b/lobes.json", det)]))
+    assert "- confidence: none: a single FRF without its uncertainty" in md and "--averages N" in md
+    assert "one FRF without its uncertainty (deterministic" in md
+    none = dict(robust, recommended=None, recommended_note="every speed chatters below 0.01 mm")
+    assert "No spindle speed reaches P(stable) ≥ 0.95: every speed chatters" in answer_markdown(
+        build_answer([("lobes", "c/lobes.json", none)]))
+    with pytest.raises(DataError, match=r"d/lobes.json recommended: key 'depth_m' is 'deep'"):
+        build_answer([("lobes", "d/lobes.json", dict(robust, recommended=dict(rec, depth_m="deep")))])

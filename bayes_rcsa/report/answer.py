@@ -7,8 +7,9 @@ read from the commands' JSON documents (nothing recomputed):
   their margins (speed tolerance and the distance to the nearest unstable
   speed, depth margin and the distance to the limit above) and the
   confidence they hold at (the required P(stable), the lowest P(stable)
-  over the checked neighbourhood, the confidence of a robust envelope when
-  the lobes run wrote one);
+  over the checked neighbourhood, the confidence of the robust envelope and
+  the depth it costs against the median point when the lobes run wrote
+  them: ``robust_envelope``, ``confidence_cost``, ``median_recommended``);
 * the tool-point natural frequency (dominant mode) at each predicted
   clamping length and direction, with the model's 90 % credible interval
   and the 90 % predictive interval of a new hammer test;
@@ -177,7 +178,8 @@ def _point(doc: dict, label: str, index: int) -> dict:
     deterministic = bool(doc.get("deterministic")) or n_draws == 1
     method = str(doc.get("method") or "?").upper()
     source = (f"{method}, one FRF without its uncertainty (deterministic: P(stable) is 0 or 1)" if deterministic else
-              f"{method}, {n_draws} {'posterior' if src.get('mode', 'posterior') == 'posterior' else 'FRF'} draws")
+              f"{method}, {n_draws} {'posterior' if src.get('mode', 'posterior') == 'posterior' else 'measured-FRF'} "
+              "draws")
     out = {"index": index, "clamping": num(1e3 * clamp, 4) if clamp else None, "source": source, "none": None,
            "speed": "—", "depth": "—", "facts": []}
     rec = doc.get("recommended")
@@ -218,17 +220,27 @@ def _point(doc: dict, label: str, index: int) -> dict:
         out["facts"].append(("depth set by", binding.replace("_", " ").replace("+", " and ")))
     p_pt = _value(rec, label, "p_stable")
     p_nb = _value(rec, label, "p_stable_neighbourhood")
-    conf = _value(doc, label, "confidence")
-    if conf is None:
-        conf = _value(rec, label, "confidence")
     if deterministic:
         confidence = "none: a single FRF without its uncertainty; only the margins protect the point"
+        if src.get("mode") == "measured":
+            confidence += " (give files with coherence and --averages N, or repeated hits)"
     else:
         confidence = (f"P(stable) ≥ {lvl} over the whole checked neighbourhood (lowest {_p(p_nb)}; "
-                             f"{_p(p_pt)} at the point)")
-    if conf is not None:
-        confidence += f"; depth limit taken at {num(100 * conf, 3)} % confidence (lower envelope)"
+                      f"{_p(p_pt)} at the point)")
+        env = doc.get("robust_envelope")
+        conf = _value(env, label, "confidence") if isinstance(env, dict) else None
+        if conf is not None:
+            confidence += f"; the lobes show the robust envelope at {num(100 * conf, 3)} % confidence"
     out["facts"].append(("confidence", confidence))
+    cost, med = doc.get("confidence_cost"), doc.get("median_recommended")
+    if not deterministic and isinstance(cost, dict) and isinstance(med, dict):
+        d, rel = _value(cost, label, "depth_m"), _value(cost, label, "relative")
+        md, ms = _value(med, label, "depth_m"), _value(med, label, "spindle_speed_rpm")
+        if d is not None and md is not None:
+            out["facts"].append(("cost of the confidence", f"{num(1e3 * d, 3)} mm"
+                                 + (f" ({num(100 * rel, 2)} %)" if rel is not None else "")
+                                 + f" of depth against the median point ({num(1e3 * md, 3)} mm at {_rpm(ms)} rpm, "
+                                   "P(stable) ≥ 0.5)"))
     return out
 
 
