@@ -213,22 +213,47 @@ def _passive(block):
     return np.linalg.eigvalsh(im).max(axis=-1)
 
 
-def test_extra_mode_matches_the_bench_and_is_passive_and_reciprocal(tmp_path_factory):
-    cfg, model = _campaign(tmp_path_factory, "extra", {"extra_mode": 0.2})
+@pytest.mark.parametrize("location, position", [("flange", 0.0), ("holder_tip", 1.0)])
+def test_extra_mode_matches_the_bench_at_the_flange_and_at_the_holder_tip(tmp_path_factory, location, position):
+    cfg = default_bench_config(hidden_effects={"extra_mode": 0.2}, extra_mode_location=location)
+    path = write_campaign(generate_campaign(cfg, np.random.default_rng(0)), tmp_path_factory.mktemp(location) / "c")
+    model = load_setup(path).model()
     configs = [Configuration(l, "x") for l in LENGTHS]
     truth = _truth(cfg, configs)
     term = make_term("extra_mode")
-    v = {"extra_mode_mass_kg": np.array([0.0, 0.2]), "extra_mode_frequency_hz": np.array([1000.0, 1000.0]),
-         "extra_mode_damping_ratio": np.array([0.02, 0.02])}
-    h = reference_frf(model, cfg, configs, term, v, n_sets=2)
+    v = {"extra_mode_mass_kg": np.array([0.0, 0.2, 0.2]), "extra_mode_frequency_hz": np.full(3, 1000.0),
+         "extra_mode_damping_ratio": np.full(3, 0.02), "extra_mode_position": np.array([0.0, position, 1 - position])}
+    h = reference_frf(model, cfg, configs, term, v, n_sets=3)
     for j in range(len(configs)):
-        assert _rel(h[1, j], truth[j]) < 1e-3 < 0.02 < _rel(h[0, j], truth[j])
-    ctx = _context(model, configs)
-    s = model.spindle_receptance("x").interpolate(np.tile(FREQ, 3))[None]
-    out = term.spindle({**v, "extra_mode_mass_kg": np.array([0.0, 0.5])}, s, ctx)
-    assert np.allclose(out[1, :, 0, 1], out[1, :, 1, 0], rtol=1e-12)  # reciprocal
-    scale = np.abs(out[1]).max()
-    assert np.all(_passive(out[1]) <= 1e-12 * scale)
+        # the resonator at its true place reproduces the bench; at the other end of the holder it does not
+        assert _rel(h[1, j], truth[j]) < 1e-3 < 0.01 < _rel(h[0, j], truth[j])
+        assert _rel(h[2, j], truth[j]) > 0.01
+
+
+def test_extra_mode_on_the_holder_is_passive_reciprocal_and_equals_the_explicit_inverse(clean):
+    from bayes_rcsa.params.terms.extra_mode import attach_on_holder, resonator_dynamic_stiffness
+
+    _, model = clean
+    ctx = _context(model, [Configuration(0.03, "x")])
+    subs = _substructures(model, ctx)
+    rng = np.random.default_rng(5)
+    n = 9
+    mass, pos = rng.uniform(0, 1, n), np.r_[0.0, 1.0, rng.uniform(0, 1, n - 2)]
+    z = resonator_dynamic_stiffness(ctx.omega, mass[:, None], rng.uniform(500, 3500, (n, 1)),
+                                    np.exp(rng.uniform(np.log(0.005), np.log(0.2), (n, 1))))
+    out = attach_on_holder(subs.holder, z, pos[:, None])
+    full = np.block([[out.r11, out.r12], [out.r21, out.r22]])  # (n, lines, 4, 4)
+    r0 = np.block([[subs.holder.r11, subs.holder.r12], [subs.holder.r21, subs.holder.r22]])[0]
+    scale = np.abs(full).max(axis=(-1, -2), keepdims=True)
+    assert np.all(np.abs(full - np.swapaxes(full, -1, -2)) <= 1e-9 * scale)  # reciprocal
+    im = (full - np.conj(np.swapaxes(full, -1, -2))) / 2j
+    assert np.all(np.linalg.eigvalsh(im).max(axis=-1) <= 1e-9 * scale[..., 0, 0])  # passive
+    for i in (0, 1, 5):
+        e = np.array([1 - pos[i], 0.0, pos[i], 0.0])
+        ref = np.linalg.inv(np.linalg.inv(r0) + z[i][:, None, None] * np.outer(e, e))
+        np.testing.assert_allclose(full[i], ref, rtol=1e-7, atol=1e-7 * np.abs(ref).max())
+    same = attach_on_holder(subs.holder, 0 * z, pos[:, None])
+    assert np.array_equal(same.r11, np.broadcast_to(subs.holder.r11, same.r11.shape))
 
 
 def test_spindle_error_moves_the_file_towards_the_true_spindle(tmp_path_factory):

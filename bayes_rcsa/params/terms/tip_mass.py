@@ -1,37 +1,68 @@
-"""Model term ``tip_mass``: a small mass (e.g. an accelerometer) at the tool tip.
+"""Model term ``tip_mass``: a small rigid body (e.g. an accelerometer) at the tool tip.
 
 Physics
 -------
-A rigid body of mass ``m`` at the tip node adds the dynamic stiffness
-``Z = -omega^2 diag(m, J)`` to the tip's (u, psi) degrees of freedom, with
-the rotary inertia ``J = m r_g^2``.  The radius of gyration ``r_g`` is half
-the tool's tip diameter (the last tool segment's ``diameter``), i.e. a mass
-whose inertia about the tool's transverse axis is that of a point mass on
-the tool's circumference (the synthetic bench's default, 4 mm for the
-7.94 mm end mill).  Adding ``Z`` at end 2 of the tool-overhang two-port
-``R`` gives, by the Woodbury identity with ``W = Z (I + R22 Z)^-1``::
+A rigid body of mass ``m`` fixed to the tip section, its centre of mass
+an axial distance ``e`` from the tip node (``e > 0`` beyond the tip, ``e < 0``
+towards the holder, e.g. a sensor glued on the flank flush with the tip)
+and its own rotary inertia ``m r_g^2`` about its centre (transverse axis),
+moves with the tip section as ``u_c = u + e psi``.  Its kinetic energy gives
+the 2x2 mass matrix at the tip's (u, psi)::
+
+    M = m [[1, e], [e, e^2 + r_g^2]],      Z = -w^2 M
+
+which is positive semi-definite for every ``m >= 0`` (so passive and
+reciprocal) and zero for ``m = 0`` (the baseline).  ``Z`` is added at end 2
+of the tool-overhang two-port ``R`` by the Woodbury identity with
+``W = Z (I + R22 Z)^-1``::
 
     R11' = R11 - R12 W R21      R12' = R12 - R12 W R22
     R21' = R21 - R22 W R21      R22' = R22 - R22 W R22
 
-which stays reciprocal and passive for ``m >= 0`` and is exactly ``R``
-for ``m = 0`` (the baseline).  The term hands ``Z`` to the forward model as
-the substructures' tip impedance (:meth:`Substructures.add_tip`): the
-forward model applies it to the assembled tool-point block,
-``H' = H (I + Z H)^-1`` (the same physics, the tool two-port staying shared
-by all parameter sets), or folds it into the tool two-port with
-:func:`bayes_rcsa.model.coupling.add_end_impedance` when another term has changed a substructure.
+For ``e = 0`` ``Z`` is diagonal and is handed to the forward model as the
+substructures' tip impedance (:meth:`Substructures.add_tip`; the tool
+two-port then stays shared by all parameter sets, the cheap path); for
+``e != 0`` the term folds the full ``Z`` into the tool two-port.
 
-Parameter
----------
-``tip_mass_kg`` (kg): default prior uniform on [0, 0.02] kg, baseline 0.
-The lower bound is the baseline so the term can vanish; 20 g covers
-miniature accelerometers (0.5-10 g) with margin.  Override in the setup::
+Why three parameters.  The former term fixed ``e = 0`` and ``r_g`` = half
+the tip diameter.  On the project's bench with a body of ``r_g`` = 8 mm
+that form still closed the gap (0.042 -> 0.0004, noise-free, 25/40 mm,
+x/y) but only by biasing the contact (k_thetaM -11 %, its growth 0.28
+against 0.45); on the independent rotor bench (a 3 g cylinder on the
+flank, flush with the tip) it left k_thetaM 2.6 times too stiff with its
+growth on the prior bound, and the discrepancy workflow named
+``fluted_section`` instead.  With the offset the rotor bench's gap closes
+0.040 -> 0.0002 with the contact at its truth (fitted ``e`` = -3.5 mm,
+``m`` = 3.03 g); with a free ``r_g`` the bench's closes exactly.
+
+Parameters
+----------
+``tip_mass_kg`` (kg): prior uniform on [0, 0.02] kg, baseline 0.  20 g
+    covers miniature accelerometers (0.5-10 g) with margin.
+``tip_mass_offset_m`` (m): axial offset ``e`` of the body's centre of mass
+    from the tip node.  Prior uniform on [-0.01, 0.01] m (a body of at most
+    2 cm mounted on the flank or the end face); baseline 0.
+``tip_mass_radius_of_gyration_m`` (m): ``r_g`` of the body about its
+    centre for bending of the tool.  Prior uniform on [0, 0.01] m (a point
+    mass up to a 2 cm body on the tool's flank); baseline half the tip
+    diameter of the setup's first tool (the former fixed value).
+
+Without a model (``parameters(None)``, e.g. a hand-made parameter model)
+only ``tip_mass_kg`` is declared and the hook uses ``e = 0`` and ``r_g`` =
+half each configuration's tip diameter, the former term exactly; so does
+any caller that omits the two geometry values.
+
+Override in the setup::
 
     [model]
     terms = ["tip_mass"]
     tip_mass_kg = [0.0, 0.005]          # uniform bounds, kg
     # or: tip_mass_kg = 0.0021          # fixed, e.g. the sensor's data-sheet mass
+
+Can represent: any rigid body fixed to the tip section (mass, axial
+position of its centre, rotary inertia).  Cannot represent: a compliant
+mount (the body's own resonance), a radial offset's coupling to axial or
+torsional motion, and bodies whose inertia differs between x and y.
 """
 
 from __future__ import annotations
@@ -39,12 +70,16 @@ from __future__ import annotations
 import numpy as np
 
 from ...model.coupling import add_end_impedance
+from ...model.timoshenko import TwoPort
 from ..parameter import Parameter
 from ..priors import Uniform
 from . import register_term
 from .base import ModelTerm
 
-__all__ = ["TipMass", "tip_radius_of_gyration", "add_end_impedance"]
+__all__ = ["TipMass", "tip_radius_of_gyration", "add_end_impedance", "add_end_dynamic_stiffness"]
+
+OFFSET_MAX = 0.01
+RG_MAX = 0.01
 
 
 def tip_radius_of_gyration(model, configurations) -> np.ndarray:
@@ -52,25 +87,66 @@ def tip_radius_of_gyration(model, configurations) -> np.ndarray:
     return np.array([0.5 * model.tool(c.tool).segments[-1].diameter for c in configurations], dtype=float)
 
 
+def add_end_dynamic_stiffness(tool: TwoPort, z00, z01, z11) -> TwoPort:
+    """Tool two-port with a symmetric dynamic stiffness ``[[z00, z01], [z01, z11]]`` added at end 2 (Woodbury).
+
+    Parameters
+    ----------
+    tool : TwoPort, blocks (B0, n_lines, 2, 2)
+    z00 : (B, n_lines) N/m;  z01 : (B, n_lines) N;  z11 : (B, n_lines) N m/rad
+
+    Returns
+    -------
+    TwoPort with blocks (max(B, B0), n_lines, 2, 2)
+    """
+    r22 = tool.r22
+    z = np.empty(np.broadcast_shapes(np.shape(z00), np.shape(z01), np.shape(z11)) + (2, 2), dtype=complex)
+    z[..., 0, 0], z[..., 0, 1], z[..., 1, 0], z[..., 1, 1] = z00, z01, z01, z11
+    w = z @ np.linalg.inv(np.eye(2) + r22 @ z)  # W = Z (I + R22 Z)^-1
+    w_r21, w_r22 = w @ tool.r21, w @ r22
+    return TwoPort(r11=tool.r11 - tool.r12 @ w_r21, r12=tool.r12 - tool.r12 @ w_r22,
+                   r21=tool.r21 - r22 @ w_r21, r22=r22 - r22 @ w_r22)
+
+
 @register_term
 class TipMass(ModelTerm):
-    """Point mass and rotary inertia at the tool tip (see the module docstring)."""
+    """A rigid body (mass, axial offset, rotary inertia) at the tool tip (see the module docstring)."""
 
     name = "tip_mass"
     kind = "substructure"
-    description = "a small mass such as an accelerometer at the tool tip (mass m, rotary inertia m r_g^2)"
+    description = ("a small mass such as an accelerometer at the tool tip (mass m, centre e beyond the tip, rotary "
+                   "inertia m (e^2 + r_g^2))")
     parameter_name = "tip_mass_kg"
+    #: a point mass (r_g = 0) is a physical limit, not a chosen range
+    physical_bounds = {"tip_mass_radius_of_gyration_m": (0.0,)}
 
     def parameters(self, model) -> tuple[Parameter, ...]:
-        return (Parameter(self.parameter_name, "kg", "term", prior=Uniform(0.0, 0.02), label="tip mass (kg)",
-                          baseline=0.0, term=self.name,
-                          description="mass at the tool tip; rotary inertia m (d_tip / 2)^2"),)
+        mass = (Parameter(self.parameter_name, "kg", "term", prior=Uniform(0.0, 0.02), label="tip mass (kg)",
+                          baseline=0.0, term=self.name, description="mass of the body at the tool tip"),)
+        if model is None:
+            return mass
+        rg0 = 0.5 * next(iter(model.tools.values())).segments[-1].diameter if getattr(model, "tools", None) else 0.004
+        return mass + (
+            Parameter("tip_mass_offset_m", "m", "term", prior=Uniform(-OFFSET_MAX, OFFSET_MAX),
+                      label="tip mass offset (m)", baseline=0.0, term=self.name,
+                      description="axial distance of the body's centre of mass beyond the tip node (negative: "
+                                  "towards the holder)"),
+            Parameter("tip_mass_radius_of_gyration_m", "m", "term", prior=Uniform(0.0, RG_MAX),
+                      label="tip mass radius of gyration (m)", baseline=min(rg0, RG_MAX), term=self.name,
+                      description="radius of gyration of the body about its centre, for bending of the tool"),
+        )
 
     def substructures(self, values, subs, ctx):
         m = np.asarray(values[self.parameter_name], dtype=float)
         if not np.any(m):
             return subs  # the baseline: nothing to add (and nothing recomputed)
-        rg = tip_radius_of_gyration(ctx.model, ctx.configurations)[ctx.line_config]  # (n_lines,)
-        z_u = -m[:, None] * (ctx.omega**2)[None, :]  # (n_sets, n_lines) N/m
-        z_psi = z_u * (rg**2)[None, :]
-        return subs.add_tip(z_u, z_psi)
+        w2 = (ctx.omega**2)[None, :]
+        if "tip_mass_radius_of_gyration_m" in values:
+            rg2 = (np.asarray(values["tip_mass_radius_of_gyration_m"], dtype=float) ** 2)[:, None]
+        else:
+            rg2 = (tip_radius_of_gyration(ctx.model, ctx.configurations)[ctx.line_config] ** 2)[None, :]
+        z_u = -m[:, None] * w2  # (n_sets, n_lines) N/m
+        e = np.asarray(values.get("tip_mass_offset_m", np.zeros_like(m)), dtype=float)[:, None]
+        if not np.any(e):
+            return subs.add_tip(z_u, z_u * rg2)
+        return subs.replace(tool=add_end_dynamic_stiffness(subs.tool, z_u, z_u * e, z_u * (e * e + rg2)))
