@@ -566,6 +566,9 @@ def test_summary_reads_the_robust_envelope_and_says_when_there_is_no_confidence(
     assert "8820 – 9180 rpm" in facts["speed margin"] and facts["depth margin"].startswith("0.05 mm below")
     assert "lowest 0.96; 0.99 at the point" in facts["confidence"] and "95 % confidence" in facts["confidence"]
     assert facts["cost of the confidence"].startswith("0.2 mm (33 %) of depth against the median point (0.6 mm")
+    tiny = dict(robust, confidence_cost={"depth_m": 3.88e-7, "relative": 0.0024})
+    assert dict(build_answer([("lobes", "t/lobes.json", tiny)]).points[0]["facts"])[
+        "cost of the confidence"].startswith("0.39 µm (0.24 %)")  # no exponent for a machinist
     det = dict(robust, deterministic=True, n_draws=1)
     del det["confidence_cost"]
     md = answer_markdown(build_answer([("lobes", "b/lobes.json", det)]))

@@ -150,6 +150,11 @@ def _rpm(x) -> str:
     return "—" if x is None else f"{x:.0f}"
 
 
+def _small_depth(x_m: float) -> str:
+    """A depth margin or difference for people: mm, or µm below 0.01 mm (no exponents)."""
+    return f"{num(1e3 * x_m, 3)} mm" if abs(x_m) >= 1e-5 or x_m == 0 else f"{num(1e6 * x_m, 2)} µm"
+
+
 def _p(x) -> str:
     return "—" if x is None else f"{x:.2f}"
 
@@ -206,7 +211,7 @@ def _point(doc: dict, label: str, index: int) -> dict:
         speed_m.append(f"checked over ±{num(100 * tol, 3)} % ({_rpm(window[0])} – {_rpm(window[1])} rpm)")
     if "margin_depth_m" in rec:
         margin_d = _value(rec, label, "margin_depth_m")
-        depth_m.append(f"{num(1e3 * margin_d, 3)} mm below the P(stable) = {lvl} limit" if margin_d is not None
+        depth_m.append(f"{_small_depth(margin_d)} below the P(stable) = {lvl} limit" if margin_d is not None
                        else "no limit above it in the analysed range")
     rel = _value(rec, label, "depth_margin_rel")
     if rel is not None:
@@ -237,7 +242,7 @@ def _point(doc: dict, label: str, index: int) -> dict:
         d, rel = _value(cost, label, "depth_m"), _value(cost, label, "relative")
         md, ms = _value(med, label, "depth_m"), _value(med, label, "spindle_speed_rpm")
         if d is not None and md is not None:
-            out["facts"].append(("cost of the confidence", f"{num(1e3 * d, 3)} mm"
+            out["facts"].append(("cost of the confidence", _small_depth(d)
                                  + (f" ({num(100 * rel, 2)} %)" if rel is not None else "")
                                  + f" of depth against the median point ({num(1e3 * md, 3)} mm at {_rpm(ms)} rpm, "
                                    "P(stable) ≥ 0.5)"))
