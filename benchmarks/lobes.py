@@ -253,7 +253,17 @@ def main(argv=None) -> int:
     ap.add_argument("--old-draws", type=int, default=2, help="draws timed with the pre-issue-13 implementation")
     ap.add_argument("--skip-old", action="store_true", help="do not run the pre-issue-13 implementation")
     ap.add_argument("--skip-naive", action="store_true", help="only the example cases (3 and 4)")
+    ap.add_argument("--end-to-end", action="store_true",
+                    help="only the end-to-end case of benchmarks/lobes_measured.py: deterministic 'lobes' on the "
+                    "bundled 30 mm files at 25001 speeds, current tree and before issue 22, ratio to the peer")
+    ap.add_argument("--peer-seconds", type=float, default=3.3, help="peer end-to-end time in s (with --end-to-end)")
     args = ap.parse_args(argv)
+    if args.end_to_end:
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from lobes_measured import end_to_end
+
+        end_to_end(args, [])
+        return 0
 
     rows = []
     if args.skip_naive:
