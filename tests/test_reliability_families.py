@@ -301,6 +301,12 @@ def test_posterior_of_another_geometry_is_named(name, command, edit, key, identi
     hits = [ln for ln in cap.err.splitlines() if ": warning: " in ln and key + " = " in ln]
     assert len(hits) == 1, cap.err
     assert any(key in w for w in json.loads(cap.out)["warnings"])
+    # family 7: the printed warnings travel with the results (frequencies.json, lobes.json)
+    document = out / ("frequencies.json" if command == "predict" else "lobes.json")
+    written = json.loads(document.read_text())["warnings"]
+    for line in cap.err.splitlines():
+        if ": warning: " in line:
+            assert line.split(": warning: ", 1)[1] in written, (line, written)
     # the same setup as the identification: no such warning
     argv[1] = str(example_dir() / "setup.toml")
     shutil.rmtree(out)

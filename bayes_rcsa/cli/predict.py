@@ -6,8 +6,8 @@ import argparse
 from pathlib import Path
 
 from ..errors import SetupError
-from ._common import (Summary, add_force_argument, check_output_directory, nonnegative_int, parse_float_list,
-                      parse_frequency_grid)
+from ._common import (Summary, add_force_argument, check_output_directory, command_warnings, merge_warnings,
+                      nonnegative_int, parse_float_list, parse_frequency_grid)
 
 __all__ = ["register", "run"]
 
@@ -21,7 +21,8 @@ Writes to --out:
                            peak (noise included) predictive_peak_q05/q50/q95_hz with
                            measured_in_predictive_90, the measured value where a measurement exists,
                            peak magnitude and dynamic stiffness intervals, parameter influence; the
-                           fit's convergence (converged, posterior_status), interval_definitions
+                           fit's convergence (converged, posterior_status), interval_definitions,
+                           warnings (every warning printed, the input checks' included)
   frf_bands.csv            |H| quantiles and median Re/Im H per line
   frf_bands.png            median |H| with 50 % and 90 % bands and mode intervals
   natural_frequencies.png  dominant natural frequency against clamping length
@@ -88,8 +89,6 @@ def run(args: argparse.Namespace) -> Summary:
     with Heartbeat(f"predict: {len(lengths)} clamping length(s)", enabled=not args.quiet):
         result = run_prediction(setup, args.posterior, lengths, directions, args.tool, freq,
                                 max_draws=None if args.max_draws == 0 else args.max_draws, seed=args.seed)
-    with directory_lock(args.out), new_output_directory(check_output_directory(args.out, args.force)):
-        write_prediction_outputs(result, args.out, plots=not args.no_plots)
     # the posterior, not the (possibly edited) setup, defines the model: say where they differ
     warns = [note.removeprefix("warning:").strip() for note in result.meta.get("parameter_model_notes", [])
              if note.startswith("warning:")]
@@ -102,6 +101,10 @@ def run(args: argparse.Namespace) -> Summary:
     converged = status.get("converged")
     if converged is False:
         warns.append(f"the posterior {args.posterior} did not converge; these intervals are not reliable")
+    # every warning printed (the data checks' and these) also goes into frequencies.json
+    warns = merge_warnings(command_warnings(), warns)
+    with directory_lock(args.out), new_output_directory(check_output_directory(args.out, args.force)):
+        write_prediction_outputs(result, args.out, plots=not args.no_plots, warnings=warns)
     n_pred = len(result.prediction.modes)
     return Summary(
         f"{n_pred} mode interval(s) at {len(lengths)} clamping length(s) from {result.draws.n_draws} draws; "

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ._common import Summary, add_force_argument, check_output_directory, nonnegative_int
+from ._common import Summary, add_force_argument, check_output_directory, command_warnings, nonnegative_int
 
 __all__ = ["register", "run"]
 
@@ -25,7 +25,8 @@ artifact-model errors) for `identify --spindle-uncertainty`.
 
 Writes to --out: spindle_<d>.csv (the smoothed block: use it as the setup's [spindle] file),
 spindle_<d>_raw.csv, spindle_<d>_reliability.csv, spindle_samples.npz (with --samples > 0),
-spindle_summary.json and the plots spindle_<d>.png, artifact_<d>.png.  See docs/spindle.md.
+spindle_summary.json (with every warning printed) and the plots spindle_<d>.png, artifact_<d>.png.
+See docs/spindle.md.
 """
 
 
@@ -104,8 +105,9 @@ def run(args) -> Summary:
     finally:
         if bar is not None:
             bar.close()
+    warns = command_warnings()  # every warning printed also goes into spindle_summary.json
     with directory_lock(args.out), new_output_directory(check_output_directory(args.out, args.force)):
-        summary = write_outputs(setup, results, args.out, plots=not args.no_plots, seed=args.seed)
+        summary = write_outputs(setup, results, args.out, plots=not args.no_plots, seed=args.seed, warnings=warns)
     if not args.quiet:
         for d, s in summary["directions"].items():
             bands = ", ".join(f"{lo:g}-{hi:g} Hz" for lo, hi in s["unreliable_bands_hz"]) or "none"

@@ -48,6 +48,11 @@ __all__ = [
     "RECIPROCITY_WARN",
     "RECIPROCITY_REFUSE",
     "SCALE_REFUSE",
+    "SWAP_IMAG_POSITIVE",
+    "SENSITIVITY_FACTOR",
+    "sensitivity_factor",
+    "spindle_block_problem",
+    "check_spindle_block",
     "warn_all",
 ]
 
@@ -66,6 +71,26 @@ RECIPROCITY_REFUSE = 0.50
 # measurement is refused.  Contact stiffness and damping change the median
 # |H| over a band by far less; mm/N instead of m/N is a factor 1000.
 SCALE_REFUSE = 100.0
+# |H|-weighted share of lines with Im h > 0 above which a one-signed real part with a real-dominated peak is read
+# as swapped columns (the imaginary column then holds the old, sign-changing real part: 40-75 % on the example
+# and bench files).  A passive file keeps about 1 % there, so a weak resonance on a large real background (a
+# flange's p below or above its modes) is not mistaken for a swap.
+SWAP_IMAG_POSITIVE = 0.2
+# A measured amplitude off by a near-constant factor (sensor sensitivity, a calibration entered wrongly) is named
+# when the ratio |H_measured| / |H_model| at the fitted parameters lies beyond this factor (either way) ...
+SENSITIVITY_FACTOR = 2.5
+# ... and stays within this spread (10 %-90 % quantile ratio of the |H_model|-weighted lines near the model's
+# peaks): a fit that matches the shape but not the level.  A good fit gives 1.00 with a spread of ~1.05;
+# a wrong contact or a missing effect moves the peak, which spreads the ratio over orders of magnitude.
+SENSITIVITY_SPREAD = 1.5
+#: Smallest ratio median |p| / median |h| of a flange block accepted: p (rad/(N m)) is h (m/N) divided by a
+#: length squared of the order of the spindle nose (observed 1e2-5e3 on the bench, rotor and example files);
+#: below 1 the two columns hold each other's data.
+FLANGE_P_OVER_H_MIN = 1.0
+# The imaginary 2x2 block of a passive point block is negative semi-definite: (Im l)^2 <= Im h Im p.  Refused
+# when |Im l| exceeds twice sqrt(Im h Im p) on more than half of the |l|-weighted lines (a model block stays
+# below 1.0, noise does not double it where the signal is strong).
+DEFINITENESS_FACTOR = 2.0
 
 
 def _weights(values: np.ndarray) -> np.ndarray:
@@ -106,7 +131,10 @@ def passivity_problem(values) -> str | None:
       Im h ~ -|h|) while more than 90 % of the |H|-weighted lines have a
       one-signed *real* part (negative: swapped; positive: swapped and the
       other sign convention), which is what a passive imaginary part looks
-      like in the real column.
+      like in the real column; and the imaginary column is not one-signed (more than
+      :data:`SWAP_IMAG_POSITIVE` of the |H|-weighted lines have Im h > 0, which the old real part
+      gives and a passive file does not: a weak resonance on a large one-signed real background,
+      e.g. a flange's p, is valid).
     """
     v = np.asarray(values, dtype=complex).ravel()
     if v.size == 0:
@@ -127,7 +155,10 @@ def passivity_problem(values) -> str | None:
     # imaginary part into the real column.  Only judged at an interior peak: a band that holds no
     # resonance (e.g. only the mass line above it) legitimately has a one-signed real part.
     edge = max(2, v.size // 100)
-    if edge <= k < v.size - edge and abs(s) < 0.5:
+    # A passive imaginary part is one-signed (Im h <= 0); after a swap the imaginary column holds the old real
+    # part, which changes sign at every resonance (or is positive below it).  Without that, a one-signed real part
+    # with a real-dominated peak is a weak resonance on a large real background (a flange's p), not a swap.
+    if edge <= k < v.size - edge and abs(s) < 0.5 and frac_im_pos > SWAP_IMAG_POSITIVE:
         frac_re_pos = float(np.sum(w[v.real > 0]))
         if frac_re_neg > 0.9:
             return (f"the real part is negative on {100 * frac_re_neg:.0f} % of the |H|-weighted lines while the "
@@ -276,7 +307,162 @@ def likely_cause(measured, model) -> str | None:
             ratio = lo / med_m
             causes.append(f"the measured |H| is about 1/{ratio:.3g} of the smallest the model gives for any contact in "
                           "the prior: wrong units (expected m/N) or a scaled file")
+    if mod.shape[0] == 1 and not causes:
+        factor = sensitivity_factor(m, mod[0])
+        if factor is not None:
+            causes.append(sensitivity_cause(factor))
     return "; ".join(causes) if causes else None
+
+
+def sensitivity_factor(measured, model) -> float | None:
+    """The near-constant factor between a measured FRF and the fitted model's, or ``None``.
+
+    Parameters
+    ----------
+    measured, model : (n_freq,) complex
+        The measurement and the model at the fitted parameters, on the same lines.
+
+    Returns
+    -------
+    float or None
+        The |H_model|-weighted median of |H_measured| / |H_model| over the lines near the model's peaks
+        (|H_model| >= 30 % of its largest value) when it lies beyond :data:`SENSITIVITY_FACTOR` either way
+        and its 10 %-90 % spread stays within :data:`SENSITIVITY_SPREAD`: the fit matches the shape (the
+        resonance is where it is measured) but not the level, which a wrong sensor sensitivity or
+        calibration factor gives and no contact stiffness or damping can.  ``None`` otherwise.
+    """
+    m = np.abs(np.asarray(measured, dtype=complex).ravel())
+    h = np.abs(np.asarray(model, dtype=complex).ravel())
+    if m.size != h.size or m.size < 3 or not np.all(np.isfinite(h)) or not h.max() > 0:
+        return None
+    near = (h >= 0.3 * h.max()) & (m > 0)
+    if near.sum() < 3:
+        return None
+    ratio = np.log(m[near] / h[near])
+    w = h[near] / h[near].sum()
+    order = np.argsort(ratio)
+    cum = np.cumsum(w[order])
+
+    def q(level):
+        return float(ratio[order][min(int(np.searchsorted(cum, level)), ratio.size - 1)])
+
+    median, spread = math.exp(q(0.5)), math.exp(q(0.9) - q(0.1))
+    if spread > SENSITIVITY_SPREAD or 1 / SENSITIVITY_FACTOR <= median <= SENSITIVITY_FACTOR:
+        return None
+    return median
+
+
+def sensitivity_cause(factor: float) -> str:
+    """The likely-cause text of a near-constant amplitude factor (see :func:`sensitivity_factor`)."""
+    shown = f"{factor:.3g}" if factor >= 1 else f"1/{1 / factor:.3g}"
+    return (f"the measured |H| is {shown} x the fitted model's at every line near the resonance (a near-constant "
+            f"factor: the shape fits, the level does not): sensor sensitivity / calibration factor ≈ {shown} "
+            "(check the accelerometer's and the hammer's sensitivity settings of the export)")
+
+
+def _flange_block_problems(block) -> list[str]:
+    """What makes ``block`` no flange point block (empty when it is one); the checks of :func:`check_spindle_block`."""
+    b = np.asarray(block)
+    h, l, n, p = b[:, 0, 0], b[:, 0, 1], b[:, 1, 0], b[:, 1, 1]
+    out = []
+    for name, v in (("h", h), ("p", p)):
+        why = passivity_problem(v)
+        if why is not None:
+            out.append(f"{name}: {why}")
+    if reciprocity_error(b) > RECIPROCITY_WARN:
+        out.append("l and n differ")
+    mh, mp = float(np.median(np.abs(h))), float(np.median(np.abs(p)))
+    if not mh > 0:
+        out.append("h is zero")
+    elif 0 < mp < FLANGE_P_OVER_H_MIN * mh:  # p = 0: a block without rotations (translation only) is valid
+        out.append(f"median |p| = {mp:.3g} is below median |h| = {mh:.3g}")
+    cross = 0.5 * (l + n).imag
+    bound = np.sqrt(np.clip(h.imag * p.imag, 0.0, None))
+    w = _weights(0.5 * (l + n))
+    too_big = float(np.sum(w[np.abs(cross) > DEFINITENESS_FACTOR * bound]))
+    if too_big > 0.5:
+        out.append(f"|Im l| > {DEFINITENESS_FACTOR:g} sqrt(Im h Im p) on {100 * too_big:.0f} % of the |l|-weighted "
+                   "lines")
+    return out
+
+
+_ENTRY_INDEX = {"h": (0, 0), "l": (0, 1), "n": (1, 0), "p": (1, 1)}
+
+
+def spindle_block_problem(block) -> str | None:
+    """The likely column permutation of a spindle flange block that is not a point block as read, or ``None``.
+
+    A flange point block ``[[h, l], [n, p]]`` is passive (Im h <= 0, Im p <= 0 and the imaginary 2x2 block
+    negative semi-definite), reciprocal (l = n) and, in SI units, ordered |h| < |l| < |p| numerically (h in
+    m/N, l in 1/N, p in rad/(N m): each step divides by a length of the order of the spindle nose, so p
+    exceeds h by 1e2-1e4).  When the block as read breaks one of these and some other assignment of its four
+    columns to h, l, n, p satisfies all of them, that permutation is the likely mistake and is named.
+
+    Parameters
+    ----------
+    block : (n_freq, 2, 2) complex
+
+    Returns
+    -------
+    str or None
+        e.g. ``"the h/l/n/p columns look permuted: read as h = p_*, p = h_* ..."``; ``None`` when the block
+        is a point block as read, or when no permutation makes it one (the individual checks then name the
+        cause).
+    """
+    import itertools
+
+    b = np.asarray(block)
+    found = _flange_block_problems(b)
+    if not found:
+        return None
+    names = ("h", "l", "n", "p")
+    for perm in itertools.permutations(names):
+        if perm == names or perm == ("h", "n", "l", "p"):
+            continue
+        # perm[k]: the column read as names[k]
+        cand = np.empty_like(b)
+        for target, source in zip(names, perm):
+            cand[(slice(None), *_ENTRY_INDEX[target])] = b[(slice(None), *_ENTRY_INDEX[source])]
+        if _flange_block_problems(cand):
+            continue
+        moves = ", ".join(f"{t} = {s}_real/{s}_imag" for t, s in zip(names, perm) if t != s)
+        return (f"the h/l/n/p columns look permuted ({found[0]}): read as {moves} the block is passive, reciprocal "
+                "and ordered |h| < |l| < |p| as a flange block is (h in m/N is 1e2-1e4 x smaller than p in "
+                "rad/(N m)); check the column headers")
+    return None
+
+
+def check_spindle_block(block, what: str) -> None:
+    """Refuse (:class:`DataError`) a flange block whose columns are permuted or that is no passive point block.
+
+    First :func:`spindle_block_problem` (a permutation of the h/l/n/p columns, named), then the checks that
+    need no permutation to explain them: h and p passive (:func:`check_passive`), l = n
+    (:func:`check_reciprocal`, which warns between 10 and 50 %), |p| > |h| and a negative semi-definite
+    imaginary block.
+
+    Parameters
+    ----------
+    block : (n_freq, 2, 2) complex ``[[h, l], [n, p]]``
+    what : str
+        The file, for the message.
+    """
+    perm = spindle_block_problem(block)
+    if perm is not None:
+        raise DataError(f"{what}: {perm}")
+    b = np.asarray(block)
+    check_passive(b[:, 0, 0], f"{what}: h (h_real, h_imag)")
+    check_passive(b[:, 1, 1], f"{what}: p (p_real, p_imag)")
+    check_reciprocal(b, f"{what}: l and n")
+    mh, mp = float(np.median(np.abs(b[:, 0, 0]))), float(np.median(np.abs(b[:, 1, 1])))
+    if 0 < mp < FLANGE_P_OVER_H_MIN * mh:
+        raise DataError(f"{what}: median |p| = {mp:.3g} rad/(N m) is below median |h| = {mh:.3g} m/N; a flange "
+                        "block has p 1e2-1e4 x larger than h numerically (1/length^2): h and p columns swapped, or "
+                        "a column in other units?")
+    for problem in _flange_block_problems(b):
+        if problem.startswith("|Im l|"):
+            raise DataError(f"{what}: not a passive point block: {problem} (the imaginary 2x2 block of a passive "
+                            "point block is negative semi-definite): l and n in other units, or taken from another "
+                            "block?")
 
 
 def dominant_frequency(frequency_hz, values, lo: float | None = None, hi: float | None = None) -> float:

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..model.receptance import PointReceptance
 from .atomic import atomic_path
-from .checks import check_magnitude, check_passive, check_reciprocal
+from .checks import check_magnitude, check_spindle_block
 from .frf_csv import check_finite_columns, check_frequency_column, comment_lines, format_float, read_csv_columns
 
 __all__ = ["read_spindle_csv", "write_spindle_csv", "SPINDLE_COLUMNS"]
@@ -36,8 +36,10 @@ def read_spindle_csv(path, check: bool = True) -> PointReceptance:
     path : path-like
     check : bool
         Check the block as a measured point block (default): the direct
-        terms h and p passive and the cross terms reciprocal, see
-        :mod:`bayes_rcsa.io.checks`.  ``False`` only for files that are not
+        terms h and p passive, the cross terms reciprocal, |p| > |h| and the
+        imaginary block negative semi-definite, with a permutation of the
+        h/l/n/p columns named when one explains a failure
+        (:func:`bayes_rcsa.io.checks.check_spindle_block`).  ``False`` only for files that are not
         point blocks.
 
     Returns
@@ -72,9 +74,7 @@ def read_spindle_csv(path, check: bool = True) -> PointReceptance:
         block[:, i, j] = columns[f"{name}_real"] + 1j * columns[f"{name}_imag"]
     check_magnitude(f, block.reshape(f.size, 4), str(path))
     if check:
-        check_passive(block[:, 0, 0], f"{path}: h (h_real, h_imag)")
-        check_passive(block[:, 1, 1], f"{path}: p (p_real, p_imag)")
-        check_reciprocal(block, f"{path}: l and n")
+        check_spindle_block(block, str(path))
     return PointReceptance(f, block, source=str(path))
 
 

@@ -267,8 +267,8 @@ def influence_summary(influence: Sequence[dict]) -> dict:
     return out
 
 
-def frequencies_document(run: PredictionRun) -> dict:
-    """Content of ``frequencies.json``."""
+def frequencies_document(run: PredictionRun, warnings: Sequence[str] = ()) -> dict:
+    """Content of ``frequencies.json``; ``warnings``: every warning the command printed (data checks included)."""
     p = run.prediction
     pm = run.draws.parameters
     params = {n: {**quantile_dict(run.draws.values[n]), "unit": pm.unit(n), "sampled": n in run.draws.sampled}
@@ -286,6 +286,7 @@ def frequencies_document(run: PredictionRun) -> dict:
         "verdict_rule": VERDICT_RULE if run.identifiability is not None else None,
         "parameter_influence": list(p.influence),
         "parameter_influence_summary": influence_summary(p.influence),
+        "warnings": list(warnings),
     }
 
 
@@ -463,8 +464,11 @@ def _blocks(run: PredictionRun, images: Sequence[str]) -> list[tuple]:
     return blocks
 
 
-def write_prediction_outputs(run: PredictionRun, out_dir, plots: bool = True) -> list[Path]:
-    """Write frequencies.json, frf_bands.csv, plots and report.md/.html to ``out_dir``."""
+def write_prediction_outputs(run: PredictionRun, out_dir, plots: bool = True, warnings: Sequence[str] = ()) -> list[Path]:
+    """Write frequencies.json, frf_bands.csv, plots and report.md/.html to ``out_dir``.
+
+    ``warnings`` (the command's printed warnings) go into frequencies.json as ``"warnings"``.
+    """
     from ..inference.results import to_jsonable
     from . import plots as P
 
@@ -480,7 +484,7 @@ def write_prediction_outputs(run: PredictionRun, out_dir, plots: bool = True) ->
         images = ["natural_frequencies.png", "frf_zoom.png", "frf_bands.png"]
         written += [out / i for i in images]
     written.append(_write_bands_csv(out / "frf_bands.csv", run.prediction))
-    text = json.dumps(to_jsonable(frequencies_document(run)), indent=2, allow_nan=False)
+    text = json.dumps(to_jsonable(frequencies_document(run, warnings)), indent=2, allow_nan=False)
     with atomic_path(out / "frequencies.json") as tmp:
         tmp.write_text(text + "\n", encoding="utf-8")
     written.append(out / "frequencies.json")

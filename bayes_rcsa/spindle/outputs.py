@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -45,7 +45,7 @@ def _reliability_csv(result: SpindleIdentification) -> str:
 
 
 def write_outputs(setup: ArtifactSetup, results: Mapping[str, SpindleIdentification], out_dir,
-                  plots: bool = True, seed: int | None = None) -> dict:
+                  plots: bool = True, seed: int | None = None, warnings: Sequence[str] = ()) -> dict:
     """Write every output file; return the summary dict (also written as JSON).
 
     Parameters
@@ -56,6 +56,9 @@ def write_outputs(setup: ArtifactSetup, results: Mapping[str, SpindleIdentificat
     plots : bool
     seed : int, optional
         Recorded in the summary and the samples' metadata.
+    warnings : sequence of str
+        The warnings the command printed (data checks of the artifact FRFs included), recorded as
+        ``"warnings"`` in spindle_summary.json.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -112,6 +115,7 @@ def write_outputs(setup: ArtifactSetup, results: Mapping[str, SpindleIdentificat
         "directions": {d: r.summary() for d, r in results.items()},
         "samples_file": samples_file,
         "files": files + ["spindle_summary.json"],
+        "warnings": list(warnings),
     }
     atomic_write_text(out / "spindle_summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
     return summary
