@@ -25,6 +25,7 @@ _SLOW_FILES = {
     "test_inference_calibration.py": 110, "test_batch.py": 70, "test_discrepancy_workflow.py": 70,
     "test_demo.py": 50, "test_inference_cli.py": 40, "test_examples.py": 30, "test_checkpoint_resume.py": 30,
     "test_identifiability_acceptance.py": 30, "test_reliability_checks.py": 20, "test_design_growth_prior.py": 15,
+    "test_reliability_fs.py": 15, "test_reliability_batch.py": 12,
 }
 
 

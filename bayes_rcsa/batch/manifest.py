@@ -33,8 +33,10 @@ import dataclasses
 import hashlib
 import json
 import re
+import warnings
 from pathlib import Path
 
+from ..errors import DataWarning
 from ..io.tables import TableContext, did_you_mean, is_number, load_document
 
 __all__ = ["SetupJob", "load_manifest", "IDENTIFY_KEYS", "PREDICT_KEYS", "LOBES_KEYS"]
@@ -153,6 +155,14 @@ def _sub_table(ctx: TableContext, where: str, entry: dict, defaults: dict, key: 
     return merged
 
 
+def _inside(path: Path, folder: Path) -> bool:
+    """Whether ``path`` lies in ``folder`` or below, symbolic links followed (``..`` and links out count as outside)."""
+    try:
+        return path.resolve().is_relative_to(folder.resolve())
+    except OSError:
+        return False
+
+
 def load_manifest(path) -> tuple[SetupJob, ...]:
     """Read a manifest and build every setup's commands; refuse anything unknown before anything runs.
 
@@ -171,6 +181,12 @@ def load_manifest(path) -> tuple[SetupJob, ...]:
         duplicate or unusable names, setup files that do not exist, values of
         the wrong type.  The commands check the values themselves when they
         run (a bad value fails that setup only).
+
+    Warns
+    -----
+    DataWarning
+        A setup file outside the manifest's folder (``file = "../x/setup.toml"``, an absolute path or a
+        symbolic link out of it): allowed, named once per setup.
     """
     path = Path(path)
     doc = load_document(path, "batch manifest")
@@ -207,6 +223,12 @@ def load_manifest(path) -> tuple[SetupJob, ...]:
         setup_file = ctx.resolve(entry["file"])
         if not setup_file.is_file():
             raise ctx.bad(where, "file", entry["file"], f"an existing setup file ({setup_file} not found)")
+        if not _inside(setup_file, path.absolute().parent):
+            # policy (docs/scaling-out.md, "Setup files outside the manifest's folder"): allowed, with a warning
+            warnings.warn(f"{path}: {where} file = {entry['file']!r} lies outside the manifest's folder "
+                          f"({setup_file}); it is used, but moving or copying the library folder will not take it "
+                          "along, and on a cluster every worker must see it under the same path", DataWarning,
+                          stacklevel=2)
         ident = {k: v for k, v in {**defaults, **entry}.items() if k in IDENTIFY_KEYS}
         seed = ident.get("seed", 0)
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:

@@ -35,7 +35,8 @@ import time
 from pathlib import Path
 from typing import Callable, Sequence
 
-from ..io.atomic import atomic_write_text
+from ..errors import OutputError
+from ..io.atomic import atomic_write_text, is_io_error, output_error
 from .manifest import SetupJob
 from .threads import THREAD_VARIABLES, limit_threads
 
@@ -70,7 +71,10 @@ def collect_row(job: SetupJob, setup_dir: Path) -> dict:
         ``converged``, ``rhat_max``, ``ess_bulk_min``, ``n_steps``, every
         contact parameter's q05/q50/q95 (SI units), the dominant natural
         frequency's q05/q50/q95 (Hz) per predicted clamping length and
-        direction, and the recommended operating point of ``lobes``.
+        direction, the recommended operating point of ``lobes``, and
+        ``warnings`` (every step's warnings as ``"STEP: text"``, from its
+        summary.json, frequencies.json, lobes.json) with their count
+        ``n_warnings``.
     """
     row: dict = {}
     s = _read_json(setup_dir / "identify" / "summary.json")
@@ -91,6 +95,12 @@ def collect_row(job: SetupJob, setup_dir: Path) -> dict:
                 label = f"fn_{1e3 * e['clamping_length']:g}mm_{e['direction']}"
                 row.update(_quantiles(e, label, suffix="_hz"))
     lob = _read_json(setup_dir / "lobes" / "lobes.json")
+    # every step's warnings (data checks included), each named by its step: the table's warnings column
+    warns = []
+    for step, doc in (("identify", s), ("predict", f), ("lobes", lob)):
+        if isinstance(doc, dict) and isinstance(doc.get("warnings"), list):
+            warns += [f"{step}: {w}" for w in doc["warnings"]]
+    row.update({"n_warnings": len(warns), "warnings": warns})
     if lob is not None:
         rec = lob.get("recommended") or {}
         row.update({"lobes_speed_rpm": rec.get("spindle_speed_rpm"), "lobes_depth_m": rec.get("depth_m"),
@@ -126,6 +136,15 @@ def run_setup(job: SetupJob, setup_dir, run_command: Callable[[list[str]], int],
         Fault injection for the tests (:data:`KILL_HOOK_ENV` of the calling
         process): ``"NAME:STEP"`` SIGKILLs this worker before STEP of setup NAME.
 
+    Raises
+    ------
+    OutputError
+        The setup folder cannot be written (full disk, read-only or vanished folder): the half-made folder is
+        removed, and :func:`run_batch` stops (every other setup would fail the same way).  A step that fails
+        (exit status != 0, its own file-system failures included) is not an exception: the setup is
+        ``failed``; its folder keeps ``log.txt``, ``result.json`` and the outputs of the steps before the
+        failed one (the failed step removes its own), and the next batch run clears and reruns it.
+
     Returns
     -------
     dict
@@ -135,6 +154,18 @@ def run_setup(job: SetupJob, setup_dir, run_command: Callable[[list[str]], int],
     """
     limit_threads()
     d = Path(setup_dir)
+    try:
+        return _run_setup(job, d, run_command, kill_hook)
+    except BaseException as exc:
+        # the batch's own bookkeeping failed (full disk, read-only folder) or was interrupted: no half-made
+        # setups/NAME/ stays behind (a rerun would clear it anyway, but a listing would show it)
+        shutil.rmtree(d, ignore_errors=True)
+        if is_io_error(exc) and not isinstance(exc, OutputError):
+            raise output_error(exc, d) from exc
+        raise
+
+
+def _run_setup(job: SetupJob, d: Path, run_command: Callable[[list[str]], int], kill_hook: str) -> dict:
     if d.exists():
         shutil.rmtree(d)  # a half-done run: nothing of it is trusted
     d.mkdir(parents=True)
@@ -163,6 +194,7 @@ def run_setup(job: SetupJob, setup_dir, run_command: Callable[[list[str]], int],
            **collect_row(job, d)}
     atomic_write_text(d / _RESULT, json.dumps({"fingerprint": job.fingerprint(), "row": row}, indent=1,
                                               default=str))
+    (d / _STARTED).unlink()  # finished: the folder holds the setup's outputs, its log and result.json only
     return row
 
 
@@ -282,6 +314,10 @@ def run_batch(jobs: Sequence[SetupJob], out_dir, run_command: Callable[[list[str
                     finish(job, fut.result())
                 except cf.BrokenExecutor:
                     broken.append(job)
+                except OutputError:
+                    # the output folder cannot be written (full disk, read-only): every other setup would fail
+                    # the same way; the command reports it on one line and removes what this run made
+                    raise
                 except Exception as exc:  # the executor's report of a lost task (e.g. Dask's KilledWorker)
                     finish(job, _lost_row(job, f"worker lost: {type(exc).__name__}: {exc}"))
         finally:

@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from ..errors import SetupError
-from ._common import Summary, positive_int
+from ._common import Summary, command_warnings, merge_warnings, positive_int
 
 __all__ = ["register", "run"]
 
@@ -26,7 +26,10 @@ Resumable: a setup finished by an earlier run with the same options and setup fi
 recomputed; a half-done one (interrupted, killed, failed) is run again.  --force recomputes all.
 
 Writes to --out: setups/<name>/{identify,predict,lobes,log.txt,result.json} per setup and
-summary.csv, summary.html, summary.json across the library.  Exit status 1 when a setup failed.
+summary.csv, summary.html, summary.json across the library (a warnings column: every step's
+warnings).  Exit status 1 when a setup failed.  A setup file outside the manifest's folder is used
+with a warning.  A full disk or read-only --out ends the batch with one line (exit status 2) and
+removes what this run made there.
 """
 
 
@@ -60,7 +63,7 @@ def _dask_executor(address: str):
 
 def run(args: argparse.Namespace) -> Summary:
     from ..batch import load_manifest, run_batch, write_summary
-    from ..io.atomic import atomic_write_text, directory_is_empty, directory_lock
+    from ..io.atomic import atomic_write_text, directory_is_empty, directory_lock, new_output_directory
     from .main import main as run_command
 
     jobs = load_manifest(args.manifest)
@@ -80,18 +83,25 @@ def run(args: argparse.Namespace) -> Summary:
                   + (f" ({row['error']})" if row.get("error") else ""), file=sys.stderr, flush=True)
 
     try:
-        with directory_lock(out):
-            out.mkdir(parents=True, exist_ok=True)
+        # a full disk or read-only folder: one line, and what this run made in --out goes again (an earlier
+        # batch run's files stay, so a resumed library keeps its finished setups)
+        with directory_lock(out), new_output_directory(out):
             atomic_write_text(out / "batch.json", json.dumps({"manifest": str(args.manifest.resolve()),
                                                               "setups": [j.name for j in jobs]}, indent=1))
             result = run_batch(jobs, out, run_command, executor=executor, workers=workers, force=args.force,
                                progress=progress)
-            paths = write_summary(result.rows, out, title=args.manifest.name)
+            not_conv = [r["name"] for r in result.rows if r.get("converged") is False]
+            warns = merge_warnings(
+                command_warnings(),  # the manifest's (a setup file outside its folder)
+                (f"{n}: the posterior did not converge" for n in not_conv),
+                (f"{r['name']}: {r['status']}: {r['error']}" for r in result.rows if r["status"] != "done"),
+                (f"{r['name']}: {r['n_warnings']} warning(s) (see the warnings column)" for r in result.rows
+                 if r.get("n_warnings")))
+            paths = write_summary(result.rows, out, title=args.manifest.name, warnings=warns)
     finally:
         if client is not None:
             client.close()
     n_bad = len(jobs) - result.count("done")
-    not_conv = [r["name"] for r in result.rows if r.get("converged") is False]
     human = (f"{len(jobs)} setup(s): {result.count('done')} done ({len(result.reused)} from an earlier run), "
              f"{result.count('failed')} failed, {result.count('lost')} lost; table in {paths['html']}")
     return Summary(
@@ -99,7 +109,6 @@ def run(args: argparse.Namespace) -> Summary:
         {"out": str(out), "summary_csv": str(paths["csv"]), "summary_html": str(paths["html"]),
          "done": result.count("done"), "failed": result.count("failed"), "lost": result.count("lost"),
          "ran": result.ran, "reused": result.reused},
-        warnings=tuple(f"{n}: the posterior did not converge" for n in not_conv)
-        + tuple(f"{r['name']}: {r['status']}: {r['error']}" for r in result.rows if r["status"] != "done"),
+        warnings=tuple(warns),
         status=1 if n_bad else 0,
     )

@@ -26,6 +26,8 @@ convergence and the warnings that change the decision.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import re
 import sys
 from pathlib import Path
 
@@ -63,15 +65,50 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
+class _HoldErrorLines:
+    """A stderr that passes every line through except a step's ``error:`` line, which it keeps.
+
+    A failed step's error becomes the demo's one error line (naming the step) instead of a second line.
+    """
+
+    def __init__(self, stream):
+        self.stream, self.pending, self.errors = stream, "", []
+
+    def write(self, text: str) -> int:
+        self.pending += text
+        *lines, self.pending = self.pending.split("\n")
+        for line in lines:
+            if re.match(r"^bayes-rcsa \w+: error: ", line):
+                self.errors.append(line.split(": error: ", 1)[1])
+            else:
+                self.stream.write(line + "\n")
+        return len(text)
+
+    def __getattr__(self, name):  # isatty, encoding, fileno, ...: the wrapped stream's
+        return getattr(self.stream, name)
+
+    def flush(self) -> None:
+        if self.pending:
+            self.stream.write(self.pending)
+            self.pending = ""
+        self.stream.flush()
+
+
 def _step(title: str, argv: list[str]) -> None:
     from .main import main
 
     print(f"\n== {title}\n$ bayes-rcsa {' '.join(argv)}", file=sys.stderr)
-    status = main(argv)
+    held = _HoldErrorLines(sys.stderr)
+    with contextlib.redirect_stderr(held):
+        status = main(argv)
+    held.flush()
     if status != 0:
-        from ..errors import BayesRCSAError
+        from ..errors import BayesRCSAError, OutputError
 
-        raise BayesRCSAError(f"demo step '{argv[0]}' failed with exit status {status}")
+        why = held.errors[-1] if held.errors else f"exit status {status}"
+        # a full disk or read-only folder stays an output error (the same one line, exit status 2)
+        kind = OutputError if re.search(r"\(E[A-Z]+\)$", why) else BayesRCSAError
+        raise kind(f"step '{argv[0]}' failed: {why}")
 
 
 def run(args: argparse.Namespace) -> Summary:
