@@ -391,7 +391,7 @@ CORRUPTIONS = {
          for i, v in enumerate(r)] for r in rows])(p.parent),
 }
 FILES = ["tip_x_30mm.csv", "tip_y_30mm.csv", "spindle_x.csv"]
-COMMANDS = ["lobes", "simulate"]
+COMMANDS = ["lobes", "simulate", "identify"]
 
 
 def _finite_json(value) -> bool:
@@ -422,6 +422,9 @@ def test_corrupted_inputs_exit_0_with_finite_outputs_or_2_with_one_line(command,
     if command == "lobes":
         argv = ["lobes", "--measured-x", str(data / "tip_x_30mm.csv"), "--measured-y", str(data / "tip_y_30mm.csv"),
                 *SMALL, "--out", str(out), "--json"]
+    elif command == "identify":  # the cheapest identification: deterministic, one clamping length
+        argv = ["identify", str(data / "setup.toml"), "--lengths", "0.03", "--method", "deterministic", "--quiet",
+                "--no-plots", "--out", str(out), "--json"]
     else:
         argv = ["simulate", str(data / "setup.toml"), "--clamping-length", "0.03", "--kx", "1e7", "--ktheta", "1e5",
                 "--out", str(out / "h.csv"), "--json"]
@@ -439,6 +442,8 @@ def test_corrupted_inputs_exit_0_with_finite_outputs_or_2_with_one_line(command,
     assert _finite_json(doc)
     if command == "lobes":
         assert _finite_json(json.loads((out / "lobes.json").read_text()))
+    elif command == "identify":
+        assert _finite_json(json.loads((out / "summary.json").read_text()))
     else:
         body = (out / "h.csv").read_text().splitlines()
         values = np.array([[float(v) for v in ln.split(",")] for ln in body if ln and not ln[0].isalpha()
