@@ -5,8 +5,9 @@ Physics
 A rigid body of mass ``m`` fixed to the tip section, its centre of mass
 an axial distance ``e`` from the tip node (``e > 0`` beyond the tip, ``e < 0``
 towards the holder, e.g. a sensor glued on the flank flush with the tip)
-and its own rotary inertia ``m r_g^2`` about its centre (transverse axis),
-moves with the tip section as ``u_c = u + e psi``.  Its kinetic energy gives
+and its own rotary inertia ``m r_g^2`` about its centre (transverse axis;
+``r_g`` = half the tool's tip diameter, a body the size of the tool on its
+flank), moves with the tip section as ``u_c = u + e psi``.  Its kinetic energy gives
 the 2x2 mass matrix at the tip's (u, psi)::
 
     M = m [[1, e], [e, e^2 + r_g^2]],      Z = -w^2 M
@@ -24,16 +25,18 @@ substructures' tip impedance (:meth:`Substructures.add_tip`; the tool
 two-port then stays shared by all parameter sets, the cheap path); for
 ``e != 0`` the term folds the full ``Z`` into the tool two-port.
 
-Why three parameters.  The former term fixed ``e = 0`` and ``r_g`` = half
-the tip diameter.  On the project's bench with a body of ``r_g`` = 8 mm
-that form still closed the gap (0.042 -> 0.0004, noise-free, 25/40 mm,
-x/y) but only by biasing the contact (k_thetaM -11 %, its growth 0.28
-against 0.45); on the independent rotor bench (a 3 g cylinder on the
-flank, flush with the tip) it left k_thetaM 2.6 times too stiff with its
-growth on the prior bound, and the discrepancy workflow named
+Why the offset.  The former term fixed ``e = 0``.  On the independent
+rotor bench (a 3 g cylinder on the flank, flush with the tip) it left
+k_thetaM 2.6 times too stiff with its growth on the prior bound
+(noise-free, 25/40 mm, x/y), and the discrepancy workflow named
 ``fluted_section`` instead.  With the offset the rotor bench's gap closes
 0.040 -> 0.0002 with the contact at its truth (fitted ``e`` = -3.5 mm,
-``m`` = 3.03 g); with a free ``r_g`` the bench's closes exactly.
+``m`` = 3.03 g), and the workflow names ``tip_mass`` (gap 0.046 -> noise
+floor).  A free ``r_g`` as a third parameter was tried: it made the bench's
+body of ``r_g`` = 8 mm exact (the fixed ``r_g`` closes its gap
+0.042 -> 0.0004 but biases k_thetaM by +11 %), but ``e`` and ``r_g`` are
+nearly degenerate (the rotary inertia ``m (e^2 + r_g^2)`` is what the data
+see) and on noisy bench campaigns the fit ran ``r_g`` onto its bound 0.
 
 Parameters
 ----------
@@ -42,15 +45,10 @@ Parameters
 ``tip_mass_offset_m`` (m): axial offset ``e`` of the body's centre of mass
     from the tip node.  Prior uniform on [-0.01, 0.01] m (a body of at most
     2 cm mounted on the flank or the end face); baseline 0.
-``tip_mass_radius_of_gyration_m`` (m): ``r_g`` of the body about its
-    centre for bending of the tool.  Prior uniform on [0, 0.01] m (a point
-    mass up to a 2 cm body on the tool's flank); baseline half the tip
-    diameter of the setup's first tool (the former fixed value).
 
 Without a model (``parameters(None)``, e.g. a hand-made parameter model)
-only ``tip_mass_kg`` is declared and the hook uses ``e = 0`` and ``r_g`` =
-half each configuration's tip diameter, the former term exactly; so does
-any caller that omits the two geometry values.
+only ``tip_mass_kg`` is declared and the hook uses ``e = 0``, the former
+term exactly; so does any caller that omits the offset.
 
 Override in the setup::
 
@@ -59,10 +57,12 @@ Override in the setup::
     tip_mass_kg = [0.0, 0.005]          # uniform bounds, kg
     # or: tip_mass_kg = 0.0021          # fixed, e.g. the sensor's data-sheet mass
 
-Can represent: any rigid body fixed to the tip section (mass, axial
-position of its centre, rotary inertia).  Cannot represent: a compliant
-mount (the body's own resonance), a radial offset's coupling to axial or
-torsional motion, and bodies whose inertia differs between x and y.
+Can represent: a rigid body fixed to the tip section, with its mass and
+the axial position of its centre (rotary inertia ``m (e^2 + r_g^2)``).
+Cannot represent: an own rotary inertia far from ``m (d_tip / 2)^2`` (a
+large flat body: the contact's rotational stiffness absorbs the rest), a
+compliant mount (the body's own resonance), a radial offset's coupling to
+axial or torsional motion, and bodies whose inertia differs between x and y.
 """
 
 from __future__ import annotations
@@ -78,8 +78,8 @@ from .base import ModelTerm
 
 __all__ = ["TipMass", "tip_radius_of_gyration", "add_end_impedance", "add_end_dynamic_stiffness"]
 
+#: Bound of the offset prior, m (a body of at most 2 cm on the flank or the end face).
 OFFSET_MAX = 0.01
-RG_MAX = 0.01
 
 
 def tip_radius_of_gyration(model, configurations) -> np.ndarray:
@@ -117,23 +117,17 @@ class TipMass(ModelTerm):
     description = ("a small mass such as an accelerometer at the tool tip (mass m, centre e beyond the tip, rotary "
                    "inertia m (e^2 + r_g^2))")
     parameter_name = "tip_mass_kg"
-    #: a point mass (r_g = 0) is a physical limit, not a chosen range
-    physical_bounds = {"tip_mass_radius_of_gyration_m": (0.0,)}
 
     def parameters(self, model) -> tuple[Parameter, ...]:
         mass = (Parameter(self.parameter_name, "kg", "term", prior=Uniform(0.0, 0.02), label="tip mass (kg)",
                           baseline=0.0, term=self.name, description="mass of the body at the tool tip"),)
         if model is None:
             return mass
-        rg0 = 0.5 * next(iter(model.tools.values())).segments[-1].diameter if getattr(model, "tools", None) else 0.004
         return mass + (
             Parameter("tip_mass_offset_m", "m", "term", prior=Uniform(-OFFSET_MAX, OFFSET_MAX),
                       label="tip mass offset (m)", baseline=0.0, term=self.name,
                       description="axial distance of the body's centre of mass beyond the tip node (negative: "
                                   "towards the holder)"),
-            Parameter("tip_mass_radius_of_gyration_m", "m", "term", prior=Uniform(0.0, RG_MAX),
-                      label="tip mass radius of gyration (m)", baseline=min(rg0, RG_MAX), term=self.name,
-                      description="radius of gyration of the body about its centre, for bending of the tool"),
         )
 
     def substructures(self, values, subs, ctx):
@@ -141,10 +135,7 @@ class TipMass(ModelTerm):
         if not np.any(m):
             return subs  # the baseline: nothing to add (and nothing recomputed)
         w2 = (ctx.omega**2)[None, :]
-        if "tip_mass_radius_of_gyration_m" in values:
-            rg2 = (np.asarray(values["tip_mass_radius_of_gyration_m"], dtype=float) ** 2)[:, None]
-        else:
-            rg2 = (tip_radius_of_gyration(ctx.model, ctx.configurations)[ctx.line_config] ** 2)[None, :]
+        rg2 = (tip_radius_of_gyration(ctx.model, ctx.configurations)[ctx.line_config] ** 2)[None, :]
         z_u = -m[:, None] * w2  # (n_sets, n_lines) N/m
         e = np.asarray(values.get("tip_mass_offset_m", np.zeros_like(m)), dtype=float)[:, None]
         if not np.any(e):
