@@ -172,9 +172,13 @@ def coverage_cases(args, rows: list, rng):
     r = np.array(ratios, dtype=float)
     mr = np.array([m[0] for m in mismatch], dtype=float)
     fired = sum(m[1] for m in mismatch)
+    other = [m for m in mismatch if m[2]]
+    same = [m for m in mismatch if not m[2]]
     print(f"\n3. hits' scatter / coherence-derived error: same setup median {np.median(r):.2f} (range {r.min():.2f}-"
           f"{r.max():.2f}); mismatched hits median {np.median(mr):.1f} (range {mr.min():.1f}-{mr.max():.1f}), "
-          f"warning (factor 3) fired in {fired}/{len(mismatch)}")
+          f"warning (factor 3) fired in {fired}/{len(mismatch)}: {sum(m[1] for m in other)}/{len(other)} pairs of "
+          f"another clamping length, {sum(m[1] for m in same)}/{len(same)} of the same length with another contact "
+          f"stiffness (ratios {', '.join(f'{m[0]:.1f}' for m in same)})")
     return per, robust
 
 
