@@ -269,6 +269,7 @@ def test_uff58_file_with_several_records_gives_repeats(tmp_path, measured):
     ("averages-negative", "--averages '-3'"),
     ("header-averages-zero", "averages = '0'"),
     ("confidence-and-level", "differ"),
+    ("one-realisation", "--draws >= 2"),
 ])
 def test_bad_input_one_line_exit_2(tmp_path, measured, capsys, case, fragment):
     x, y = measured["x1"], measured["y1"]
@@ -288,6 +289,8 @@ def test_bad_input_one_line_exit_2(tmp_path, measured, capsys, case, fragment):
         x = write_frf(tmp_path / "zero.csv", F, MX.frf(F), np.full(F.size, 0.99), header=["averages = 0"])
     elif case == "confidence-and-level":
         extra = ["--confidence", "0.9", "--level", "0.8"]
+    elif case == "one-realisation":
+        extra = ["--draws", "1"]
     out = tmp_path / "o"
     status, cap = run(["lobes", "--measured-x", x, "--measured-y", y, *COMMON, "--speeds", "6000:20000:40", *extra,
                        "--out", str(out)], capsys)

@@ -101,6 +101,9 @@ def measured_frf_draws(spec_x: str, spec_y: str, averages: int | None, n_draws: 
     mx = read_measured_direction(spec_x, averages, "--measured-x")
     my = read_measured_direction(spec_y, averages, "--measured-y")
     deterministic = mx.model == "none" and my.model == "none"
+    if not deterministic and n_draws < 2:
+        raise SetupError(f"--draws {n_draws}: the measured FRFs carry a random error ({mx.model} in X, {my.model} "
+                         "in Y); its realisations need --draws >= 2 (default 500)")
     gx = draw_measured_frf(mx, n_draws, rng)
     gy = draw_measured_frf(my, n_draws, rng)
     fx, fy = mx.frequency_hz, my.frequency_hz
