@@ -105,27 +105,12 @@ from . import register_term
 from .base import ModelTerm
 from .flange_modal import BlockModes, model_block_modes
 
-__all__ = ["SpindleError", "support_scales", "add_support_stiffness", "changing_modes", "KAPPA_PRIOR"]
+__all__ = ["SpindleError", "add_support_stiffness", "changing_modes", "KAPPA_PRIOR"]
 
 #: Prior of every relative modal stiffness change: normal(0, 0.2) truncated to [-0.5, 1].
 KAPPA_PRIOR = Normal(0.0, 0.2, -0.5, 1.0)
 #: Most flange modes given a change (the workflow's evidence pays for every parameter).
 MAX_CHANGING = 4
-
-
-def support_scales(model) -> tuple[float, float]:
-    """Typical translational (N/m) and rotational (N m/rad) dynamic stiffness of the spindle files.
-
-    Medians of ``1 / |h|`` and ``1 / |p|`` over the x file's band (the first
-    file if there is no x file); for a translation-only file (``p = 0``)
-    the rotational scale is ``k_u (0.05 m)^2``.
-    """
-    r = model.spindle.get("x") or next(iter(model.spindle.values()))
-    h = np.abs(r.block[:, 0, 0])
-    p = np.abs(r.block[:, 1, 1])
-    k_u = float(np.median(1.0 / h[h > 0])) if np.any(h > 0) else 1e7
-    k_psi = float(np.median(1.0 / p[p > 0])) if np.any(p > 0) else k_u * 0.05**2
-    return k_u, k_psi
 
 
 def add_support_stiffness(spindle: np.ndarray, dk_u, dk_psi, dk_coupling=None) -> np.ndarray:
