@@ -248,6 +248,8 @@ def bound_warnings(fit: ModelFit, rel: float = 0.01) -> list[str]:
     the truncated Laplace draws may spread far from the bound when the
     curvature is weak, yet the bound still sets the value.
     """
+    from ..params.terms import get_term
+
     pm = fit.problem.parameters
     noise = set(pm.noise_names)
     bounds = fit.problem.priors.optimisation_bounds()
@@ -259,11 +261,15 @@ def bound_warnings(fit: ModelFit, rel: float = 0.01) -> list[str]:
         lo, hi = bounds[j]
         plo, phi = prior.bounds
         width = hi - lo
+        # a bound its term declares physical (a resonator at the flange, a fraction of 1) is an answer, not a pile-up
+        physical = getattr(get_term(pm[name].term), "physical_bounds", {}).get(name, ()) if pm[name].term else ()
         for side, b, finite in (("lower", lo, np.isfinite(plo)), ("upper", hi, np.isfinite(phi))):
             if not finite or abs(fit.theta[j] - b) > rel * width:
                 continue
             value = float(prior.to_physical(b))
             if pm[name].baseline is not None and np.isclose(value, pm[name].baseline, rtol=1e-9, atol=1e-12):
+                continue
+            if any(np.isclose(value, v, rtol=1e-9, atol=1e-12) for v in physical):
                 continue
             unit = pm.unit(name)
             out.append(f"{name}: the fit lies on the {side} bound {value:.4g}{'' if unit == '1' else ' ' + unit} of "
