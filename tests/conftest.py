@@ -25,7 +25,8 @@ _SLOW_FILES = {
     "test_inference_calibration.py": 110, "test_batch.py": 70, "test_discrepancy_workflow.py": 70,
     "test_demo.py": 50, "test_inference_cli.py": 40, "test_examples.py": 30, "test_checkpoint_resume.py": 30,
     "test_identifiability_acceptance.py": 30, "test_reliability_checks.py": 20, "test_design_growth_prior.py": 15,
-    "test_reliability_fs.py": 15, "test_reliability_batch.py": 12,
+    "test_reliability_fs.py": 15, "test_reliability_batch.py": 12, "test_term_generators.py": 26,
+    "test_discrepancy_generators.py": 25, "test_lobes_measured.py": 11, "test_term_spindle_rotation.py": 14,
 }
 
 
