@@ -1,4 +1,5 @@
-"""Benchmark of the stability-lobe solvers (run: ``python benchmarks/lobes.py [--posterior P] [--skip-old]``).
+"""Benchmark of the stability-lobe solvers (run: ``python benchmarks/lobes.py [--posterior P] [--skip-old]``;
+``--end-to-end [--peer-dir DIR]``: the command end to end against the peer, see benchmarks/lobes_peer.py).
 
 Cases (acceptance budgets in brackets):
 
@@ -257,9 +258,19 @@ def main(argv=None) -> int:
                     help="only the end-to-end case of benchmarks/lobes_measured.py: deterministic 'lobes' on the "
                     "bundled 30 mm files at 25001 speeds, current tree and before issue 22, ratio to the peer")
     ap.add_argument("--peer-seconds", type=float, default=3.3, help="peer end-to-end time in s (with --end-to-end)")
+    ap.add_argument("--peer-dir", help="with --end-to-end: directory holding the peer's AltintasSLD.m (default "
+                    "$BAYES_RCSA_PEER_DIR); the peer then runs in octave-cli alternately with the project, >= 5 "
+                    "runs each (benchmarks/lobes_peer.py); skipped with a message without it or octave-cli")
     args = ap.parse_args(argv)
     if args.end_to_end:
         sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from lobes_peer import find_peer, run as peer_run
+
+        peer_file, why = find_peer(args.peer_dir)
+        if peer_file is not None:
+            peer_run(args.peer_dir, max(args.runs, 5))
+            return 0
+        print(f"peer not run: {why}; using --peer-seconds {args.peer_seconds:g} (see benchmarks/lobes_peer.py)")
         from lobes_measured import end_to_end
 
         end_to_end(args, [])
