@@ -110,3 +110,13 @@ def test_summary_of_an_unusable_result_writes_no_trustworthy_interval(modulus):
     assert "grew" in text and "stay honest" not in text
     rows = [line for line in text.splitlines() if line.startswith("| x 25 mm") or line.startswith("| y 25 mm")]
     assert rows and all("(not usable)" in line for line in rows if "no matching" not in line)
+
+
+def test_adequate_at_the_fitted_lengths_but_not_carrying_says_so(clean):
+    res, _ = clean
+    r = res.report
+    # the clean two-length fit carries to the held-out length: nothing to say
+    assert r["gap_held_out_after"] is not None and "does not carry" not in summary_markdown(r)
+    # a fit that explains its own lengths but misses the others by 130 % (one fitted length) must say so
+    text = summary_markdown(dict(r, adequate=True, gap_held_out_after=1.3))
+    assert "explains the measurements it was fitted to" in text and "does not carry" in text and "130 %" in text

@@ -48,7 +48,8 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    from ..discrepancy.workflow import DiscrepancyOptions, run_discrepancy, validate, write_discrepancy
+    from ..discrepancy.workflow import (HELD_OUT_GAP_NOTE, DiscrepancyOptions, run_discrepancy, validate,
+                                        write_discrepancy)
     from ..io.atomic import directory_lock
     from ..io.setup import load_setup
 
@@ -78,7 +79,13 @@ def run(args: argparse.Namespace) -> Summary:
         both = " + ".join([r["named_effect"], *r["also_named"]])
         human = f"named {both}{extra}: {gap}; wrote {out}/discrepancy.json and setup.amended.toml"
     elif r["adequate"]:
-        human = f"model adequate, nothing named (systematic gap {pct('gap_before')}); wrote {out}/discrepancy.json"
+        held = r.get("gap_held_out_after")
+        if held is not None and held > HELD_OUT_GAP_NOTE:
+            gaps = (f"systematic gap {100 * r['gap_fitted_after']:.3g} % at the fitted lengths, {100 * held:.3g} % "
+                    "at the others, where the fit does not carry")
+        else:
+            gaps = f"systematic gap {pct('gap_before')}"
+        human = f"model adequate, nothing named ({gaps}); wrote {out}/discrepancy.json"
     else:
         human = f"model inadequate and no known effect explains it: statistical discrepancy added ({gap}); " \
                 f"wrote {out}/discrepancy.json"
