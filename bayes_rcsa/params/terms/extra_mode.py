@@ -60,17 +60,32 @@ generator, resonance                       seeds   workflow: named, gap         
 =========================================  ======  =============================  ===============
 bench, 0.2 kg, 1 kHz, at the flange        3 / 5   yes, 0.074 -> 0.007 / 0.075 -> 0   0.012 -> 0.000
 bench, 0.2 kg, 1 kHz, at the holder tip    3 / 5   yes, 0.019 -> 0.005 / 0.019 -> 0   0.020 -> 0.000
-rotor, ring on the collet nut, 2.4 kHz     3 / 5   NO: spindle_error named (+ rotation), 0.91 -> 0.015   0.34 -> 0.28
+rotor, ring on the collet nut, 2.4 kHz     3 / 5   NO: spindle_error named (+ rotation), 0.91 -> 0.015   0.347 -> 0.0002
 =========================================  ======  =============================  ===============
 
-The rotor's ring also rocks on its fit (a rotational resonance at the
-holder tip); a translational resonator cannot represent it (limit below).
+The rotor's ring also rocks on its fit, yet its translation carries the
+effect: noise-free, the positioned translational resonator fits it with
+m = 0.12 kg, 2.36 kHz, 3.2 %, a = 0.92 (ring 0.136 kg, 2.4 kHz, 3 %, centre
+at a = 0.875), gap 0.347 -> 0.0002 over 600-2000 Hz and 0.337 -> 0.0067
+over the whole file (500-3500 Hz).  (The former entry 0.34 -> 0.28 was an
+artefact of the validation helper, which capped every term bound at 1e3,
+i.e. the frequency at 1 kHz.)  Generalisations of the attachment were
+fitted the same way and rejected, since they add parameters the data do not
+determine: a rank-one ``z v v^T`` on ``(u, psi)`` with ``v = (1, b)``, b a
+lever within +-the holder length, returns ``|b|`` <= 5 mm (within the
+ring's half-length, i.e. a shift of ``a``) and no gain; a rigid body on
+translational and rocking springs (rank two: + radius of gyration and
+rocking frequency) lowers the whole-file gap only to 0.0058, because the
+rocking resonance lies above the tool modes and the fitted band.  The
+workflow's failure to name the term on the rotor bench is therefore not a
+missing physical effect (see the report of the generalisation study).
 
 Can represent: a translational resonance attached anywhere along a
 (locally rigid) holder, from the spindle nose to the collet nut.
 
-Cannot represent: a resonator that also rocks (rotational coupling, e.g. a
-ring tilting on its fit), one inside the spindle behind the flange (there a
+Cannot represent: a rocking resonance of the attached part near the tool
+modes (a ring tilting on its fit with its rocking frequency in the fitted
+band; the rotor's ring rocks above it and is represented), one inside the spindle behind the flange (there a
 flange resonator is only an equivalent), the holder's own bending between
 its ends at the attachment point (linear interpolation), and more than one
 extra resonance.
