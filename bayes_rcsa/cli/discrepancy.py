@@ -15,7 +15,7 @@ DESCRIPTION = """\
 Fit the setup's model, look for systematic disagreement with the measurements (residual correlation,
 resonance shifts, trends with clamping length, prior-bound pile-up), rank the candidate effects
 (model terms: contact_damping, tip_mass, fluted_section, extra_mode, nonlinear_stiffness_law,
-spindle_error, spindle_rotation_omitted, ...) by a score test, refit the best few, and name the
+spindle_error, spindle_rotation_omitted, ...) by a score test, refit them, and name the
 one the tempered evidence supports.  Nothing named but the model inadequate: a statistical
 discrepancy term widens the intervals instead.
 
@@ -40,7 +40,8 @@ def register(subparsers) -> None:
     p.add_argument("--candidates", default=None, metavar="A,B,...",
                    help="candidate effects to test (default: every registered effect not in the setup's [model])")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="random seed (default 0)")
-    p.add_argument("--refit", type=positive_int, default=3, metavar="N", help="candidates refitted after screening (default 3)")
+    p.add_argument("--refit", type=positive_int, default=None, metavar="N",
+                   help="refit only the N best candidates of the score test (default: refit every candidate)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     add_force_argument(p)
     p.add_argument("--verbose", action="store_true", help="one progress line per step on stderr")

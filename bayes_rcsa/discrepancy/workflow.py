@@ -69,8 +69,11 @@ class DiscrepancyOptions:
     candidates : tuple of str or None
         Candidate term names; default every registered physical term not already in the setup's ``[model]``.
     seed : int
-    n_refit : int
-        Candidates refitted after screening.
+    n_refit : int or None
+        Candidates refitted after screening; None (the default) refits every candidate.  The score test is a
+        linearised test at the baseline, whose contact may be bent by the very effect that is missing (on the
+        rotor bench a ring on the collet nut ranked fifth of seven there and was named, criterion 324 against
+        233, once refitted), so it only orders the refits; a limit trades that safety for time.
     leave_one_out : bool
         Leave-one-length-out transfer check with three or more fitted lengths.
     """
@@ -78,7 +81,7 @@ class DiscrepancyOptions:
     lengths: tuple | None = None
     candidates: tuple | None = None
     seed: int = 0
-    n_refit: int = 3
+    n_refit: int | None = None
     leave_one_out: bool = True
 
 
@@ -546,7 +549,7 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
     say("screen: " + ", ".join(f"{s.effect} {s.statistic:.3g}" for s in scores))
 
     t0 = time.perf_counter()
-    refits = [refit_candidate(baseline, problems[s.effect], s) for s in scores[: options.n_refit]]
+    refits = [refit_candidate(baseline, problems[s.effect], s) for s in scores[: options.n_refit]]  # None: all
     t["refits_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
