@@ -84,8 +84,10 @@ def _frequency_plot(res, path: Path, label_after: str) -> None:
     ax.axhline(0, color="k", lw=0.5)
     # linear within +-0.5 % (the errors of a good fit), logarithmic beyond (the intervals of an unexplained remainder)
     ax.set_yscale("symlog", linthresh=0.5)
+    lo, hi = ax.get_ylim()
+    ax.set_ylim(lo * 1.5 if lo < 0 else lo, hi * 1.5 if hi > 0 else hi)  # room for the end markers
     ax.set_xlabel("clamping length [mm]")
-    ax.set_ylabel("mode frequency error [%]\n(model mode - measured mode, 90 % interval)")
+    ax.set_ylabel("mode k error [%], model - measured\n(bars: model 90 % interval)", fontsize=8)
     ax.legend(fontsize=7)
     fig.tight_layout()
     save_png(fig, path)
