@@ -150,6 +150,11 @@ def test_prediction_usability_rules():
     assert prediction_usability(_eval(unmatched=[(1627.0, 0.1)]), before, 0.001)[0]  # weak peaks do not count
     ok, why = prediction_usability(_eval(gap=0.05), before, 0.001)
     assert not ok and "grew" in why[0]
+    # a model whose FRF misses the fitted data by 30 % is not usable even where its frequencies are right
+    shapeless = dict(_eval(gap=0.01), gap_fitted=0.3)
+    ok, why = prediction_usability(shapeless, before, 0.001)
+    assert not ok and "30 %" in why[0]
+    assert prediction_usability(dict(_eval(gap=0.01), gap_fitted=0.1), before, 0.001)[0]
     # a named physical model: a near miss (measured 1500 Hz, median 1495 Hz, sd 4 Hz) is chance, a gross one is not
     near = _eval(fitted_cover=False)
     near["measurements"][0]["modes"][0]["predictive_sd_hz"] = 4.0
