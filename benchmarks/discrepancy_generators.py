@@ -198,7 +198,7 @@ def out_of_library(gen: Generator, n: int, root: Path, times: list, cases=OUT_OF
                 for key in tot:
                     tot[key][0] += c[key][0]
                     tot[key][1] += c[key][1]
-            print(f"[{gen.name}] {label} seed {seed}: named {r['named_effect']}, final {r['final_model']}, usable "
+            print(f"[{gen.name}] {effect} seed {seed}: named {r['named_effect']}, final {r['final_model']}, usable "
                   f"{usable}, coverage {c} ({t:.1f} s)", flush=True)
         rows.append(f"| `{effect}` | {named}/{n} | {reported}/{n} | {unusable}/{n} | "
                     + " | ".join(frac(*tot[key]) for key in ("fit_model", "fit_pred", "held_model", "held_pred")) + " |")
