@@ -114,5 +114,6 @@ def run(args) -> Summary:
             print(f"spindle: {d}: {s['modal_model']['n_modes']} modes, reduced chi2 {s['reduced_chi2']:.3g}, "
                   f"unreliable bands: {bands}", file=sys.stderr)
     files = {d: f"spindle_{d}.csv" for d in results}
-    return Summary(f"wrote {', '.join(files.values())} and {summary['samples_file']} in {args.out}",
+    written = [*files.values(), *([summary["samples_file"]] if summary["samples_file"] else [])]  # --samples 0: none
+    return Summary(f"wrote {', '.join(written)} in {args.out}",
                    {"out": str(args.out), "spindle_files": files, "samples": summary["samples_file"]})
