@@ -17,10 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 
 from bayes_rcsa.cli.main import main
 from bayes_rcsa.data import example_dir
@@ -372,80 +369,4 @@ def test_family_case(case: Case, tmp_path, capsys, monkeypatch):
             assert any(f in w for w in written), (f, written)
 
 
-# --------------------------------------------------------------------------- property test
-
-
-CORRUPTIONS = {
-    "scale-1000": lambda p: _scale_column(p.name, "real", 1000.0)(p.parent),
-    "negate-imag": lambda p: _scale_column(p.name, "imag", -1.0)(p.parent),
-    "rad-per-s": lambda p: _scale_column(p.name, "frequency_hz", 2 * math.pi)(p.parent),
-    "truncate-3": lambda p: _keep_rows(p.name, 3)(p.parent),
-    "empty": lambda p: p.write_bytes(b""),
-    "binary": lambda p: p.write_bytes(bytes(range(256))),
-    "latin1-comment": lambda p: p.write_bytes("# °C ü\n".encode("latin-1") + p.read_bytes()),
-    "nan-cell": lambda p: p.write_text(p.read_text(encoding="latin-1").replace("\n5", "\nnan", 1)),
-    "cut-line": lambda p: p.write_text(p.read_text(encoding="latin-1")[: len(p.read_text(encoding="latin-1")) // 2]
-                                       .rsplit(",", 1)[0] + "\n"),
-    "swap-real-imag": lambda p: _data_rows(p.name, lambda rows, h: [
-        [r[h.index("imag")] if i == h.index("real") else r[h.index("real")] if i == h.index("imag") else v
-         for i, v in enumerate(r)] for r in rows])(p.parent),
-}
-FILES = ["tip_x_30mm.csv", "tip_y_30mm.csv", "spindle_x.csv"]
-COMMANDS = ["lobes", "simulate", "identify"]
-
-
-def _finite_json(value) -> bool:
-    if isinstance(value, float):
-        return math.isfinite(value)
-    if isinstance(value, dict):
-        return all(_finite_json(v) for v in value.values())
-    if isinstance(value, list):
-        return all(_finite_json(v) for v in value)
-    return True
-
-
-@settings(max_examples=14, deadline=None, database=None, derandomize=True,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
-@given(command=st.sampled_from(COMMANDS),
-       corruptions=st.lists(st.tuples(st.sampled_from(FILES), st.sampled_from(sorted(CORRUPTIONS))), max_size=2))
-def test_corrupted_inputs_exit_0_with_finite_outputs_or_2_with_one_line(command, corruptions, tmp_path_factory):
-    import contextlib
-    import io
-
-    tmp = tmp_path_factory.mktemp("prop")
-    data = tmp / "data"
-    shutil.copytree(example_dir(), data)
-    for name, kind in corruptions:
-        with contextlib.suppress(ValueError, IndexError):  # an earlier corruption left nothing to corrupt
-            CORRUPTIONS[kind](data / name)
-    out = tmp / "out"
-    if command == "lobes":
-        argv = ["lobes", "--measured-x", str(data / "tip_x_30mm.csv"), "--measured-y", str(data / "tip_y_30mm.csv"),
-                *SMALL, "--out", str(out), "--json"]
-    elif command == "identify":  # the cheapest identification: deterministic, one clamping length
-        argv = ["identify", str(data / "setup.toml"), "--lengths", "0.03", "--method", "deterministic", "--quiet",
-                "--no-plots", "--out", str(out), "--json"]
-    else:
-        argv = ["simulate", str(data / "setup.toml"), "--clamping-length", "0.03", "--kx", "1e7", "--ktheta", "1e5",
-                "--out", str(out / "h.csv"), "--json"]
-    err, std = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(std):
-        rc = main(argv)
-    text = err.getvalue()
-    assert "Traceback" not in text, text
-    if rc == 2:
-        assert len(text.strip().splitlines()) == 1, text
-        assert not out.exists()
-        return
-    assert rc == 0, text
-    doc = json.loads(std.getvalue())
-    assert _finite_json(doc)
-    if command == "lobes":
-        assert _finite_json(json.loads((out / "lobes.json").read_text()))
-    elif command == "identify":
-        assert _finite_json(json.loads((out / "summary.json").read_text()))
-    else:
-        body = (out / "h.csv").read_text().splitlines()
-        values = np.array([[float(v) for v in ln.split(",")] for ln in body if ln and not ln[0].isalpha()
-                           and not ln.startswith("#")])
-        assert np.isfinite(values).all()
+# The property test (every command, any subset of corrupted inputs) is tests/test_reliability_property.py.
