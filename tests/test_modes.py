@@ -115,7 +115,8 @@ def test_mode_entries_report_every_mode_with_consistent_intervals():
     assert me["prominent_mode_differs"] and me["unmatched_measured_hz"] == [] and len(me["modes"]) == 2
     for m in me["modes"]:
         q, qp = m["model_interval"], m["predictive_interval"]
-        assert q["q05"] <= m["model_hz"] <= q["q95"]  # the point estimate inside its own interval
+        assert q["q05"] <= m["model_hz"] <= q["q95"] and m["model_hz"] == q["q50"]  # the median: inside its interval
+        assert abs(m["model_map_hz"] - m["model_hz"]) < 5.0  # and near the MAP mode (draws spread ~0.2 % = 3 Hz)
         assert qp["q95"] - qp["q05"] >= q["q95"] - q["q05"]  # noise only widens
         assert m["error_pct"] == pytest.approx(100 * (m["model_hz"] - m["measured_hz"]) / m["measured_hz"])
     top = [m for m in me["modes"] if m["most_prominent_measured"]]

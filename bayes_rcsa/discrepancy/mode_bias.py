@@ -109,8 +109,8 @@ def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Gen
             shift = mu + math.sqrt(v) * rng.standard_normal(fd.shape)
             q, qp = _quantiles(fd + shift), _quantiles(fp + shift)
             fm = md["measured_hz"]
-            md.update({"uncorrected_model_hz": md["model_hz"], "model_hz": md["model_hz"] + float(mu),
-                       "error_pct": 100.0 * (md["model_hz"] + float(mu) - fm) / fm,
+            md.update({"uncorrected_model_hz": md["model_hz"], "model_hz": q["q50"],
+                       "error_pct": 100.0 * (q["q50"] - fm) / fm,
                        "uncorrected_model_interval": md["model_interval"],
                        "uncorrected_predictive_interval": md["predictive_interval"],
                        "bias_hz": {"mean": float(mu), "sd": float(math.sqrt(v))},

@@ -266,9 +266,13 @@ def mode_entries(f: np.ndarray, measured: np.ndarray, h_map: np.ndarray, h_draws
         if np.isfinite(q["q05"]) and not (q["q05"] - df <= fmap[i] <= q["q95"] + df):
             raise ModelError(f"mode bookkeeping: model mode {i} at {fmap[i]:.1f} Hz lies outside its own 90 % "
                              f"interval [{q['q05']:.1f}, {q['q95']:.1f}] Hz")
-        modes.append({"measured_hz": fm, "measured_height": mm[j].height, "model_hz": float(fmap[i]),
+        # the point estimate is the median of the tracked draws, inside its own interval by construction (the
+        # MAP's mode, kept as model_map_hz, can sit on an interval's end when the draws pile up on a line)
+        point = q["q50"] if np.isfinite(q["q50"]) else float(fmap[i])
+        modes.append({"measured_hz": fm, "measured_height": mm[j].height, "model_hz": point,
+                      "model_map_hz": float(fmap[i]),
                       "model_height": pm[i].height, "model_interval": q, "predictive_interval": qp,
-                      "error_pct": 100.0 * (float(fmap[i]) - fm) / fm,
+                      "error_pct": 100.0 * (point - fm) / fm,
                       "covered_model_90": bool(q["q05"] <= fm <= q["q95"]),
                       "covered_predictive_90": bool(qp["q05"] <= fm <= qp["q95"]),
                       "predictive_sd_hz": float(np.nanstd(fp[:, i])) if np.isfinite(fp[:, i]).sum() > 1 else math.nan,
