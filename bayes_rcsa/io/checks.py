@@ -610,6 +610,9 @@ def resonance_problem(frequency_hz, values) -> str | None:
 #: to come from different clamping lengths: X and Y of one clamping differ by well under 1 % on a symmetric tool
 #: and a few per cent on an asymmetric spindle, while 5 mm of clamping length moves the tool mode by 10 % or more.
 XY_PEAK_TOLERANCE = 0.08
+#: Ratio of the peak |H| of X and Y tool-point FRFs beyond which a sensitivity or unit error is suspected: the two
+#: directions of one tool differ by tens of per cent (damping, spindle anisotropy), a wrong sensitivity by 3-1000x.
+XY_AMPLITUDE_RATIO = 3.0
 
 
 def xy_pair_warnings(name_x: str, name_y: str, frequency_hz, values_x, values_y) -> list[str]:
@@ -630,6 +633,12 @@ def xy_pair_warnings(name_x: str, name_y: str, frequency_hz, values_x, values_y)
         return [f"the dominant natural frequencies of {name_x} ({px:.1f} Hz) and {name_y} ({py:.1f} Hz) differ by "
                 f"{100 * abs(px - py) / min(px, py):.0f} % (X and Y of one clamping stay within a few per cent): "
                 "files of different clamping lengths or setups?"]
+    ax, ay = float(np.max(np.abs(vx))), float(np.max(np.abs(vy)))
+    if ax > 0 and ay > 0 and max(ax, ay) / min(ax, ay) > XY_AMPLITUDE_RATIO:
+        big = name_x if ax > ay else name_y
+        return [f"the peak |H| of {name_x} ({ax:.3g} m/N) and {name_y} ({ay:.3g} m/N) differ by a factor "
+                f"{max(ax, ay) / min(ax, ay):.3g} (X and Y of one tool stay within a factor of 2): a sensor "
+                f"sensitivity or unit error in {big}?"]
     return []
 
 
