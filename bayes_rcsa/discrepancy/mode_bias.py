@@ -20,9 +20,13 @@ a Gaussian process over clamping length,
 * length scale ``lam`` = half the span of the fitted lengths (the bias may
   change its course once between the outermost fitted lengths; a longer
   scale would trust the interpolation more than two or three points allow);
-* observations ``delta_k(l_i) = f_meas,k(l_i) - median f_model,k(l_i)`` with
-  the variance of the measured peak frequency under the fitted noise model
-  (the predictive draws' variance minus the model draws').
+* observations ``delta_k(l_i) = f_meas,k(l_i) - f_model,k(l_i; theta_d)``
+  *per posterior draw* ``d`` (Kennedy & O'Hagan condition the bias on the
+  parameters: a draw with a stiffer contact sits higher at every length and
+  has a correspondingly lower bias, so the parameter spread shared by all
+  lengths cancels), with the variance of the measured peak frequency under
+  the fitted noise model (the variance, over draws, of the predictive minus
+  the model frequency of the same draw).
 
 The corrected draws are the model's mode-frequency draws plus the shift
 ``mu_k(l)`` and an independent Gaussian of variance ``v_k(l)``, the GP
@@ -41,8 +45,9 @@ __all__ = ["correct_mode_frequencies", "BIAS_RULE"]
 
 BIAS_RULE = ("remainder mode-frequency bias: per direction and mode order, a zero-mean Gaussian process over "
              "clamping length (squared-exponential, amplitude^2 = mean of the fitted-length biases^2 plus their "
-             "measurement variance, length scale = half the fitted span) conditioned on measured - model "
-             "frequency at the fitted lengths; its posterior shift and variance are added to the model's draws")
+             "measurement variance, length scale = half the fitted span) conditioned, per posterior draw, on "
+             "measured - model frequency at the fitted lengths; its posterior mean (per draw) and variance are "
+             "added to the model's draws")
 
 
 def _quantiles(x: np.ndarray) -> dict:
@@ -50,15 +55,18 @@ def _quantiles(x: np.ndarray) -> dict:
     return {"q05": float(q[0]), "q50": float(q[1]), "q95": float(q[2])}
 
 
-def _gp_posterior(x_obs, y, noise_var, x_new, amp2: float, lam: float):
-    x_obs, y, noise_var, x_new = (np.asarray(v, dtype=float) for v in (x_obs, y, noise_var, x_new))
+def _gp_weights(x_obs, noise_var, x_new, amp2: float, lam: float):
+    """Kriging weights ``W`` (n_obs, n_new) and posterior variances (n_new,) of a zero-mean GP.
+
+    The posterior mean at ``x_new`` of observations ``y`` is ``y @ W`` for any batch of ``y`` (n_draws, n_obs).
+    """
+    x_obs, noise_var, x_new = (np.asarray(v, dtype=float) for v in (x_obs, noise_var, x_new))
     k = lambda a, b: amp2 * np.exp(-0.5 * ((a[:, None] - b[None, :]) / lam) ** 2)  # noqa: E731
     kxx = k(x_obs, x_obs) + np.diag(noise_var) + 1e-12 * amp2 * np.eye(x_obs.size)
     kxs = k(x_obs, x_new)
-    sol = np.linalg.solve(kxx, np.column_stack([y, kxs]))
-    mean = kxs.T @ sol[:, 0]
-    var = amp2 - np.einsum("ij,ij->j", kxs, sol[:, 1:])
-    return mean, np.maximum(var, 0.0)  # round-off only: the GP posterior variance is >= 0 exactly
+    w = np.linalg.solve(kxx, kxs)
+    var = amp2 - np.einsum("ij,ij->j", kxs, w)
+    return w, np.maximum(var, 0.0)  # round-off only: the GP posterior variance is >= 0 exactly
 
 
 def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Generator) -> list:
@@ -89,23 +97,30 @@ def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Gen
         if not fitted:
             notes.append(f"mode {r + 1} ({direction}) appears at no fitted length: left uncorrected")
             continue
-        xl, y, nv = [], [], []
+        xl, cols, nv = [], [], []
         for j, i in fitted:
             fd, fp = draws[j][0][:, i], draws[j][1][:, i]
             xl.append(measurements[j]["clamping_length"])
-            y.append(measurements[j]["modes"][i]["measured_hz"] - float(np.nanmedian(fd)))
-            nv.append(max(float(np.nanvar(fp)) - float(np.nanvar(fd)), 0.0))
-        y, nv = np.array(y), np.array(nv)
-        amp2 = float(np.mean(y**2 + nv))
+            # the bias *of each draw*: a draw whose contact is stiffer sits higher at every length, and its
+            # bias is correspondingly lower, so the parameter spread shared by all lengths cancels (K&O'H)
+            b = measurements[j]["modes"][i]["measured_hz"] - fd
+            cols.append(np.where(np.isfinite(b), b, np.nanmedian(b)))
+            # the measured peak's noise: predictive minus model draw *of the same draw* (the noise's effect on
+            # the peak alone; a difference of the two spreads is swamped by the parameter spread)
+            nv.append(float(np.nanvar(fp - fd)))
+        y, nv = np.column_stack(cols), np.array(nv)  # (n_draws, n_fitted), (n_fitted,)
+        amp2 = float(np.mean(y**2) + np.mean(nv))
         span = max(xl) - min(xl)
         lam = 0.5 * span if span > 0 else 0.01
         if amp2 <= 0:
             continue
         xs = [measurements[j]["clamping_length"] for j, _ in members]
-        mean, var = _gp_posterior(xl, y, nv, xs, amp2, lam)
-        for (j, i), mu, v in zip(members, mean, var):
+        weights, var = _gp_weights(xl, nv, xs, amp2, lam)
+        means = y @ weights  # (n_draws, n_members): each draw's bias at every length
+        for k, ((j, i), v) in enumerate(zip(members, var)):
             md = measurements[j]["modes"][i]
             fd, fp = draws[j][0][:, i], draws[j][1][:, i]
+            mu = means[:, k]
             shift = mu + math.sqrt(v) * rng.standard_normal(fd.shape)
             q, qp = _quantiles(fd + shift), _quantiles(fp + shift)
             fm = md["measured_hz"]
@@ -113,11 +128,12 @@ def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Gen
                        "error_pct": 100.0 * (q["q50"] - fm) / fm,
                        "uncorrected_model_interval": md["model_interval"],
                        "uncorrected_predictive_interval": md["predictive_interval"],
-                       "bias_hz": {"mean": float(mu), "sd": float(math.sqrt(v))},
+                       "bias_hz": {"mean": float(np.mean(mu)), "sd": float(math.sqrt(v))},
                        "model_interval": q, "predictive_interval": qp,
                        "predictive_sd_hz": float(np.nanstd(fp + shift)),
                        "covered_model_90": bool(q["q05"] <= fm <= q["q95"]),
                        "covered_predictive_90": bool(qp["q05"] <= fm <= qp["q95"])})
+        y = np.median(y, axis=0)
         notes.append(f"mode {r + 1} ({direction}): bias {', '.join(f'{v:+.1f}' for v in y)} Hz at the fitted "
                      f"lengths {', '.join(f'{1e3 * v:g}' for v in xl)} mm (GP amplitude {math.sqrt(amp2):.1f} Hz, "
                      f"length scale {1e3 * lam:.1f} mm)")
