@@ -34,6 +34,7 @@ from __future__ import annotations
 import argparse
 import re
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -44,6 +45,9 @@ from bayes_rcsa.discrepancy import DiscrepancyOptions, run_discrepancy
 from bayes_rcsa.io.setup import load_setup
 from bayes_rcsa.model.assembly import Configuration
 from bayes_rcsa.model.modes import find_modes, match_modes
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from discrepancy import clopper_pearson  # noqa: E402  (benchmarks/discrepancy.py, the same interval)
 
 DOCS = Path(__file__).resolve().parent.parent / "docs" / "discrepancy.md"
 FIT = (0.025, 0.040)
@@ -96,15 +100,6 @@ class Generator:
 
     def truth(self, cfg, direction: str, length: float, f: np.ndarray) -> np.ndarray:
         return self._truth(cfg, direction, length, f)
-
-
-def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
-    from scipy.stats import beta
-
-    a = 1 - level
-    lo = 0.0 if k == 0 else float(beta.ppf(a / 2, k, n - k + 1))
-    hi = 1.0 if k == n else float(beta.ppf(1 - a / 2, k + 1, n - k))
-    return lo, hi
 
 
 def frac(k: int, n: int) -> str:
