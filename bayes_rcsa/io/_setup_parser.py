@@ -142,6 +142,26 @@ def _check_campaign(setup: Setup) -> None:
             raise DataError(f"{setup.path}: [[measurement]] file = {m.file.name!r} ({m.file}): {cause}")
 
 
+def _holder_type(ctx: _Ctx, doc: dict) -> str | None:
+    """The optional ``[holder] type`` (a free string naming the holder type, e.g. ``"ER32"``); ``None`` if absent.
+
+    Any non-blank string is accepted (a shop names its own holder types); an
+    empty string or a non-string is refused, naming the key.
+    """
+    tbl = doc.get("holder")
+    if not isinstance(tbl, dict) or "type" not in tbl:
+        return None  # a missing or malformed [holder] is reported by parse_holder
+    return _str(ctx, tbl, "[holder]", "type", 'a non-empty string naming the holder type, e.g. "ER32"')
+
+
+def _without_holder_type(doc: dict) -> dict:
+    """``doc`` with ``[holder] type`` removed: the shared holder parser knows geometry keys only."""
+    tbl = doc.get("holder")
+    if not isinstance(tbl, dict) or "type" not in tbl:
+        return doc
+    return {**doc, "holder": {k: v for k, v in tbl.items() if k != "type"}}
+
+
 def _tools(ctx: _Ctx, doc: dict, materials: dict[str, Material]) -> dict[str, Tool]:
     tools: dict[str, Tool] = {}
     single = _table(ctx, doc, "tool", "[tool]", required=False)
@@ -287,7 +307,8 @@ def parse_setup(path: Path, load_data: bool, load_spindle: bool | None = None) -
     name = _str(ctx, doc, "(top level)", "name", "a non-empty string", default=path.stem)
     stage_tables = _stage_tables(ctx, doc)
     materials = parse_materials(ctx, doc)
-    holder = parse_holder(ctx, doc, materials)
+    holder_type = _holder_type(ctx, doc)
+    holder = parse_holder(ctx, _without_holder_type(doc), materials)
     tools = _tools(ctx, doc, materials)
     spindle_files = _spindle_files(ctx, doc)
     contact = _contact(ctx, doc, holder, tools)
@@ -311,6 +332,7 @@ def parse_setup(path: Path, load_data: bool, load_spindle: bool | None = None) -
         extra=stage_tables,
         model_table=dict(stage_tables.get("model", {})),
         spindle_files=dict(spindle_files),
+        holder_type=holder_type,
     )
     if load_data:
         _check_campaign(setup)

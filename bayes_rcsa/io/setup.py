@@ -102,6 +102,10 @@ class Setup:
         built.  Empty when the setup has no ``[model]`` table.
     spindle_files : dict of direction to Path
         The ``[spindle]`` files (absolute), loaded or not.
+    holder_type : str or None
+        The optional ``[holder] type`` (a free string such as ``"ER32"``): the
+        population a tool library pools this setup with (docs/library.md).
+        ``None`` when the key is absent.
     """
 
     name: str
@@ -115,6 +119,7 @@ class Setup:
     extra: dict[str, Any] = field(default_factory=dict)
     model_table: dict[str, Any] = field(default_factory=dict)
     spindle_files: dict[str, Path] = field(default_factory=dict)
+    holder_type: str | None = None
 
     def model(self) -> ToolPointModel:
         """The RCSA forward model of this setup."""
