@@ -29,6 +29,7 @@ def register(subparsers) -> None:
                    help="instead of the tool-point campaign, write standard-artifact hammer tests of the bench's "
                         "spindle (artifact.toml, h11/h12/h21/h22 per direction, the true flange receptance) for "
                         "`bayes-rcsa spindle` (docs/spindle.md)")
+    _add_cut_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -55,14 +56,89 @@ def run(args: argparse.Namespace) -> Summary:
         return Summary(f"wrote {len(tests.frfs)} artifact FRFs, the true flange receptances and {path.name} to "
                        f"{path.parent} (seed {seed})",
                        {"out": str(path.parent), "artifact": str(path), "n_frfs": len(tests.frfs), "seed": seed})
+    cuts = _generate_cuts(args, config, seed)  # before anything is written: a bad cut option leaves no output
     campaign = generate_campaign(config, np.random.default_rng(seed))
     campaign = dataclasses.replace(campaign, truth={**campaign.truth, "seed": seed})
     with directory_lock(args.out):
         setup_path = write_campaign(campaign, args.out, overwrite=args.force)
+        if cuts is not None:
+            from ..synthetic.cuts import write_cuts
+
+            write_cuts(cuts, setup_path.parent, seed)
     effects = ", ".join(f"{k}={v:g}" for k, v in campaign.truth["hidden_effects"].items()) or "none"
     return Summary(
         f"wrote {len(campaign.measurements)} tool-point FRFs, {len(campaign.spindle)} spindle file(s), "
-        f"{setup_path.name} and truth.json to {setup_path.parent} (seed {seed}; hidden effects: {effects})",
+        f"{setup_path.name} and truth.json to {setup_path.parent} (seed {seed}; hidden effects: {effects})"
+        + ("" if cuts is None else f"; {cuts.speed_rpm.size} cuts ({int(cuts.stable.sum())} stable) in cuts.csv, "
+           f"their truth in cuts_truth.json"),
         {"out": str(setup_path.parent), "setup": str(setup_path), "n_measurements": len(campaign.measurements),
-         "seed": seed, "hidden_effects": dict(campaign.truth["hidden_effects"])},
+         "seed": seed, "hidden_effects": dict(campaign.truth["hidden_effects"]),
+         "n_cuts": 0 if cuts is None else int(cuts.speed_rpm.size)},
     )
+
+
+# --------------------------------------------------------- cutting tests (issue #23) --
+def _add_cut_arguments(p) -> None:
+    g = p.add_argument_group("cutting tests from the truth (cuts.csv + cuts_truth.json; docs/synthetic.md)")
+    g.add_argument("--cuts", type=nonnegative_int, default=0, metavar="N",
+                   help="also write N test cuts labelled stable/chatter by the true structure's ZOA limit with the "
+                        "TRUE cutting coefficients (default 0: none)")
+    g.add_argument("--cut-length", default=None, metavar="L",
+                   help="clamping length of the cuts in m (default: the first clamping length of CONFIG)")
+    g.add_argument("--cut-speeds", default="5000:30000", metavar="A:B", help="spindle-speed range in rpm")
+    g.add_argument("--cut-depths", default="1e-5:1.5e-4", metavar="C:D",
+                   help="axial-depth range in m of the cuts and the truth map")
+    g.add_argument("--cut-kt", default="790e6", metavar="PA", help="tangential coefficient the user assumes, Pa")
+    g.add_argument("--cut-kr", default="230e6", metavar="PA", help="radial coefficient the user assumes, Pa")
+    g.add_argument("--cut-kt-error", default="0.2", metavar="E", help="true K_t = assumed x (1 + E) (default 0.2)")
+    g.add_argument("--cut-kr-error", default="0.2", metavar="E", help="true K_r = assumed x (1 + E) (default 0.2)")
+    g.add_argument("--cut-flutes", type=nonnegative_int, default=4, metavar="N", help="flutes (default 4)")
+    g.add_argument("--cut-immersion", default="0.95", metavar="R", help="radial immersion in (0, 1] (default 0.95)")
+    g.add_argument("--cut-milling", choices=("down", "up"), default="down", help="default down")
+    g.add_argument("--cut-feed", choices=("x", "y"), default="y", help="feed direction (default y)")
+    g.add_argument("--cut-label-noise", default="0", metavar="S",
+                   help="sigma of a probit in ln(depth/limit): cuts near the boundary may get either label "
+                        "(default 0: exact labels)")
+    g.add_argument("--cut-layout", choices=("random", "grid"), default="random",
+                   help="cuts uniform at random in the speed x depth box, or on a grid (default random)")
+
+
+def _cut_range(text: str, option: str) -> tuple[float, float]:
+    from ..errors import SetupError
+    from ._common import parse_float
+
+    parts = text.split(":")
+    if len(parts) != 2:
+        raise SetupError(f"{option} {text!r}: expected LO:HI")
+    lo, hi = (parse_float(v, option, positive=True) for v in parts)
+    if hi <= lo:
+        raise SetupError(f"{option} {text!r}: expected LO < HI")
+    return lo, hi
+
+
+def _generate_cuts(args, config, seed: int):
+    """The cut campaign of the --cut-* options, or None without --cuts."""
+    if not args.cuts:
+        return None
+    import numpy as np
+
+    from ..errors import SetupError
+    from ..synthetic.cuts import CutPlan, generate_cuts
+    from ._common import parse_float
+
+    if args.artifact:
+        raise SetupError("--cuts writes cutting tests of a tool-point campaign; it cannot be combined with --artifact")
+    length = config.clamping_lengths[0] if args.cut_length is None else parse_float(args.cut_length, "--cut-length",
+                                                                                     positive=True)
+    plan = CutPlan(
+        n_cuts=args.cuts, clamping_length=length, speed_range=_cut_range(args.cut_speeds, "--cut-speeds"),
+        depth_range=_cut_range(args.cut_depths, "--cut-depths"),
+        kt_assumed=parse_float(args.cut_kt, "--cut-kt", positive=True),
+        kr_assumed=parse_float(args.cut_kr, "--cut-kr", positive=True),
+        kt_error=parse_float(args.cut_kt_error, "--cut-kt-error"), kr_error=parse_float(args.cut_kr_error,
+                                                                                         "--cut-kr-error"),
+        flutes=args.cut_flutes, radial_immersion=parse_float(args.cut_immersion, "--cut-immersion", positive=True),
+        milling=args.cut_milling, feed=args.cut_feed,
+        label_noise=parse_float(args.cut_label_noise, "--cut-label-noise"), layout=args.cut_layout)
+    # the cuts' own stream (seed + 1 spawned) so that --cuts does not change the hammer-test noise
+    return generate_cuts(config, plan, np.random.default_rng([seed, 23]))
