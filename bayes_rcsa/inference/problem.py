@@ -53,7 +53,7 @@ from ..model.receptance import FRF
 from ..params.growth import GrowthLaw
 from ..params.model import CONTACT_NAMES, ParameterModel, contact_parameter, noise_name, term_parameters
 from ..params.parameter import Parameter
-from ..params.priors import LogUniform, Prior, PriorSet, Uniform, prior_from_spec
+from ..params.priors import JointNormal, LogUniform, Prior, PriorSet, Uniform, prior_from_spec
 from ..params.terms import make_term
 from .band import Band, resolve_band
 from .likelihood import FRFLikelihood, NoiseModel, make_observation
@@ -92,6 +92,15 @@ class IdentificationOptions:
     start : mapping or None
         Physical parameter values to start the walkers around (``[sampler]
         start``) instead of the global optimum.
+    contact_prior : JointNormal or None
+        A joint prior over some of the contact parameters (e.g. a tool
+        library's population predictive, :mod:`bayes_rcsa.library`); it
+        replaces their ``[contact]``/``[priors]`` priors.  Needs
+        ``contact_growth``.
+    contact_growth : GrowthLaw or None
+        The growth law the joint prior's stiffness and growth factors refer
+        to (its reference length ``l_a``); used even for a single clamping
+        length, whose growth factors are then sampled from the joint prior.
     """
 
     method: str = "multi"
@@ -106,8 +115,15 @@ class IdentificationOptions:
     priors: Mapping[str, Any] = field(default_factory=dict)
     model: Mapping[str, Any] = field(default_factory=dict)
     start: Mapping[str, float] | None = None
+    contact_prior: JointNormal | None = None
+    contact_growth: GrowthLaw | None = None
 
     def __post_init__(self) -> None:
+        if (self.contact_prior is None) != (self.contact_growth is None):
+            raise SetupError("a joint contact prior needs the growth law it refers to (contact_growth), and vice versa")
+        if self.contact_prior is not None and set(self.contact_prior.names) - set(CONTACT_NAMES):
+            raise SetupError(f"joint contact prior over {list(self.contact_prior.names)}: expected contact parameters "
+                             f"{list(CONTACT_NAMES)}")
         if self.method not in METHODS:
             raise SetupError(f"method = {self.method!r}: expected one of {METHODS}")
         t = self.tempering
@@ -258,11 +274,15 @@ def build_problem(
     if len(measurements) == 0:
         raise SetupError("no measurements to identify from")
     all_meas = tuple(measurements)
-    if contact.clamping_range is not None:
+    if options.contact_growth is not None:
+        # the population's law: its reference length and range are those of the library it was fitted on
+        l_a, l_b = options.contact_growth.l_a, options.contact_growth.l_b
+    elif contact.clamping_range is not None:
         l_a, l_b = (float(v) for v in contact.clamping_range)
     else:
         l_a, l_b = min(c.clamping_length for c, _ in all_meas), max(c.clamping_length for c, _ in all_meas)
-    feasible = GrowthLaw(l_a, l_b, float(contact.growth_bound))
+    q = float(contact.growth_bound) if options.contact_growth is None else options.contact_growth.growth_bound
+    feasible = GrowthLaw(l_a, l_b, q)
     feasible.check_lengths([c.clamping_length for c, _ in all_meas], "measured clamping length")
     if options.lengths is not None:
         feasible.check_lengths(options.lengths, "--lengths value")
@@ -273,7 +293,11 @@ def build_problem(
             f"method 'single' fits one clamping length, but the selected measurements have {len(lengths)} "
             f"({[round(v * 1e3, 4) for v in lengths]} mm); choose one with --lengths"
         )
-    growth = feasible if len(lengths) > 1 else GrowthLaw(lengths[0], lengths[0], float(contact.growth_bound))
+    joint_growth = options.contact_prior is not None and bool({"g_xf", "g_thetaM"} & set(options.contact_prior.names))
+    if joint_growth and options.method == "single":
+        raise SetupError("method 'single' holds the contact constant over length; a library prior carries the growth "
+                         "law: use method 'multi'")
+    growth = feasible if (len(lengths) > 1 or joint_growth) else GrowthLaw(lengths[0], lengths[0], q)
 
     observations = []
     for cfg, frf in used:
@@ -352,6 +376,8 @@ def build_parameter_model(model: ToolPointModel, contact: ContactSpec, growth: G
     for name, spec in (("c_xf", contact.translational_damping), ("c_thetaM", contact.rotational_damping)):
         prior, value = _damping(spec, name, user)
         add(name, prior, value)
+    if options.contact_prior is not None:
+        params = _joint_contact(params, options.contact_prior, growth, user)
     params += term_params
     for name, spec in table.items():
         i = next(k for k, p in enumerate(params) if p.name == name)
@@ -360,6 +386,18 @@ def build_parameter_model(model: ToolPointModel, contact: ContactSpec, growth: G
     params += [Parameter(noise_name(j), "1", "noise", prior=noise_prior, label=f"relative noise of measurement {j}")
                for j in range(n_measurements)]
     return ParameterModel(params, growth, terms, n_measurements)
+
+
+def _joint_contact(params: list[Parameter], joint: JointNormal, growth: GrowthLaw,
+                   user: Mapping[str, Any]) -> list[Parameter]:
+    """``params`` with the contact parameters of ``joint`` sampled from it (members of one group)."""
+    clash = sorted(set(joint.names) & set(user))
+    if clash:
+        raise SetupError(f"[priors] {clash} and the library's joint prior both give a prior; remove them from "
+                         "[priors] to use the library")
+    if not growth.has_growth and {"g_xf", "g_thetaM"} & set(joint.names):
+        raise SetupError("the library's joint prior samples growth factors but the growth law has no range")
+    return [p.with_prior(joint.member(p.name)) if p.name in joint.names else p for p in params]
 
 
 def _override(p: Parameter, spec, growth: GrowthLaw) -> Parameter:

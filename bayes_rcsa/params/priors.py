@@ -10,7 +10,16 @@ Uniform(lo, hi)  x                      uniform on [lo, hi]
 LogUniform       log10 x                uniform on [log10 lo, log10 hi]
 LogNormal        ln x                   normal(ln median, sigma)
 Normal           x                      normal(mu, sigma)
+JointMember      log10 x or x           one coordinate of a JointNormal
 ===============  =====================  ===========================
+
+A :class:`JointNormal` is a multivariate normal over the sampling
+coordinates of several parameters (e.g. the contact law's population
+predictive from a tool library, :mod:`bayes_rcsa.library`).  Each of those
+parameters carries a :class:`JointMember` prior (its marginal, its
+coordinate, its bounds and a reference to the group); a :class:`PriorSet`
+that holds every member of a group evaluates and samples the group's joint
+density instead of the product of the marginals.
 
 A log-uniform stiffness is therefore sampled as a uniform ``log10 k``, which
 is what makes ensemble moves efficient over several decades.  ``ln_prob`` is
@@ -24,6 +33,7 @@ points lie in its support.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Mapping
@@ -38,6 +48,8 @@ __all__ = [
     "LogUniform",
     "LogNormal",
     "Normal",
+    "JointNormal",
+    "JointMember",
     "PriorSet",
     "prior_from_spec",
 ]
@@ -284,8 +296,205 @@ class Normal(Prior):
         return {"distribution": "normal", "mu": self.mu, "sigma": self.sigma, "lo": self.lo, "hi": self.hi}
 
 
+_SCALES = ("log10", "linear")
+
+
+@dataclass(frozen=True)
+class JointNormal:
+    """Multivariate normal over the sampling coordinates of several parameters, truncated to a box.
+
+    Parameters
+    ----------
+    names : tuple of str, (d,)
+        Parameter names, in the order of ``mean`` and ``cov``.
+    mean : tuple of float, (d,)
+        Mean in the sampling coordinates.
+    cov : tuple of tuples, (d, d)
+        Covariance in the sampling coordinates (symmetric positive definite).
+    scales : tuple of str, (d,)
+        ``"log10"`` (sampling coordinate log10 x, x > 0) or ``"linear"``
+        (the value itself) per parameter.
+    lo, hi : tuple of float or None, (d,)
+        Box of the sampling coordinates (``None``: unbounded); e.g. a growth
+        factor's [0, Q].
+
+    Notes
+    -----
+    The truncation's normalising mass is a Monte Carlo estimate (20 000
+    draws, a fixed private generator): it is a constant, so it does not
+    affect the sampled posterior, only the absolute value of ``ln_prob``.
+    """
+
+    names: tuple
+    mean: tuple
+    cov: tuple
+    scales: tuple
+    lo: tuple
+    hi: tuple
+
+    def __post_init__(self) -> None:
+        d = len(self.names)
+        m = np.asarray(self.mean, dtype=float)
+        c = np.asarray(self.cov, dtype=float)
+        if d == 0 or len(set(self.names)) != d:
+            raise SetupError(f"joint-normal prior names {list(self.names)}: expected distinct names")
+        if m.shape != (d,) or c.shape != (d, d) or len(self.scales) != d or len(self.lo) != d or len(self.hi) != d:
+            raise SetupError(f"joint-normal prior over {list(self.names)}: mean, cov, scales, lo, hi must have "
+                             f"{d} entries (cov {d}x{d})")
+        if not (np.all(np.isfinite(m)) and np.all(np.isfinite(c)) and np.allclose(c, c.T, rtol=1e-9, atol=0)):
+            raise SetupError(f"joint-normal prior over {list(self.names)}: expected a finite mean and a finite "
+                             "symmetric covariance")
+        try:
+            np.linalg.cholesky(c)
+        except np.linalg.LinAlgError:
+            raise SetupError(f"joint-normal prior over {list(self.names)}: the covariance is not positive "
+                             "definite") from None
+        bad = [s for s in self.scales if s not in _SCALES]
+        if bad:
+            raise SetupError(f"joint-normal prior scales {bad}: expected {_SCALES}")
+        for j in range(d):
+            lo, hi = self.box[j]
+            if not lo < hi:
+                raise SetupError(f"joint-normal prior {self.names[j]}: bounds [{lo!r}, {hi!r}], expected lo < hi")
+
+    @property
+    def ndim(self) -> int:
+        return len(self.names)
+
+    @property
+    def box(self) -> np.ndarray:
+        """(d, 2) bounds of the sampling coordinates (``-inf``/``inf`` where open)."""
+        return np.array([[-math.inf if a is None else float(a), math.inf if b is None else float(b)]
+                         for a, b in zip(self.lo, self.hi)])
+
+    @functools.cached_property
+    def _chol(self) -> np.ndarray:
+        return np.linalg.cholesky(np.asarray(self.cov, dtype=float))
+
+    @functools.cached_property
+    def _ln_norm(self) -> float:
+        # log of (2 pi)^(d/2) |C|^(1/2) times the mass inside the box
+        L = self._chol
+        base = 0.5 * self.ndim * math.log(2 * math.pi) + float(np.sum(np.log(np.diag(L))))
+        box = self.box
+        if np.all(np.isinf(box)):
+            return base
+        z = np.random.default_rng(20260).standard_normal((20000, self.ndim))  # private, fixed: a constant
+        u = np.asarray(self.mean, dtype=float) + z @ L.T
+        mass = float(np.mean(np.all((u >= box[:, 0]) & (u <= box[:, 1]), axis=1)))
+        if mass <= 0:
+            raise SetupError(f"joint-normal prior over {list(self.names)}: the box keeps no mass of the normal")
+        return base + math.log(mass)
+
+    def ln_prob(self, u: np.ndarray) -> np.ndarray:
+        """Joint log density of the sampling coordinates.
+
+        Parameters
+        ----------
+        u : (n, d) sampling coordinates, columns in the order of ``names``
+
+        Returns
+        -------
+        (n,) float, ``-inf`` outside the box
+        """
+        u = np.atleast_2d(np.asarray(u, dtype=float))
+        box = self.box
+        inside = np.all(np.isfinite(u) & (u >= box[:, 0]) & (u <= box[:, 1]), axis=1)
+        r = np.where(np.isfinite(u), u, 0.0) - np.asarray(self.mean, dtype=float)
+        from scipy.linalg import solve_triangular
+
+        w = solve_triangular(self._chol, r.T, lower=True)
+        lp = -0.5 * np.sum(w * w, axis=0) - self._ln_norm
+        return np.where(inside, lp, -np.inf)
+
+    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """(n, d) independent draws inside the box (rejection)."""
+        box = self.box
+        out = np.empty((0, self.ndim))
+        mean = np.asarray(self.mean, dtype=float)
+        for _ in range(1000):
+            if out.shape[0] >= n:
+                break
+            u = mean + rng.standard_normal((2 * n + 16, self.ndim)) @ self._chol.T
+            out = np.concatenate([out, u[np.all((u >= box[:, 0]) & (u <= box[:, 1]), axis=1)]])
+        if out.shape[0] < n:
+            raise SetupError(f"joint-normal prior over {list(self.names)}: the box keeps too little mass to sample")
+        return out[:n]
+
+    def member(self, name: str) -> "JointMember":
+        """The one-parameter prior of ``name`` that belongs to this group."""
+        return JointMember(self, self.names.index(name))
+
+    def describe(self) -> dict:
+        return {"names": list(self.names), "mean": [float(v) for v in self.mean],
+                "cov": [[float(v) for v in row] for row in self.cov], "scales": list(self.scales),
+                "lo": [None if v is None else float(v) for v in self.lo],
+                "hi": [None if v is None else float(v) for v in self.hi]}
+
+    @classmethod
+    def from_arrays(cls, names, mean, cov, scales, lo=None, hi=None) -> "JointNormal":
+        """A group from arrays (``lo``/``hi`` entries that are not finite mean open)."""
+        d = len(names)
+        lo = [None] * d if lo is None else [None if v is None or not math.isfinite(v) else float(v) for v in lo]
+        hi = [None] * d if hi is None else [None if v is None or not math.isfinite(v) else float(v) for v in hi]
+        cov = np.asarray(cov, dtype=float)
+        cov = 0.5 * (cov + cov.T)
+        return cls(tuple(str(n) for n in names), tuple(float(v) for v in np.asarray(mean, dtype=float)),
+                   tuple(tuple(float(v) for v in row) for row in cov), tuple(scales), tuple(lo), tuple(hi))
+
+
+@dataclass(frozen=True)
+class JointMember(Prior):
+    """One parameter of a :class:`JointNormal`: its marginal, coordinate and bounds.
+
+    Alone (outside a :class:`PriorSet` holding the whole group) it is the
+    normal marginal of its coordinate, truncated to the box's interval; in a
+    PriorSet with all members the group's joint density is used.
+    """
+
+    joint: JointNormal
+    index: int
+    kind = "joint-normal"
+
+    @property
+    def name(self) -> str:
+        return self.joint.names[self.index]
+
+    @property
+    def _marginal(self) -> Normal:
+        j = self.index
+        lo, hi = self.joint.box[j]
+        return Normal(float(self.joint.mean[j]), math.sqrt(float(self.joint.cov[j][j])),
+                      None if math.isinf(lo) else float(lo), None if math.isinf(hi) else float(hi))
+
+    @property
+    def bounds(self):
+        lo, hi = self.joint.box[self.index]
+        return (float(lo), float(hi))
+
+    def ln_prob(self, u):
+        return self._marginal.ln_prob(u)
+
+    def sample(self, rng, n):
+        return self._marginal.sample(rng, n)
+
+    def to_physical(self, u):
+        u = np.asarray(u, dtype=float)
+        return 10.0 ** u if self.joint.scales[self.index] == "log10" else u
+
+    def to_sampling(self, x):
+        x = np.asarray(x, dtype=float)
+        return np.log10(x) if self.joint.scales[self.index] == "log10" else x
+
+    def optimisation_bounds(self):
+        return self._marginal.optimisation_bounds()
+
+    def describe(self):
+        return {"distribution": "joint-normal", "member": self.name, "joint": self.joint.describe()}
+
+
 class PriorSet:
-    """An ordered set of independent priors over a parameter vector.
+    """An ordered set of priors over a parameter vector, independent except for joint groups.
 
     Parameters
     ----------
@@ -305,7 +514,21 @@ class PriorSet:
         self._flat_hi = np.array([list(self.priors.values())[j].bounds[1] for j in flat])
         self._flat_const = float(sum(float(list(self.priors.values())[j].ln_prob(list(self.priors.values())[j].bounds[0]))
                                      for j in flat))
-        self._other = [(j, p) for j, p in enumerate(self.priors.values()) if j not in set(flat)]
+        self._groups: list[tuple[JointNormal, np.ndarray]] = []
+        members = {j: p for j, p in enumerate(self.priors.values()) if isinstance(p, JointMember)}
+        for group in dict.fromkeys(p.joint for p in members.values()):
+            cols = []
+            for gname in group.names:
+                if gname not in self.priors or not (isinstance(self.priors[gname], JointMember)
+                                                    and self.priors[gname].joint == group):
+                    raise SetupError(f"joint-normal prior over {list(group.names)}: parameter {gname} is not sampled "
+                                     "with it; a joint prior needs all its parameters")
+                cols.append(self.names.index(gname))
+            self._groups.append((group, np.array(cols, dtype=int)))
+        for j, p in members.items():
+            if p.name != self.names[j]:
+                raise SetupError(f"parameter {self.names[j]}: its joint-normal prior is that of {p.name}")
+        self._other = [(j, p) for j, p in enumerate(self.priors.values()) if j not in set(flat) and j not in members]
 
     @property
     def ndim(self) -> int:
@@ -342,11 +565,16 @@ class PriorSet:
             total = np.zeros(theta.shape[0])
         for j, p in self._other:
             total = total + p.ln_prob(theta[:, j])
+        for group, cols in self._groups:
+            total = total + group.ln_prob(theta[:, cols])
         return total
 
     def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
-        """(n, ndim) independent draws of the sampling coordinates."""
-        return np.column_stack([p.sample(rng, n) for p in self.priors.values()])
+        """(n, ndim) draws of the sampling coordinates (a joint group's columns jointly)."""
+        out = np.column_stack([p.sample(rng, n) for p in self.priors.values()])
+        for group, cols in self._groups:
+            out[:, cols] = group.sample(rng, n)
+        return out
 
     def to_physical(self, theta: np.ndarray) -> dict[str, np.ndarray]:
         """Physical values of each parameter, ``{name: (n,)}``."""
@@ -421,13 +649,20 @@ def prior_from_spec(spec, name: str, default_kind: str = "log-uniform") -> Prior
                 return LogNormal(float(spec["median"]), float(spec["sigma"]), _opt(spec, "lo"), _opt(spec, "hi"))
             if kind == "normal":
                 return Normal(float(spec["mu"]), float(spec["sigma"]), _opt(spec, "lo"), _opt(spec, "hi"))
+            if kind == "joint-normal":
+                j = spec["joint"]
+                group = JointNormal.from_arrays(j["names"], j["mean"], j["cov"], j["scales"],
+                                                [math.nan if v is None else v for v in j["lo"]],
+                                                [math.nan if v is None else v for v in j["hi"]])
+                return group.member(str(spec["member"]))
         except KeyError as exc:
             raise SetupError(f"{name}: {kind} prior needs key {exc.args[0]!r}") from None
         except SetupError as exc:  # a constructor's own check (e.g. sigma <= 0): keep its reason, name the key
             raise SetupError(f"{name}: {exc}") from None
         except (TypeError, ValueError):
             raise SetupError(f"{name} = {dict(spec)!r}: prior parameters must be numbers") from None
-        raise SetupError(f"{name}: unknown distribution {kind!r}; expected uniform, log-uniform, log-normal or normal")
+        raise SetupError(f"{name}: unknown distribution {kind!r}; expected uniform, log-uniform, log-normal, normal "
+                         "or joint-normal")
     raise SetupError(f"{name} = {spec!r}: expected a [lo, hi] pair or a table with 'distribution'")
 
 
