@@ -18,7 +18,10 @@ def register(subparsers) -> None:
         "DIR with spindle_x.csv (+ y), tip_<dir>_<mm>mm.csv, setup.toml (what the user believes) and "
         "truth.json (what is true).  CONFIG is a bench TOML file; every key is optional (see "
         "docs/synthetic.md and bayes_rcsa/synthetic/example_bench.toml).  The same CONFIG and seed give "
-        "byte-identical files.  DIR is written atomically.",
+        "byte-identical files.  DIR is written atomically.  With a [library] table CONFIG describes a "
+        "tool library instead: one campaign per holder-tool combination, laws drawn from per-holder-type "
+        "populations, and DIR/manifest.toml for `bayes-rcsa batch` / `bayes-rcsa library` (docs/synthetic.md, "
+        "Tool libraries).",
     )
     p.add_argument("config", metavar="CONFIG", help="bench configuration TOML file")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory (new or empty unless --force)")
@@ -43,6 +46,11 @@ def run(args: argparse.Namespace) -> Summary:
     from ..synthetic import generate_campaign, load_bench_config, write_campaign
 
     check_output_directory(Path(args.out), args.force)  # before anything is generated
+    from ..synthetic.library import load_library_config
+
+    library = load_library_config(args.config)  # a [library] table: a tool library instead of one campaign
+    if library is not None:
+        return _run_library(args, *library)
     config = load_bench_config(args.config)
     seed = config.seed if args.seed is None else args.seed
     if seed < 0:
@@ -142,3 +150,28 @@ def _generate_cuts(args, config, seed: int):
         label_noise=parse_float(args.cut_label_noise, "--cut-label-noise"), layout=args.cut_layout)
     # the cuts' own stream (seed + 1 spawned) so that --cuts does not change the hammer-test noise
     return generate_cuts(config, plan, np.random.default_rng([seed, 23]))
+
+
+# --------------------------------------------------------- tool libraries (issue #20) --
+def _run_library(args, base, spec) -> Summary:
+    """``synthesize CONFIG`` with a ``[library]`` table: a whole synthetic tool library."""
+    from ..errors import SetupError
+    from ..io.atomic import directory_lock
+    from ..synthetic.library import generate_library, write_library
+
+    if args.artifact or args.cuts:
+        raise SetupError(f"{args.config}: [library] writes a tool library; it cannot be combined with "
+                         f"{'--artifact' if args.artifact else '--cuts'}")
+    seed = base.seed if args.seed is None else args.seed
+    library = generate_library(spec, base, seed)
+    with directory_lock(args.out):
+        manifest = write_library(library, args.out, overwrite=args.force)
+    specials = [c.name for c in library.combinations if c.special is not None]
+    types = ", ".join(spec.holder_types)
+    return Summary(
+        f"wrote a tool library of {len(library.combinations)} holder-tool combinations ({types}; "
+        f"special: {', '.join(specials) or 'none'}), {manifest.name} and library.json to {manifest.parent} "
+        f"(seed {seed})",
+        {"out": str(manifest.parent), "manifest": str(manifest), "n_combinations": len(library.combinations),
+         "holder_types": list(spec.holder_types), "special": specials, "seed": seed},
+    )
