@@ -17,7 +17,8 @@ from ..errors import SetupError
 from ._common import (Summary, add_force_argument, check_output_directory, command_warnings, merge_warnings,
                       nonnegative_int, parse_float, parse_float_list, positive_int)
 
-__all__ = ["register", "run", "parse_speeds", "parse_fraction", "parse_coefficient"]
+__all__ = ["register", "run", "parse_speeds", "parse_fraction", "parse_coefficient", "add_cutting_arguments",
+           "cutting_from_arguments"]
 
 DEFAULT_SPEED_POINTS = 400
 DEFAULT_BUDGET_S = 120.0
@@ -56,21 +57,7 @@ def register(subparsers) -> None:
                      help="impacts averaged per measured FRF (default: the files' '# averages = N' header line); "
                      "with a coherence column it gives the FRF's random error (Bendat & Piersol) and "
                      "probabilistic lobes")
-    cut = p.add_argument_group("cutting conditions")
-    cut.add_argument("--flutes", type=positive_int, required=True, metavar="N", help="number of teeth")
-    cut.add_argument("--kt", required=True, metavar="PA[±TOL]",
-                     help="tangential cutting-force coefficient in Pa (e.g. 790e6); an optional tolerance of the "
-                     "cutting-force level, 790e6±5%% (or +-5%%, or ±40e6), scales Kt and Kr together and is part of "
-                     "the recommendation's neighbourhood")
-    cut.add_argument("--kr", required=True, metavar="PA", help="radial cutting-force coefficient in Pa (e.g. 230e6)")
-    cut.add_argument("--allow-unusual", action="store_true",
-                     help="proceed (with a warning) when Kt is outside 1e8-1e10 Pa or Kr/Kt outside 0.05-2, "
-                     "the ranges for metals that otherwise stop the run as a likely unit slip")
-    cut.add_argument("--immersion", metavar="R", help="radial depth / tool diameter in (0, 1], 1 = slotting")
-    cut.add_argument("--angles", metavar="ENTRY,EXIT", help="entry and exit angles in degrees instead of --immersion")
-    cut.add_argument("--milling", choices=("down", "up"), default="down", help="down (climb) or up milling (default down)")
-    cut.add_argument("--feed", choices=("x", "y"), default="x", help="feed direction (default x; the paper feeds in y)")
-    cut.add_argument("--pitch", metavar="DEG,...", help="variable pitch: angle (deg) from each tooth to the one ahead")
+    add_cutting_arguments(p)
     grid = p.add_argument_group("grid, method and recommendation")
     grid.add_argument("--speeds", required=True, metavar="START:STOP[:COUNT]",
                       help=f"spindle speeds in rpm (default COUNT {DEFAULT_SPEED_POINTS}); the recommended speed "
@@ -105,6 +92,29 @@ def register(subparsers) -> None:
 
 # ------------------------------------------------------------------------------------------
 # argument helpers
+KT_HELP = ("tangential cutting-force coefficient in Pa (e.g. 790e6); an optional tolerance of the cutting-force level, "
+           "790e6±5%% (or +-5%%, or ±40e6), scales Kt and Kr together and is part of the recommendation's "
+           "neighbourhood; default with an updated posterior (bayes-rcsa update): its per-draw Kt and Kr")
+KR_HELP = "radial cutting-force coefficient in Pa (e.g. 230e6); default as --kt"
+
+
+def add_cutting_arguments(p, kt_help: str = KT_HELP, kr_help: str = KR_HELP, required: bool = False):
+    """The cutting-condition options of ``lobes`` (also used by ``update``); returns the argument group."""
+    cut = p.add_argument_group("cutting conditions")
+    cut.add_argument("--flutes", type=positive_int, required=True, metavar="N", help="number of teeth")
+    cut.add_argument("--kt", required=required, metavar="PA[±TOL]", help=kt_help)
+    cut.add_argument("--kr", required=required, metavar="PA[±TOL]" if required else "PA", help=kr_help)
+    cut.add_argument("--allow-unusual", action="store_true",
+                     help="proceed (with a warning) when Kt is outside 1e8-1e10 Pa or Kr/Kt outside 0.05-2, "
+                     "the ranges for metals that otherwise stop the run as a likely unit slip")
+    cut.add_argument("--immersion", metavar="R", help="radial depth / tool diameter in (0, 1], 1 = slotting")
+    cut.add_argument("--angles", metavar="ENTRY,EXIT", help="entry and exit angles in degrees instead of --immersion")
+    cut.add_argument("--milling", choices=("down", "up"), default="down", help="down (climb) or up milling (default down)")
+    cut.add_argument("--feed", choices=("x", "y"), default="x", help="feed direction (default x; the paper feeds in y)")
+    cut.add_argument("--pitch", metavar="DEG,...", help="variable pitch: angle (deg) from each tooth to the one ahead")
+    return cut
+
+
 def parse_speeds(text: str, option: str = "--speeds") -> np.ndarray:
     """``START:STOP[:COUNT]`` rpm -> increasing grid of COUNT speeds (default 400)."""
     parts = text.split(":")
@@ -151,13 +161,23 @@ def parse_coefficient(text: str, option: str) -> tuple[float, float]:
     return value, rel
 
 
+def cutting_from_arguments(args, kr_tolerance: bool = False):
+    """(CuttingConditions, Kt tolerance, warnings) from the cutting options (and Kr tolerance if ``kr_tolerance``)."""
+    cutting, kt_tol, kr_tol, warnings = _cutting_and_tolerances(args, kr_tolerance)
+    return (cutting, kt_tol, kr_tol, warnings) if kr_tolerance else (cutting, kt_tol, warnings)
+
+
 def _cutting(args):
+    return cutting_from_arguments(args)
+
+
+def _cutting_and_tolerances(args, kr_tolerance: bool):
     from ..stability import CuttingConditions
     from ..stability.plausibility import check_cutting_coefficients
 
     kt, kt_tol = parse_coefficient(args.kt, "--kt")
     kr, kr_tol = parse_coefficient(args.kr, "--kr")
-    if kr_tol:
+    if kr_tol and not kr_tolerance:
         raise SetupError(f"--kr {args.kr!r}: give the tolerance on --kt; it scales the cutting-force level (Kt and "
                          "Kr together, Kr/Kt fixed)")
     warnings = check_cutting_coefficients(kt, kr, allow_unusual=args.allow_unusual)
@@ -174,7 +194,26 @@ def _cutting(args):
     if args.pitch is not None:
         kw["pitch_angles"] = tuple(float(np.radians(a)) for a in parse_float_list(args.pitch, "--pitch", positive=True))
     cutting = CuttingConditions(kt=kt, kr=kr, flutes=args.flutes, milling=args.milling, feed=args.feed, **kw)
-    return cutting, kt_tol, warnings
+    return cutting, kt_tol, kr_tol, warnings
+
+
+def _posterior_coefficients(args):
+    """``args`` with --kt/--kr set to the medians of an updated posterior's per-draw coefficients, or unchanged."""
+    if args.kt is not None and args.kr is not None:
+        return args, False
+    if (args.kt is None) != (args.kr is None):
+        raise SetupError("give both --kt and --kr, or neither (an updated posterior's per-draw coefficients)")
+    if args.posterior is None:
+        raise SetupError("--kt and --kr are required (only a posterior written by 'bayes-rcsa update' carries "
+                         "per-draw cutting coefficients)")
+    from ..stability.coefficients import read_coefficient_draws
+
+    coef = read_coefficient_draws(args.posterior)
+    if coef is None:
+        raise SetupError(f"--kt and --kr are required: {args.posterior} carries no cutting-coefficient draws (only "
+                         "'bayes-rcsa update' writes them)")
+    return argparse.Namespace(**{**vars(args), "kt": repr(float(np.median(coef[0]))),
+                                 "kr": repr(float(np.median(coef[1])))}), True
 
 
 def _dynamics(args):
@@ -254,6 +293,7 @@ def run(args: argparse.Namespace) -> Summary:
     from ..stability.tests_io import read_cutting_tests
     from ..io.atomic import directory_is_empty, directory_lock, new_output_directory
 
+    args, per_draw = _posterior_coefficients(args)
     cutting, kt_tol, warnings = _cutting(args)
     speeds = parse_speeds(args.speeds)
     level = parse_float(args.level if args.level is not None else "0.95", "--level", positive=True)
@@ -305,6 +345,7 @@ def run(args: argparse.Namespace) -> Summary:
             frf.frf_x, frf.frf_y, frf.frequency_hz, cutting, speeds, method=args.method, level=level,
             max_depth=max_depth, depth_points=args.depth_points, intervals=args.intervals, max_modes=args.max_modes,
             tolerances=tol, flute_length=flute, progress=bar,
+            coefficients=frf.coefficients if per_draw else None,
         )
     finally:
         if bar is not None:
@@ -318,6 +359,11 @@ def run(args: argparse.Namespace) -> Summary:
         warn_all(fit_warnings)
     warnings = merge_warnings(command_warnings(), warnings)  # the data warnings printed on stderr go into lobes.json
     doc = lobes_document(res, cutting, frf.source, tests, warnings, max_depth=max_depth, flute_length=flute)
+    if per_draw:
+        kt_q, kr_q = (np.quantile(c, [0.05, 0.5, 0.95]).tolist() for c in frf.coefficients)
+        doc["cutting_coefficients"] = {"source": "per-draw K_t/K_r of the updated posterior (bayes-rcsa update); "
+                                       "the cutting block gives their medians", "kt_pa_q05_q50_q95": kt_q,
+                                       "kr_pa_q05_q50_q95": kr_q}
     if fit_report is not None:
         doc["modal_fit"] = fit_report
     title = f"{cutting.flutes} flutes, {res.method.upper()}, " + (

@@ -44,6 +44,7 @@ COMMANDS = (
     "predict",
     "identifiability",
     "lobes",
+    "update",
     "discrepancy",
     "design",
     "report",

@@ -82,6 +82,8 @@ class UpdateResult:
     weights : (n_particles,) normalised weights
     particle_draw : (n_particles,) int
     limits : (n_particles, n_cuts) m, every particle's limit at every cut
+    particle_u, particle_node : (n_particles,) the particles' log level and ratio node
+    loo_weights : (n_cuts, n_particles) normalised weights without each cut
     """
 
     draw: np.ndarray
@@ -101,6 +103,9 @@ class UpdateResult:
     weights: np.ndarray | None = None
     particle_draw: np.ndarray | None = None
     limits: np.ndarray | None = None
+    particle_u: np.ndarray | None = None
+    particle_node: np.ndarray | None = None
+    loo_weights: np.ndarray | None = None
 
 
 def effective_sample_size(weights) -> float:
@@ -187,18 +192,20 @@ def importance_update(likelihood: CutLikelihood, prior: CoefficientPrior, width:
     pick = systematic_resample(weights, n_out, rng)
     kt_all, kr_all = prior.coefficients(u, node)
     limits = likelihood.limits(draw, u, node)
-    per_cut = _per_cut(likelihood, pw, logl, weights, limits, w, kt_all)
+    loo = np.array([_normalise(logl - pw[:, c]) for c in range(pw.shape[1])])  # a few tens of cuts
+    per_cut = _per_cut(likelihood, loo, weights, limits, w, kt_all)
     return UpdateResult(draw[pick], u[pick], node[pick], w[pick], kt_all[pick], kr_all[pick], ess_p, ess_d,
-                        int(draw.size), n_draws, log_evidence, per_cut, kt_all, kr_all, weights, draw, limits)
+                        int(draw.size), n_draws, log_evidence, per_cut, kt_all, kr_all, weights, draw, limits,
+                        u, node, loo)
 
 
-def _per_cut(likelihood, pw, logl, weights, limits, width, kt) -> list[dict]:
+def _per_cut(likelihood, loo_weights, weights, limits, width, kt) -> list[dict]:
     """What each cut did: median limit at it before/after/without it, P(chatter), K_t without it."""
-    n_p, n_c = pw.shape
+    n_p, n_c = limits.shape
     flat = np.full(n_p, 1.0 / n_p)
     out = []
     for c in range(n_c):  # a few tens of cuts, each vectorised over particles
-        loo = _normalise(logl - pw[:, c])
+        loo = loo_weights[c]
         before = float(weighted_quantile(limits[:, c], flat, 0.5)[0])
         after = float(weighted_quantile(limits[:, c], weights, 0.5)[0])
         without = float(weighted_quantile(limits[:, c], loo, 0.5)[0])

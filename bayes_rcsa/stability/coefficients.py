@@ -22,7 +22,7 @@ import numpy as np
 from ..errors import SetupError
 from .methods import MethodResult
 
-__all__ = ["ratio_groups", "limits_with_coefficients", "MAX_RATIO_GROUPS"]
+__all__ = ["ratio_groups", "limits_with_coefficients", "MAX_RATIO_GROUPS", "COEFFICIENT_VARIABLES", "read_coefficient_draws"]
 
 #: More distinct ratios than this would make one method call per draw; refused (the update writes <= 15).
 MAX_RATIO_GROUPS = 64
@@ -100,3 +100,33 @@ def limits_with_coefficients(impl, frf_x, frf_y, frequency_hz, cutting, speeds_r
     if len(parts) == 1:
         info.update(parts[0][1].info)
     return MethodResult(limits, fits, info, limits_at)
+
+
+#: Variables of a posterior.nc (written by ``bayes-rcsa update``) with per-draw cutting coefficients (Pa).
+COEFFICIENT_VARIABLES = ("cutting_kt_pa", "cutting_kr_pa")
+
+
+def read_coefficient_draws(posterior_path, index=None):
+    """Per-draw (K_t, K_r) in Pa stored in ``posterior_path``, or None when it has none (a hammer-only fit).
+
+    Parameters
+    ----------
+    posterior_path : path of posterior.nc
+    index : int array or None, the draws to keep (the same subset as the FRF draws)
+
+    Returns
+    -------
+    (kt (n,), kr (n,)) or None
+    """
+    from ..errors import DataError
+    from ..posterior.draws import read_posterior
+
+    post = read_posterior(posterior_path).posterior
+    if not all(v in post.data_vars for v in COEFFICIENT_VARIABLES):
+        return None
+    kt, kr = (np.asarray(post[v].values, dtype=float).reshape(-1) for v in COEFFICIENT_VARIABLES)
+    if not (np.all(np.isfinite(kt) & (kt > 0)) and np.all(np.isfinite(kr) & (kr >= 0))):
+        raise DataError(f"{posterior_path}: {COEFFICIENT_VARIABLES} must be finite, K_t > 0 and K_r >= 0")
+    if index is not None:
+        kt, kr = kt[index], kr[index]
+    return kt, kr

@@ -36,6 +36,7 @@ class FRFInput:
         self.source = source
         self.flute_length_m = flute_length_m
         self.measured = None
+        self.coefficients = None  # (kt (n_draws,), kr (n_draws,)) Pa of an updated posterior, else None
 
     @property
     def n_draws(self) -> int:
@@ -171,6 +172,7 @@ def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_dr
     from ..posterior import load_posterior, predictive_frf
     from ..posterior.growth_prior import transfer_draws
     from ..posterior.prediction_outputs import check_prediction_lengths, posterior_status
+    from .coefficients import read_coefficient_draws
 
     setup = load_setup(setup_path, load_data=False, load_spindle=True)
     for d in ("x", "y"):
@@ -180,7 +182,11 @@ def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_dr
         if len(setup.tools) != 1:
             raise SetupError(f"{setup_path}: several tools {sorted(setup.tools)}; the posterior mode needs one")
         tool = next(iter(setup.tools))
-    draws = load_posterior(posterior_path, setup).subset(n_draws, rng)
+    full = load_posterior(posterior_path, setup)
+    # the subset of PosteriorDraws.subset, keeping the index for the draws' cutting coefficients (after an update)
+    index = (np.arange(full.n_draws) if n_draws is None or full.n_draws <= n_draws
+             else np.sort(rng.choice(full.n_draws, n_draws, replace=False)))
+    draws = full.take(index)
     check_prediction_lengths(draws, setup, [clamping_length])
     # a single-length fit carries the growth law's prior to other lengths (multi-length draws pass unchanged)
     draws = transfer_draws(draws, setup, [clamping_length], rng)
@@ -200,4 +206,6 @@ def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_dr
         **draws.provenance(),
         "posterior_status": posterior_status(posterior_path),
     }
-    return FRFInput(f, hx, hy, source, flute_length(setup.tools[tool]))
+    out = FRFInput(f, hx, hy, source, flute_length(setup.tools[tool]))
+    out.coefficients = read_coefficient_draws(posterior_path, index)
+    return out

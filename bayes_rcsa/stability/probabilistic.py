@@ -227,6 +227,7 @@ def lobes_from_frf_draws(
     tolerances: Tolerances | None = None,
     flute_length: float | None = None,
     progress=None,
+    coefficients=None,
 ) -> ProbabilisticLobes:
     """Probabilistic stability lobes and a robust recommendation from draws of the tool-point FRFs in X and Y.
 
@@ -247,6 +248,9 @@ def lobes_from_frf_draws(
     tolerances : Tolerances or None (default ±2 % speed, 10 % depth margin)
     flute_length : float or None, m, the tool's flute length (depth limit)
     progress : callable(fraction) or None
+    coefficients : (kt (n_draws,), kr (n_draws,)) Pa or None
+        Per-draw cutting coefficients (an updated posterior); ``cutting`` then gives the geometry and
+        the reference level (:func:`~bayes_rcsa.stability.coefficients.limits_with_coefficients`, exact).
 
     Returns
     -------
@@ -266,7 +270,13 @@ def lobes_from_frf_draws(
         depths = np.asarray(depths_m, dtype=float)
         if depths.ndim != 1 or np.any(depths <= 0) or np.any(np.diff(depths) <= 0):
             raise SetupError("depths_m must be a strictly increasing 1-D array of positive depths")
-    result = impl.depth_limits(gx, gy, f, cutting, speeds, options, progress)
+    if coefficients is None:
+        result = impl.depth_limits(gx, gy, f, cutting, speeds, options, progress)
+    else:
+        from .coefficients import limits_with_coefficients
+
+        result = limits_with_coefficients(impl, gx, gy, f, cutting, speeds, coefficients[0], coefficients[1], options,
+                                          progress)
     limits = np.atleast_2d(result.depth_limit_m)
     if np.any(np.isnan(limits)):
         raise SetupError("depth limits contain NaN; cannot form a probability of stability")
