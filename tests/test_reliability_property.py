@@ -330,6 +330,25 @@ def _base_predict(t):
               "--max-draws": "10", "--quiet": None, "--no-plots": None, "--out": str(t.root / "out")}
 
 
+CUTS = ("spindle_speed_rpm,depth_m,outcome\n8000,0.00001,stable\n12000,0.00002,stable\n9000,0.002,chatter\n"
+        "15000,0.003,chatter\n")
+
+
+def _base_update(t):
+    _copy_data(t)
+    _copy_posterior(t)
+    (t.root / "cuts.csv").write_text(CUTS)
+    t.pos = [str(_setup(t))]
+    t.opts = {"--posterior": str(t.root / "posterior.nc"), "--cuts": str(t.root / "cuts.csv"),
+              "--clamping-length": "0.03", "--flutes": "4", "--kt": "790e6±30%", "--kr": "230e6",
+              "--immersion": "0.5", "--draws": "20", "--particles": "4", "--min-ess": "1",
+              "--out": str(t.root / "out")}
+
+
+def _cuts_edit(old: str, new: str):
+    return lambda t: _text_replace(old, new)(t.root / "cuts.csv")
+
+
 def _base_report(t):
     shutil.copytree(t.world / "lob", t.root / "lob")
     t.pos = [str(t.root / "lob")]
@@ -444,6 +463,15 @@ SPECS: dict[str, Spec] = {
         "lengths-unmeasured": _opt("--lengths", "0.033"),  # valid: predicted on the spindle grid
     }, ["frequencies.json", "frf_bands.csv", "report.md", "report.html"], examples=16,
         explicit=(["lengths-unmeasured"],)),
+    "update": Spec(_base_update, {
+        **POSTERIOR_C, **OUT_TAKEN, **SEED_C,
+        "cuts-depth-mm": _cuts_edit("9000,0.002", "9000,2"), "cuts-outcome-bogus": _cuts_edit("chatter", "wobbly"),
+        "cuts-speed-outside": _cuts_edit("15000,", "900000,"), "cuts-missing": lambda t: (t.root / "cuts.csv").unlink(),
+        "cuts-no-header": _cuts_edit("spindle_speed_rpm,depth_m,outcome\n", ""),
+        "length-outside": _opt("--clamping-length", "0.5"), "kt-nan": _opt("--kt", "nan"),
+        "width-negative": _opt("--boundary-width", "-0.1"), "min-ess-huge": _opt("--min-ess", "1e9"),
+        "label-error-1": _opt("--label-error", "1"), "speeds": _opt("--speeds", "6000:20000:20"),
+    }, ["posterior.nc", "update.json"], examples=8, explicit=([], ["speeds"])),
     "report": Spec(_base_report, {
         **{f"lobes.json:{k}": v for k, v in _file(JSON_EDITS, lambda t: t.root / "lob" / "lobes.json").items()},
         "npz-truncated": lambda t: FILE_EDITS["truncated"](t.root / "lob" / "p_stable.npz"),
