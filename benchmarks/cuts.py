@@ -1,0 +1,436 @@
+"""Cutting tests update the hammer-test posterior: the acceptance tables of issue #23.
+
+Run: ``OMP_NUM_THREADS=1 nice python benchmarks/cuts.py [--campaigns 20] [--design-campaigns 5] [--draws 1000]``
+(about 30 min on the 2 shared cores; progress on stdout; tables go into docs/stability.md, "Cutting tests:
+benchmark").
+
+Campaigns (seeds 5000, 5001, ...)
+---------------------------------
+Each campaign is its own FE bench (:mod:`bayes_rcsa.synthetic`, lumped contact): the true contact
+stiffnesses k_xf, k_thetaM scaled by U(0.8, 1.2), a hammer campaign with its own noise, ``bayes-rcsa
+identify`` from the 25 and 40 mm tool-point FRFs (X and Y), and test cuts at a clamping length the hammer
+test did NOT measure (30 mm in even, 35 mm in odd campaigns: the RCSA transfer).  The cutting conditions
+are case B of docs/stability.md (4 flutes, 95 % immersion, down milling, feed Y) with the assumed
+K_t = 790 MPa, K_r = 230 MPa; the truth's coefficients are 20 % off (x1.2 in campaigns 0, 1, 4, 5, ...,
+x0.8 in 2, 3, 6, 7, ...; K_t and K_r together).  Outcomes come from the truth
+(:mod:`bayes_rcsa.synthetic.cuts`: the bench's own ZOA on the noise-free FE FRFs), without label noise.
+Cuts lie in 5000-30000 rpm x 5-80 um (the bench's slender end mill chatters at 10-50 um between lobes).
+
+The update (what the benchmark measures)
+----------------------------------------
+Posterior draws theta_d (1000 FRF draws at the cut's clamping length) are paired with prior draws of a
+coefficient scale s (K_t = 790 MPa s, K_r = 230 MPa s; s log-normal, sigma 0.3, median 1: "790e6 +- 30 %")
+-- ``--pairs`` scales per theta draw -- and re-weighted by the cut likelihood P(chatter | theta, s) =
+Phi(ln(a / a_lim) / w), w = ``BOUNDARY_WIDTH``, a_lim the ZOA limit of the draw's FRFs
+(:func:`bayes_rcsa.stability.zoa_lobes`, computed once at K_t = 1 and divided by K_t: the ZOA limit is
+exactly inversely proportional to a common scale of K_t and K_r).  This is the importance re-weighting of
+``bayes-rcsa update`` on the same draws; the cost row times ``bayes_rcsa.cuts`` itself when it provides
+an update function (see ``cost``).
+
+Tables
+------
+1. Recovery (``--campaigns``, 10 random cuts each): coverage of the true K_t by the 90 % interval
+   (Clopper-Pearson), mean absolute P(stable) error on the truth's 50 x 50 map for hammer only (assumed
+   K_t), hammer + K_t prior, hammer + 10 cuts, and whether the robust recommended point (P(stable) >= 0.95,
+   +-2 % speed, 10 % depth margin; :func:`bayes_rcsa.stability.recommend`) is stable in the truth over its
+   whole speed window.
+2. Design (``--design-campaigns``): cuts one at a time, chosen by ``--next-cut`` (map target,
+   :func:`bayes_rcsa.cuts.next_cut.rank_next_cuts`, 25 speeds x 15 depths, no risk budget and with a 0.3
+   budget), at random in the box, or on a 5 x 4 grid of the box visited in a seeded random order; the number
+   of cuts until the map error is at most half of the hammer-only error (at most 20).
+3. Against the anchor: the same race from generic modal priors (no hammer test; the Cornelius/Schmitz
+   setting with one mode, the same in X and Y as on this symmetric bench: f_n log-normal (median 1000 Hz,
+   sigma 0.2), k log-normal (median 1e6 N/m, sigma 0.5), zeta log-normal (median 0.02, sigma 0.5); medians
+   near the bench's true dominant mode (963 Hz, 8.4e5 N/m, 0.011 at 30 mm), i.e. a favourable anchor),
+   ``--anchor-draws`` prior draws each with its own coefficient scale, next-cut and random choice, the same
+   error target; large pools are ranked on 2000 draws resampled by weight.
+4. Cost: the update from 20 cuts on a 1000-draw posterior with ZOA.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.special import log_ndtr
+
+from bayes_rcsa.cuts.next_cut import candidate_grid, parse_next_cut_target, rank_next_cuts
+from bayes_rcsa.stability import CuttingConditions, Tolerances, recommend, zoa_lobes
+from bayes_rcsa.synthetic import default_bench_config, generate_campaign, write_campaign
+from bayes_rcsa.synthetic.cuts import CutPlan, label_cuts, true_cut_frfs, true_depth_limit
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from discrepancy import clopper_pearson  # noqa: E402  (benchmarks share one Clopper-Pearson interval)
+
+SEED0 = 5000
+KT, KR = 790e6, 230e6
+CUT = dict(flutes=4, radial_immersion=0.95, milling="down", feed="y")
+SPEEDS = (5000.0, 30000.0)
+DEPTHS = (5e-6, 8e-5)
+LENGTHS = (0.030, 0.035)
+BOUNDARY_WIDTH = 0.1
+KT_SIGMA = 0.3
+LEVEL = 0.95
+ANCHOR_FN, ANCHOR_K, ANCHOR_ZETA = 1000.0, 1e6, 0.02  # generic one-mode priors (medians), near the truth
+RANK_DRAWS = 2000
+FINE = np.linspace(SPEEDS[0], SPEEDS[1], 501)  # speeds of cuts in the design race and of the recommendation
+
+
+def unit_cutting() -> CuttingConditions:
+    """Case B at K_t = 1 Pa, K_r = K_r/K_t: limits for K_t = s KT are these / (s KT)."""
+    return CuttingConditions(kt=1.0, kr=KR / KT, **CUT)
+
+
+def log_lik(depth, stable, limits, width=BOUNDARY_WIDTH):
+    """Log-likelihood of cut outcomes, (N,) from depths (C,), outcomes (C,) and the draws' limits (N, C)."""
+    with np.errstate(divide="ignore"):
+        z = np.log(np.asarray(depth)[None, :] / limits) / width
+    return np.sum(np.where(np.asarray(stable)[None, :], log_ndtr(-z), log_ndtr(z)), axis=1)
+
+
+def normalise(ll):
+    w = np.exp(ll - np.max(ll))
+    return w / w.sum()
+
+
+def weighted_quantiles(values, weights, qs):
+    o = np.argsort(values)
+    c = np.cumsum(weights[o]) - 0.5 * weights[o]
+    return np.interp(qs, c, values[o])
+
+
+def p_map(limits, weights, depths):
+    """P(stable) (S, A) of weighted draws with limits (N, S)."""
+    return np.einsum("n,nsa->sa", weights, (depths[None, None, :] < limits[:, :, None]).astype(float))
+
+
+class Campaign:
+    """One bench, its hammer-test posterior draws at the cut length, and its truth."""
+
+    def __init__(self, i: int, tmp: Path, n_draws: int, pairs: int):
+        self.i = i
+        self.seed = SEED0 + i
+        rng = np.random.default_rng(self.seed)
+        u = rng.uniform(0.8, 1.2, 2)
+        self.cfg = default_bench_config(k_xf=1.8e6 * u[0], k_thetaM=4.5e5 * u[1], seed=self.seed)
+        self.length = LENGTHS[i % 2]
+        self.factor = 1.2 if (i // 2) % 2 == 0 else 0.8
+        self.plan = CutPlan(n_cuts=10, clamping_length=self.length, speed_range=SPEEDS, depth_range=DEPTHS,
+                            kt_assumed=KT, kr_assumed=KR, kt_error=self.factor - 1, kr_error=self.factor - 1, **CUT)
+        t0 = time.perf_counter()
+        out = tmp / f"c{i}"
+        setup = write_campaign(generate_campaign(self.cfg, rng), out)
+        from bayes_rcsa.cli.main import main as cli
+
+        status = cli(["identify", str(setup), "--out", str(out / "id"), "--lengths", "0.025,0.040",
+                      "--seed", str(self.seed), "--no-plots", "--quiet"])
+        if status != 0:
+            raise SystemExit(f"campaign {i}: identify failed")
+        self.t_identify = time.perf_counter() - t0
+        self.setup, self.posterior = setup, out / "id" / "posterior.nc"
+        from bayes_rcsa.stability.posterior_frf import posterior_frf_draws
+
+        frf = posterior_frf_draws(setup, self.posterior, self.length, n_draws, rng)
+        self.frf = frf
+        # truth on the fine speed grid and the 50 x 50 map
+        f = np.arange(self.cfg.frequency_start, self.cfg.frequency_stop + 1e-9, 1.0)
+        self.true_frfs = (f, *true_cut_frfs(self.cfg, self.length, f))
+        self.true_limit = lambda s: true_depth_limit(self.cfg, self.plan, s, self.true_frfs)
+        self.map_speed = np.linspace(SPEEDS[0], SPEEDS[1], 50)
+        self.map_depth = np.linspace(DEPTHS[1] / 50, DEPTHS[1], 50)
+        self.map_truth = self.map_depth[None, :] < self.true_limit(self.map_speed)[:, None]
+        self.fine_truth = self.true_limit(FINE)
+        # unit-K_t limits of the hammer draws on the map and fine speeds
+        speeds = np.unique(np.concatenate([self.map_speed, FINE]))
+        lim = zoa_lobes(frf.frf_x, frf.frf_y, frf.frequency_hz, unit_cutting(), speeds).depth_limit_m
+        self.unit_map = lim[:, np.searchsorted(speeds, self.map_speed)]
+        self.unit_fine = lim[:, np.searchsorted(speeds, FINE)]
+        # pool: every theta draw with `pairs` prior draws of the coefficient scale
+        self.theta = np.repeat(np.arange(n_draws), pairs)
+        self.scale = np.exp(rng.normal(0.0, KT_SIGMA, self.theta.size))
+        self.rng = rng
+
+    def unit_at(self, speeds):
+        return zoa_lobes(self.frf.frf_x, self.frf.frf_y, self.frf.frequency_hz, unit_cutting(),
+                         np.asarray(speeds)).depth_limit_m
+
+    def pool_limits(self, unit):
+        """Limits (N, k) of the pool from unit-K_t limits (n_draws, k) of the theta draws."""
+        return unit[self.theta] / (KT * self.scale[:, None])
+
+    def map_error(self, p):
+        return float(np.mean(np.abs(p - self.map_truth)))
+
+
+def window_stable(c: Campaign, rec) -> bool:
+    """The recommended depth is below the true limit over the whole speed window (fine grid + ends + point)."""
+    lo, hi = rec.speed_window_rpm
+    s = np.unique(np.concatenate([[lo, hi, rec.spindle_speed_rpm], FINE[(FINE >= lo) & (FINE <= hi)]]))
+    return bool(rec.depth_m < np.min(c.true_limit(s)))
+
+
+def resample(weights, n, rng):
+    """Systematic resampling: n indices with frequencies proportional to the weights."""
+    u = (rng.random() + np.arange(n)) / n
+    return np.minimum(np.searchsorted(np.cumsum(weights), u), weights.size - 1)
+
+
+def posterior_metrics(c: Campaign, w: np.ndarray, prefix: str) -> dict:
+    """K_t interval and coverage, map error and the robust recommendation of the re-weighted pool."""
+    lo, hi = weighted_quantiles(KT * c.scale, w, [0.05, 0.95])
+    post = p_map(c.pool_limits(c.unit_map), w, c.map_depth)
+    idx = resample(w, c.unit_fine.shape[0], c.rng)
+    rec = recommend(FINE, c.pool_limits(c.unit_fine)[idx], LEVEL, Tolerances())["recommended"]
+    return {prefix + "kt_lo": lo, prefix + "kt_hi": hi, prefix + "covered": bool(lo <= c.plan.kt_true <= hi),
+            prefix + "ess": float(1 / np.sum(w**2)), prefix + "err": c.map_error(post),
+            prefix + "rec": None if rec is None else (rec.spindle_speed_rpm, rec.depth_m),
+            prefix + "rec_stable": None if rec is None else window_stable(c, rec)}
+
+
+def recovery(c: Campaign) -> dict:
+    """10 random cuts and 10 cuts chosen one by one with --next-cut (map target), each from the same pool."""
+    from bayes_rcsa.synthetic.cuts import generate_cuts
+
+    cuts = generate_cuts(c.cfg, c.plan, np.random.default_rng([c.seed, 1]))
+    order = np.argsort(cuts.speed_rpm)
+    u = np.empty((c.unit_fine.shape[0], order.size))
+    u[:, order] = c.unit_at(cuts.speed_rpm[order])
+    w_random = normalise(log_lik(cuts.depth_m, cuts.stable, c.pool_limits(u)))
+    _, _, w_next = sequence(c, c.unit_map, c.unit_fine, c.theta, c.scale, "next", np.random.default_rng([c.seed, 6]),
+                            max_cuts=c.plan.n_cuts)
+    n_draws, n_pool = c.unit_map.shape[0], c.theta.size
+    hammer = p_map(c.unit_map / KT, np.full(n_draws, 1 / n_draws), c.map_depth)
+    prior = p_map(c.pool_limits(c.unit_map), np.full(n_pool, 1 / n_pool), c.map_depth)
+    rec_hammer = recommend(FINE, c.unit_fine / KT, LEVEL, Tolerances())["recommended"]
+    return {
+        "campaign": c.i, "length_mm": 1e3 * c.length, "factor": c.factor, "kt_true": c.plan.kt_true,
+        "n_stable_random": int(cuts.stable.sum()), "err_hammer": c.map_error(hammer), "err_prior": c.map_error(prior),
+        "rec_hammer_stable": None if rec_hammer is None else window_stable(c, rec_hammer),
+        **posterior_metrics(c, w_random, "random_"), **posterior_metrics(c, w_next, "next_"),
+        "t_identify": c.t_identify,
+    }
+
+
+# ------------------------------------------------------------------ design race --
+def sequence(c: Campaign, unit_map, unit_fine, theta, scale, strategy: str, rng, max_cuts=20, stop_err=None,
+             risk_budget=1.0) -> tuple[int | None, list, np.ndarray]:
+    """Cuts one at a time (strategy next/random/grid) from the pool (theta, scale).
+
+    Returns (cuts until the map error is <= stop_err or None, map error after each cut, final weights).
+    """
+    pool_map = unit_map[theta] / (KT * scale[:, None])
+    pool_fine = unit_fine[theta] / (KT * scale[:, None])
+    ll = np.zeros(theta.size)
+    cs, ca = candidate_grid(SPEEDS, DEPTHS, 25, 15)
+    ci = np.searchsorted(FINE, cs)
+    cs = FINE[ci]  # candidate speeds on the fine grid (25 of its 501 speeds)
+    grid_s = FINE[np.round(np.linspace(0.1, 0.9, 5) * 500).astype(int)]
+    grid_a = DEPTHS[0] + (np.arange(4) + 0.5) * (DEPTHS[1] - DEPTHS[0]) / 4
+    gs, ga = (x.ravel() for x in np.meshgrid(grid_s, grid_a, indexing="ij"))
+    grid_order = rng.permutation(gs.size)
+    errors = []
+    target = parse_next_cut_target("map")
+    for n in range(max_cuts):
+        w = normalise(ll)
+        if strategy == "next":
+            # large pools are ranked on RANK_DRAWS draws resampled by weight (the update uses the whole pool)
+            use, wr = (np.arange(w.size), w) if w.size <= RANK_DRAWS else (resample(w, RANK_DRAWS, rng), None)
+            r = rank_next_cuts(target, cs, ca, pool_fine[use][:, ci], c.map_speed, c.map_depth, pool_map[use], wr,
+                               BOUNDARY_WIDTH, risk_budget)
+            best = r.best or r.candidates[0]
+            k, a = int(np.searchsorted(FINE, best.speed_rpm)), best.depth_m
+        elif strategy == "random":
+            k, a = int(rng.integers(FINE.size)), float(rng.uniform(*DEPTHS))
+        else:
+            j = grid_order[n % gs.size]
+            k, a = int(np.searchsorted(FINE, gs[j])), float(ga[j])
+        stable, _ = label_cuts(np.array([a]), c.fine_truth[k:k + 1], 0.0, rng)
+        ll += log_lik(np.array([a]), stable, pool_fine[:, k:k + 1])
+        errors.append(c.map_error(p_map(pool_map, normalise(ll), c.map_depth)))
+        if stop_err is not None and errors[-1] <= stop_err:
+            return n + 1, errors, normalise(ll)
+    return None, errors, normalise(ll)
+
+
+def generic_modal_draws(c: Campaign, n: int, rng):
+    """Unit-K_t limits (n, map) and (n, fine) of one-mode FRFs from generic priors (the same mode in X and Y)."""
+    f = c.frf.frequency_hz
+    fn = ANCHOR_FN * np.exp(rng.normal(0, 0.2, n))
+    k = ANCHOR_K * np.exp(rng.normal(0, 0.5, n))
+    z = ANCHOR_ZETA * np.exp(rng.normal(0, 0.5, n))
+    r = f[None, :] / fn[:, None]
+    g = 1.0 / (k[:, None] * (1 - r**2 + 2j * z[:, None] * r))
+    speeds = np.unique(np.concatenate([c.map_speed, FINE]))
+    lim = zoa_lobes(g, g, f, unit_cutting(), speeds).depth_limit_m
+    return lim[:, np.searchsorted(speeds, c.map_speed)], lim[:, np.searchsorted(speeds, FINE)]
+
+
+def design(c: Campaign, pairs: int, anchor_draws: int) -> dict:
+    n_draws = c.unit_map.shape[0]
+    hammer_err = c.map_error(p_map(c.unit_map / KT, np.full(n_draws, 1 / n_draws), c.map_depth))
+    target = 0.5 * hammer_err
+    theta = np.repeat(np.arange(n_draws), pairs)
+    rng = np.random.default_rng([c.seed, 2])
+    scale = np.exp(rng.normal(0.0, KT_SIGMA, theta.size))
+    out = {"campaign": c.i, "hammer_err": hammer_err, "target": target}
+    for name, kw in (("next", {}), ("next_budget", {"risk_budget": 0.3}), ("random", {}), ("grid", {})):
+        t0 = time.perf_counter()
+        n, errs, _ = sequence(c, c.unit_map, c.unit_fine, theta, scale, name.split("_")[0],
+                              np.random.default_rng([c.seed, 3]), stop_err=target, **kw)
+        out[name] = n
+        out[name + "_errors"] = errs
+        print(f"    design {c.i} {name}: {n} cuts ({time.perf_counter() - t0:.0f} s)", flush=True)
+    rng = np.random.default_rng([c.seed, 4])
+    um, uf = generic_modal_draws(c, anchor_draws, rng)
+    a_theta = np.arange(anchor_draws)
+    a_scale = np.exp(rng.normal(0.0, KT_SIGMA, anchor_draws))
+    out["anchor_prior_err"] = c.map_error(p_map(um / (KT * a_scale[:, None]), np.full(anchor_draws, 1 / anchor_draws),
+                                                c.map_depth))
+    for name in ("next", "random"):
+        n, errs, w = sequence(c, um, uf, a_theta, a_scale, name, np.random.default_rng([c.seed, 3]),
+                              stop_err=target)
+        out["anchor_" + name] = n
+        out["anchor_" + name + "_errors"] = errs
+        out["anchor_" + name + "_ess"] = float(1 / np.sum(w**2))
+        print(f"    anchor {c.i} {name}: {n} cuts (ESS {out['anchor_' + name + '_ess']:.0f})", flush=True)
+    return out
+
+
+# ------------------------------------------------------------------------- cost --
+def cost(c: Campaign, runs: int) -> dict:
+    """Update from 20 cuts on a 1000-draw posterior with ZOA: bayes_rcsa.cuts if it offers it, else this engine."""
+    plan = CutPlan(**{**c.plan.__dict__, "n_cuts": 20})
+    from bayes_rcsa.synthetic.cuts import generate_cuts, write_cuts
+
+    cuts = generate_cuts(c.cfg, plan, np.random.default_rng([c.seed, 5]))
+    from bayes_rcsa.stability.posterior_frf import posterior_frf_draws
+
+    def engine():
+        frf = posterior_frf_draws(c.setup, c.posterior, c.length, 1000, np.random.default_rng(0))
+        order = np.argsort(cuts.speed_rpm)
+        lim = np.empty((1000, order.size))
+        lim[:, order] = zoa_lobes(frf.frf_x, frf.frf_y, frf.frequency_hz, unit_cutting(),
+                                  cuts.speed_rpm[order]).depth_limit_m
+        scale = np.exp(np.random.default_rng(1).normal(0, KT_SIGMA, 1000))
+        return normalise(log_lik(cuts.depth_m, cuts.stable, lim / (KT * scale[:, None])))
+
+    times = []
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        engine()
+        times.append(time.perf_counter() - t0)
+    out = {"engine_median_s": statistics.median(times), "engine_runs": runs}
+    cli_times = []
+    try:
+        from bayes_rcsa.cli.main import COMMANDS
+    except ImportError:  # pragma: no cover
+        COMMANDS = ()
+    if "update" in COMMANDS:
+        from bayes_rcsa.cli.main import main as cli
+
+        with tempfile.TemporaryDirectory() as d:
+            write_cuts(cuts, d)
+            for k in range(runs):
+                t0 = time.perf_counter()
+                status = cli(["update", str(c.setup), "--posterior", str(c.posterior), "--cuts",
+                              str(Path(d) / "cuts.csv"), "--clamping-length", str(c.length), "--flutes", "4",
+                              "--kt", f"{KT:g}±30%", "--kr", f"{KR:g}±30%", "--immersion", "0.95", "--milling",
+                              "down", "--feed", "y", "--draws", "1000", "--out", str(Path(d) / f"u{k}"), "--quiet"])
+                cli_times.append(time.perf_counter() - t0 if status == 0 else float("nan"))
+        out["update_cli_median_s"] = statistics.median(cli_times)
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--campaigns", type=int, default=20)
+    ap.add_argument("--design-campaigns", type=int, default=5)
+    ap.add_argument("--draws", type=int, default=1000)
+    ap.add_argument("--pairs", type=int, default=2, help="coefficient-scale draws per theta draw")
+    ap.add_argument("--anchor-draws", type=int, default=20000, help="draws of the generic modal prior")
+    ap.add_argument("--runs", type=int, default=5, help="timing runs of the cost row")
+    ap.add_argument("--json", default=None, help="write all rows to this JSON file")
+    ap.add_argument("--cost-only", action="store_true", help="only the cost row (campaign 0)")
+    args = ap.parse_args()
+    if args.cost_only:
+        with tempfile.TemporaryDirectory() as tmpdir:
+            print(cost(Campaign(0, Path(tmpdir), args.draws, args.pairs), args.runs))
+        return
+    rows, races, timing = [], [], {}
+    t_start = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmpdir:
+        tmp = Path(tmpdir)
+        for i in range(args.campaigns):
+            c = Campaign(i, tmp, args.draws, args.pairs)
+            r = recovery(c)
+            rows.append(r)
+            print(f"campaign {i} ({r['length_mm']:.0f} mm, K_t x{r['factor']}, identify {r['t_identify']:.0f} s, "
+                  f"elapsed {time.perf_counter() - t_start:.0f} s): map error hammer {r['err_hammer']:.3f}, "
+                  f"prior {r['err_prior']:.3f}; hammer-only point stable {r['rec_hammer_stable']}", flush=True)
+            for p in ("random_", "next_"):
+                print(f"    {p[:-1]:6s} 10 cuts: K_t 90 % [{r[p + 'kt_lo'] / 1e6:.0f}, {r[p + 'kt_hi'] / 1e6:.0f}] MPa "
+                      f"(true {r['kt_true'] / 1e6:.0f}) covered {r[p + 'covered']}, ESS {r[p + 'ess']:.0f}, map error "
+                      f"{r[p + 'err']:.3f}, point {r[p + 'rec']} stable {r[p + 'rec_stable']}", flush=True)
+            if i < args.design_campaigns:
+                races.append(design(c, args.pairs, args.anchor_draws))
+            if i == 0:
+                timing = cost(c, args.runs)
+                print(f"cost: {timing}", flush=True)
+    report(rows, races, timing)
+    if args.json:
+        Path(args.json).write_text(json.dumps({"recovery": rows, "design": races, "cost": timing}, indent=1,
+                                              default=float))
+
+
+def report(rows, races, timing) -> None:
+    n = len(rows)
+    print("\n## Recovery")
+    for key, label in (("err_hammer", "hammer only (assumed K_t)"), ("err_prior", "hammer + K_t prior +-30 %")):
+        v = [r[key] for r in rows]
+        print(f"mean |P(stable) - truth| {label}: mean {np.mean(v):.4f}, median {np.median(v):.4f}")
+    okh = [r["rec_hammer_stable"] for r in rows]
+    print(f"hammer-only recommended point stable in the truth: {sum(bool(x) for x in okh)}/{n}")
+    for p in ("random_", "next_"):
+        k = sum(r[p + "covered"] for r in rows)
+        lo, hi = clopper_pearson(k, n)
+        v = [r[p + "err"] for r in rows]
+        ratio = [r[p + "err"] / r["err_hammer"] for r in rows]
+        ok = [r[p + "rec_stable"] for r in rows]
+        print(f"[{p[:-1]} 10 cuts] K_t 90 % interval covers the truth: {k}/{n} = {k / n:.2f} (95 % Clopper-Pearson "
+              f"[{lo:.2f}, {hi:.2f}]); map error mean {np.mean(v):.4f}, median {np.median(v):.4f}; ratio to hammer "
+              f"only: mean-error ratio {np.mean(v) / np.mean([r['err_hammer'] for r in rows]):.2f}, median "
+              f"{np.median(ratio):.2f}, halved in {sum(x <= 0.5 for x in ratio)}/{n}; recommended point stable "
+              f"{sum(bool(x) for x in ok)}/{n} (none recommended {sum(x is None for x in ok)}); median ESS "
+              f"{np.median([r[p + 'ess'] for r in rows]):.0f}, min {np.min([r[p + 'ess'] for r in rows]):.0f}")
+    if races:
+        print("\n## Design (cuts to reach half the hammer-only map error; None = not within 20)")
+        for r in races:
+            print(f"campaign {r['campaign']}: target {r['target']:.4f}; next {r['next']}, next (budget 0.3) "
+                  f"{r['next_budget']}, random {r['random']}, grid {r['grid']}; anchor next {r['anchor_next']}, "
+                  f"anchor random {r['anchor_random']} (anchor prior error {r['anchor_prior_err']:.3f})")
+
+        def val(x):
+            return 21 if x is None else x
+
+        wins = sum(val(r["next"]) < min(val(r["random"]), val(r["grid"])) for r in races)
+        print(f"next-cut fewer than both random and grid: {wins}/{len(races)}")
+        for key in ("next", "next_budget", "random", "grid", "anchor_next", "anchor_random"):
+            print(f"median {key}: {statistics.median(val(r[key]) for r in races)}")
+        print("map error after 1, 3, 5, 10, 20 cuts (median over campaigns; a race stops at the target):")
+        for key in ("next", "random", "grid", "anchor_next", "anchor_random"):
+            e = [r[key + "_errors"] for r in races]
+            at = [statistics.median(x[min(n, len(x)) - 1] for x in e) for n in (1, 3, 5, 10, 20)]
+            print(f"  {key:14s} " + " ".join(f"{v:.4f}" for v in at))
+        print(f"anchor ESS after the race: next median {statistics.median(r['anchor_next_ess'] for r in races):.0f}, "
+              f"random median {statistics.median(r['anchor_random_ess'] for r in races):.0f}")
+    print(f"\n## Cost\n{timing}")
+
+
+if __name__ == "__main__":
+    main()
