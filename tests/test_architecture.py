@@ -21,7 +21,7 @@ LAYERS = {
     "params": 3,
     "inference": 4,
     "posterior": 5, "stability": 5, "discrepancy": 5, "design": 5,
-    "report": 6, "batch": 6, "cuts": 6,
+    "report": 6, "batch": 6, "cuts": 6, "library": 6,
     "cli": 7, "__main__": 8,
 }
 

@@ -172,3 +172,30 @@ def test_next_cut_depth_and_mrr_targets():
     assert m.best.gain > 0
     with pytest.raises(SetupError):
         parse_next_cut_target("mrr@1.5")
+
+
+# ------------------------------------------------------- design --next-cut (CLI) --
+from test_cuts_cli import world  # noqa: E402,F401  (the stand-in posterior and cuts of the update tests)
+
+NEXT = ["--next-cut", "--clamping-length", "0.03", "--kt", "600e6±30%", "--kr", "180e6", "--flutes", "4",
+        "--radial-immersion", "0.5", "--draws", "60", "--particles", "2", "--speeds", "7000:17000:6"]
+
+
+def test_design_next_cut_cli(world, tmp_path, capsys):  # noqa: F811
+    setup, post = str(world / "data" / "setup.toml"), str(world / "posterior.nc")
+    out = tmp_path / "nc"
+    argv = ["design", setup, "--posterior", post, *NEXT, "--depths", "5e-6:3e-4:8", "--cuts", str(world / "cuts.csv"),
+            "--risk-budget", "0.3", "--out", str(out)]
+    assert cli(argv) == 0
+    doc = json.loads((out / "design.json").read_text())
+    assert (out / "design.png").is_file() and "warnings" in doc and doc["inputs"]["n_cuts_so_far"] == 6
+    assert doc["best"] is not None and doc["best"]["p_chatter"] <= 0.3
+    assert all(c["p_chatter"] <= 0.3 + 1e-12 for c in doc["candidates"] if c["allowed"])
+    assert len(doc["candidates"]) == 6 * 8 and np.shape(doc["map"]["p_stable"]) == (50, 50)
+    capsys.readouterr()
+    for bad, word in ((["--depths", "1:4"], "metres"), (["--depths", "5e-6:3e-4", "--speeds", "5000:90000"], "band"),
+                      (["--depths", "5e-6:3e-4", "--risk-budget", "2"], "risk-budget")):
+        assert cli(["design", setup, "--posterior", post, *NEXT, *bad, "--out", str(tmp_path / "bad")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and word in err[0], err
+        assert not (tmp_path / "bad").exists()

@@ -28,6 +28,16 @@ expected 90 % width of the dominant natural frequency averaged over the range (p
 
 Writes to --out: design.json (ranking best first, expected widths with Monte Carlo errors, the
 verdict whether another test is worth it) and design.png. See docs/design.md.
+
+With --next-cut: which TEST CUT next (docs/stability.md, "Which cut next"). Every pair of --speeds x
+--depths is a candidate; the posterior's draws with cutting coefficients from --kt V±T (and the cuts
+made so far, --cuts) give each candidate's P(chatter) and the exact expected uncertainty after its two
+possible outcomes of --next-cut-target: map (uncertain area of the P(stable) map), depth@SPEED (90 %
+width of the depth limit there) or mrr@P (best removal rate at P(stable) >= P; maximised). Candidates
+with P(chatter) > --risk-budget are never proposed.
+  design SETUP --posterior P --next-cut --clamping-length 0.03 --speeds 5000:30000:25
+         --depths 5e-6:8e-5:15 --kt 790e6±30% --kr 230e6 --flutes 4 --radial-immersion 0.95
+         --feed y [--cuts CUTS.csv] [--risk-budget 0.3] --out DIR
 """
 
 
@@ -59,6 +69,7 @@ def register(subparsers) -> None:
     cut.add_argument("--radial-immersion", default=None, metavar="R", help="radial depth / diameter in (0, 1]")
     cut.add_argument("--milling", choices=("down", "up"), default="down", help="down (climb) or up milling")
     p.add_argument("--no-plots", action="store_true", help="skip design.png")
+    _add_next_cut_arguments(p)
     add_force_argument(p)
     p.set_defaults(func=run)
 
@@ -85,6 +96,8 @@ def run(args: argparse.Namespace) -> Summary:
     from ..io.setup import load_setup
     from ..posterior.growth_prior import feasible_growth_law
 
+    if args.next_cut:
+        return _run_next_cut(args)
     setup = load_setup(args.setup)
     if not args.force and not directory_is_empty(args.out):
         check_output_directory(args.out)  # refused before the design is computed (checked again under the lock)
@@ -121,3 +134,76 @@ def run(args: argparse.Namespace) -> Summary:
          "worth_it": doc.get("worth_it"), "verdict": verdict},
         warnings=warns,
     )
+
+
+# ------------------------------------------------------------- --next-cut (issue #23) --
+def _add_next_cut_arguments(p) -> None:
+    nc = p.add_argument_group("which test cut next (--next-cut; --kt V±T sets the coefficient prior)")
+    nc.add_argument("--next-cut", action="store_true", help="rank candidate test cuts instead of hammer tests")
+    nc.add_argument("--speeds", default=None, metavar="A:B[:N]", help="candidate speeds in rpm (default N 25)")
+    nc.add_argument("--depths", default=None, metavar="C:D[:N]", help="candidate axial depths in m (default N 15)")
+    nc.add_argument("--clamping-length", default=None, metavar="M", help="clamping length of the next cut in m")
+    nc.add_argument("--cuts", default=None, metavar="CSV", help="cuts made so far (the 'update' file format)")
+    nc.add_argument("--next-cut-target", default="map", metavar="T", help="map (default), depth@SPEED or mrr@P")
+    nc.add_argument("--risk-budget", default="1", metavar="P",
+                    help="largest P(chatter) of a proposed cut (default 1: no budget)")
+    nc.add_argument("--feed", choices=("x", "y"), default="x", help="feed direction (default x)")
+    nc.add_argument("--tool", default=None, metavar="NAME", help="tool (default: the setup's only tool)")
+    nc.add_argument("--particles", type=positive_int, default=4, metavar="M",
+                    help="coefficient draws per posterior draw (default 4)")
+
+
+def _axis(text, option: str, count: int):
+    import numpy as np
+
+    parts = (text or "").split(":")
+    if len(parts) not in (2, 3):
+        raise SetupError(f"{option} {text!r}: expected START:STOP[:COUNT]")
+    lo, hi = (parse_float(v, option, positive=True) for v in parts[:2])
+    n = count if len(parts) == 2 else positive_int(parts[2])
+    if hi < lo or (hi == lo and n != 1):
+        raise SetupError(f"{option} {text!r}: expected START <= STOP")
+    return np.linspace(lo, hi, n)
+
+
+def _run_next_cut(args) -> Summary:
+    from ..cuts import CoefficientPrior
+    from ..cuts.next_cut import parse_next_cut_target, run_next_cut, write_next_cut_outputs
+    from ..io.atomic import directory_is_empty, directory_lock, new_output_directory
+    from ..stability import CuttingConditions
+    from .lobes import parse_coefficient
+
+    missing = [o for o, v in (("--posterior", args.posterior), ("--speeds", args.speeds), ("--depths", args.depths),
+                              ("--clamping-length", args.clamping_length), ("--kt", args.kt), ("--kr", args.kr),
+                              ("--flutes", args.flutes), ("--radial-immersion", args.radial_immersion)) if v is None]
+    if missing:
+        raise SetupError(f"--next-cut needs {', '.join(missing)}")
+    if args.target is not None or args.candidates is not None:
+        raise SetupError("--next-cut ranks cuts: --target and --candidates are for hammer tests (use --next-cut-target)")
+    if not args.posterior.is_file():
+        raise SetupError(f"--posterior {args.posterior}: no such file (posterior.nc written by 'bayes-rcsa identify')")
+    kt, kt_tol = parse_coefficient(args.kt, "--kt")
+    kr, kr_tol = parse_coefficient(args.kr, "--kr")
+    budget = parse_float(args.risk_budget, "--risk-budget", positive=True)
+    if budget > 1:
+        raise SetupError(f"--risk-budget {args.risk_budget}: expected a probability in (0, 1]")
+    cutting = CuttingConditions(kt=kt, kr=kr, flutes=args.flutes, milling=args.milling, feed=args.feed,
+                                radial_immersion=parse_float(args.radial_immersion, "--radial-immersion",
+                                                             positive=True))
+    target = parse_next_cut_target(args.next_cut_target)
+    if not args.force and not directory_is_empty(args.out):
+        check_output_directory(args.out)  # refused before the work (checked again under the lock)
+    result = run_next_cut(args.setup, args.posterior, cutting,
+                          parse_float(args.clamping_length, "--clamping-length", positive=True),
+                          CoefficientPrior.from_tolerances(kt, kt_tol, kr, kr_tol),
+                          _axis(args.speeds, "--speeds", 25), _axis(args.depths, "--depths", 15), target, budget,
+                          args.cuts, args.draws, args.particles, args.seed, tool=args.tool)
+    with directory_lock(args.out), new_output_directory(check_output_directory(args.out, args.force)):
+        write_next_cut_outputs(result, args.out, plots=not args.no_plots)
+    b = result.best
+    msg = ("no cut proposed" if b is None else
+           f"next cut {b.speed_rpm:.0f} rpm, {b.depth_m:.4g} m (P(chatter) {b.p_chatter:.2f}, expected gain "
+           f"{b.gain:.3g} of {result.current:.3g})") + f"; results in {args.out}"
+    return Summary(msg, {"out": str(args.out), "design": str(args.out / "design.json"),
+                         "best": None if b is None else b.as_dict(), "current": result.current},
+                   warnings=tuple(result.warnings))

@@ -49,6 +49,7 @@ COMMANDS = (
     "design",
     "report",
     "batch",
+    "library",
 )
 
 

@@ -6,9 +6,9 @@ from cuts already made, or equal), summarised by each draw's stability limit
 a_lim,d(n) at the candidate speeds and on a P(stable) map grid.  A cut at
 (n, a) has two outcomes; under draw d it is stable with probability
 
-    p_d = 1 - Φ(ln(a / a_lim,d(n)) / w)          (w: boundary width; w = 0 gives the step a < a_lim,d)
+    p_d = 1 - ε - (1 - 2ε) Φ(ln(a / a_lim,d(n)) / w)     (w: boundary width, ε: label error)
 
-(the probit likelihood of :mod:`bayes_rcsa.cuts`).  Because the outcome is
+(the probit likelihood of :mod:`bayes_rcsa.cuts.likelihood`, same defaults).  Because the outcome is
 binary, the expectation over outcomes is *exact*: with P_s = Σ w_d p_d, the
 expected uncertainty after the cut is
 
@@ -47,10 +47,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..design.estimators import weighted_widths
-from ..errors import SetupError
+from ..errors import DataError, SetupError
+from .likelihood import DEFAULT_BOUNDARY_WIDTH, DEFAULT_LABEL_ERROR, chatter_probability
 
 __all__ = ["NextCutTarget", "parse_next_cut_target", "CandidateCut", "NextCutResult", "p_stable_matrix",
-           "map_uncertainty", "best_safe_mrr", "rank_next_cuts", "candidate_grid"]
+           "map_uncertainty", "best_safe_mrr", "rank_next_cuts", "candidate_grid", "run_next_cut",
+           "write_next_cut_outputs"]
 
 #: P(stable) band of the reported "uncertain share" of the map.
 UNCERTAIN_BAND = (0.05, 0.95)
@@ -130,6 +132,9 @@ class NextCutResult:
     boundary_width : float
     ess : float, effective sample size of the current weights
     warnings : list of str
+    map_speed_rpm, map_depth_m, p_stable_map : the current P(stable) map (S,), (A,), (S, A)
+    context : dict, JSON-able inputs (posterior, cuts so far, cutting conditions, prior)
+    cuts_so_far : (speed (k,), depth (k,), stable (k,)) or None, for the plot
     """
 
     target: NextCutTarget
@@ -140,6 +145,11 @@ class NextCutResult:
     boundary_width: float
     ess: float
     warnings: list = field(default_factory=list)
+    map_speed_rpm: np.ndarray | None = None
+    map_depth_m: np.ndarray | None = None
+    p_stable_map: np.ndarray | None = None
+    context: dict = field(default_factory=dict)
+    cuts_so_far: tuple | None = None
 
     @property
     def best(self) -> CandidateCut | None:
@@ -156,6 +166,9 @@ class NextCutResult:
             "boundary_width": self.boundary_width, "ess": self.ess,
             "best": None if best is None else best.as_dict(),
             "candidates": [c.as_dict() for c in self.candidates],
+            "map": None if self.p_stable_map is None else {
+                "speed_rpm": self.map_speed_rpm, "depth_m": self.map_depth_m, "p_stable": self.p_stable_map},
+            **self.context,
             "warnings": list(self.warnings),
         }
 
@@ -168,19 +181,14 @@ def candidate_grid(speed_range, depth_range, n_speeds: int = 25, n_depths: int =
     return ss.ravel(), aa.ravel()
 
 
-def p_stable_matrix(depth_m, limits_m, width: float) -> np.ndarray:
+def p_stable_matrix(depth_m, limits_m, width: float, label_error: float = 0.0) -> np.ndarray:
     """P(stable | draw) of cuts: (D, C) from depths (C,) and the draws' limits at the cuts' speeds (D, C).
 
-    ``width`` = 0 gives the step ``depth < limit``; an infinite limit is always stable.
+    ``width`` = 0 and ``label_error`` = 0 give the step ``depth < limit``; an infinite limit is stable
+    (with probability 1 - ε).
     """
     a = np.asarray(depth_m, dtype=float)[None, :]
-    lim = np.asarray(limits_m, dtype=float)
-    if width == 0:
-        return (a < lim).astype(float)
-    from scipy.special import ndtr
-
-    with np.errstate(divide="ignore"):
-        return 1.0 - ndtr(np.log(a / lim) / width)
+    return 1.0 - chatter_probability(a, np.asarray(limits_m, dtype=float), width, label_error)
 
 
 def _map_p(weights: np.ndarray, indicator: np.ndarray) -> np.ndarray:
@@ -199,8 +207,8 @@ def best_safe_mrr(p: np.ndarray, mrr: np.ndarray, level: float) -> np.ndarray:
 
 
 def rank_next_cuts(target: NextCutTarget, cand_speed_rpm, cand_depth_m, cand_limits_m, map_speed_rpm, map_depth_m,
-                   map_limits_m, weights=None, boundary_width: float = 0.1, risk_budget: float = 1.0,
-                   target_limits_m=None) -> NextCutResult:
+                   map_limits_m, weights=None, boundary_width: float = DEFAULT_BOUNDARY_WIDTH,
+                   risk_budget: float = 1.0, target_limits_m=None, label_error: float = 0.0) -> NextCutResult:
     """Rank candidate cuts by the expected reduction of the target's uncertainty (module docstring).
 
     Parameters
@@ -212,6 +220,7 @@ def rank_next_cuts(target: NextCutTarget, cand_speed_rpm, cand_depth_m, cand_lim
     map_limits_m : (D, S) m, every draw's limit at the map speeds
     weights : (D,) or None (equal), current weights of the draws (e.g. from cuts already made)
     boundary_width : float >= 0, w of the probit (0: sharp boundary)
+    label_error : float ε in [0, 0.5), chance that a cut far from the boundary is reported the other way
     risk_budget : float in (0, 1], largest acceptable P(chatter) of a proposed cut
     target_limits_m : (D,) m or None, every draw's limit at the ``depth`` target's speed (required then)
 
@@ -243,7 +252,7 @@ def rank_next_cuts(target: NextCutTarget, cand_speed_rpm, cand_depth_m, cand_lim
     w = w / w.sum()
     warnings: list[str] = []
 
-    p = p_stable_matrix(ca, cl, boundary_width)  # (D, C)
+    p = p_stable_matrix(ca, cl, boundary_width, label_error)  # (D, C)
     ps = w @ p  # (C,) P(stable) of each candidate
     with np.errstate(invalid="ignore", divide="ignore"):
         ws = (w[:, None] * p).T / ps[:, None]  # (C, D) weights after a stable outcome
@@ -309,3 +318,179 @@ def _edge_warning(best: CandidateCut | None, cs: np.ndarray, ca: np.ndarray) -> 
              if hi > lo and (v <= lo or v >= hi)]
     return (f"warning: the proposed cut lies on the edge of the candidate {' and '.join(sides)} range; a better cut "
             "may lie outside it") if sides else ""
+
+
+# ------------------------------------------------------------------ workflow --
+def run_next_cut(setup_path, posterior_path, cutting, clamping_length: float, prior, cand_speeds_rpm,
+                 cand_depths_m, target: NextCutTarget, risk_budget: float = 1.0, cuts_path=None,
+                 n_draws: int | None = 500, particles: int = 4, seed: int = 0,
+                 boundary_width: float = DEFAULT_BOUNDARY_WIDTH, label_error: float = DEFAULT_LABEL_ERROR,
+                 tool: str | None = None, method: str = "zoa", map_points: int = 50) -> NextCutResult:
+    """Rank the candidate cuts (every speed x every depth) at ``clamping_length`` for ``target``.
+
+    The hammer posterior's draws (``n_draws`` of them, with the growth-law transfer where needed) are
+    paired with ``particles`` draws each of the cutting coefficients from ``prior``
+    (:class:`~bayes_rcsa.cuts.coefficients.CoefficientPrior`); cuts already made (``cuts_path``, the
+    ``update`` file format) weight the particles by the cut likelihood.  The limits at the candidate and
+    map speeds come from ``method`` on each draw's X/Y tool-point FRFs
+    (:func:`~bayes_rcsa.cuts.likelihood.inverse_limits_at_cuts`).
+
+    Parameters
+    ----------
+    setup_path, posterior_path : paths (setup TOML, posterior.nc of ``identify``)
+    cutting : CuttingConditions of the candidate cuts (its K_t, K_r are replaced by the prior's)
+    clamping_length : float, m
+    prior : CoefficientPrior
+    cand_speeds_rpm : (S,) rpm; cand_depths_m : (A,) m, the candidates are all S x A pairs
+    target : NextCutTarget
+    risk_budget : float in (0, 1]
+    cuts_path : path or None, cuts made so far
+    n_draws : int or None (all), hammer draws; particles : int, coefficient draws per hammer draw
+    seed : int
+    boundary_width, label_error : of the cut likelihood
+    tool : str or None (the setup's only tool)
+    method : stability method
+    map_points : int, speeds and depths of the P(stable) map (over the candidate ranges)
+
+    Returns
+    -------
+    NextCutResult (with the current map and JSON-able context)
+    """
+    from ..io import load_setup
+    from ..stability.posterior_frf import flute_length
+    from .data import check_supported, cut_groups, prepare_cuts
+    from .frf import posterior_dynamics
+    from .likelihood import CutGroup, CutLikelihood, inverse_limits_at_cuts
+    from .update import effective_sample_size
+
+    rng = np.random.default_rng(seed)
+    s_axis = np.unique(np.asarray(cand_speeds_rpm, dtype=float))
+    a_axis = np.unique(np.asarray(cand_depths_m, dtype=float))
+    if s_axis.size < 1 or a_axis.size < 1 or np.any(s_axis <= 0) or np.any(a_axis <= 0):
+        raise SetupError("--speeds and --depths: expected positive speeds (rpm) and depths (m)")
+    if int(particles) != particles or particles < 1:
+        raise SetupError(f"particles={particles!r}: expected an integer >= 1")
+    setup0 = load_setup(setup_path, load_data=False, load_spindle=False)
+    if tool is None:
+        if len(setup0.tools) != 1:
+            raise SetupError(f"the setup has several tools {sorted(setup0.tools)}; give --tool NAME")
+        tool = next(iter(setup0.tools))
+    elif tool not in setup0.tools:
+        raise SetupError(f"--tool {tool!r}: not a tool of the setup ({', '.join(sorted(setup0.tools))})")
+    fl = flute_length(setup0.tools[tool])
+    if fl is not None and a_axis[-1] > fl:
+        raise DataError(f"--depths up to {a_axis[-1]:g} m: deeper than the flute length {fl:g} m of tool {tool!r}; "
+                        "depths are in metres (was it in mm?)")
+    key = (float(clamping_length), tool)
+    cuts = None
+    setups = [key]
+    if cuts_path is not None:
+        from ..stability.tests_io import read_cut_table
+
+        cuts = prepare_cuts(read_cut_table(cuts_path), cutting, clamping_length, setup0.tools, tool,
+                            lambda name: flute_length(setup0.tools[name]))
+        setups = sorted(set(setups) | set(cuts.setups()))
+    dyn = posterior_dynamics(setup_path, posterior_path, setups, n_draws, rng)
+    f = dyn.frequency_hz
+    top = 60.0 * float(np.max(f)) / cutting.flutes
+    if s_axis[-1] > top:
+        raise DataError(f"--speeds up to {s_axis[-1]:g} rpm: outside the speed range the FRF band supports (at most "
+                        f"{top:.0f} rpm with {cutting.flutes} flutes: the tooth-passing frequency must lie in the band)")
+    map_s = np.linspace(s_axis[0], s_axis[-1], map_points) if s_axis.size > 1 else s_axis
+    map_a = np.linspace(a_axis[-1] / map_points, a_axis[-1], map_points)
+    extra = [] if target.kind != "depth" else [float(target.speed_rpm)]
+    speeds = np.unique(np.concatenate([s_axis, map_s, extra]))
+    gx, gy = dyn.frfs[key]
+    group = CutGroup(gx, gy, f, cutting, np.arange(speeds.size), speeds)
+    inv = inverse_limits_at_cuts([group], speeds.size, prior, method)  # (nodes, D, S)
+    n_d = inv.shape[1]
+    draw = np.repeat(np.arange(n_d), int(particles))
+    u, node = prior.sample(rng, draw.size)
+    with np.errstate(divide="ignore"):
+        limits = 1.0 / (inv[node, draw] * np.exp(u)[:, None])  # (P, S) m; inf where no limit
+    warnings: list[str] = []
+    weights = None
+    so_far = None
+    if cuts is not None:
+        groups = cut_groups(cuts, dyn.frfs, f)
+        inv_c = inverse_limits_at_cuts(groups, cuts.n_cuts, prior, method)
+        check_supported(cuts, inv_c)
+        logw = CutLikelihood(inv_c, cuts.depth_m, cuts.chatter, label_error)(draw, u, node, boundary_width)
+        weights = np.exp(logw - np.max(logw))
+        weights /= weights.sum()
+        ess = effective_sample_size(np.bincount(draw, weights, n_d))
+        if ess < 30:
+            warnings.append(f"warning: the {cuts.n_cuts} cut(s) so far leave {ess:.0f} effective hammer draws of {n_d}; "
+                            "the ranking rests on few draws (use more --draws)")
+        so_far = (cuts.speed_rpm, cuts.depth_m, ~cuts.chatter)
+    col = {v: i for i, v in enumerate(speeds)}
+    cs, ca = (x.ravel() for x in np.meshgrid(s_axis, a_axis, indexing="ij"))
+    res = rank_next_cuts(target, cs, ca, limits[:, [col[v] for v in cs]], map_s, map_a,
+                         limits[:, [col[v] for v in map_s]], weights, boundary_width, risk_budget,
+                         limits[:, col[extra[0]]] if extra else None, label_error)
+    w = np.full(draw.size, 1.0 / draw.size) if weights is None else weights
+    p_map = np.einsum("p,psa->sa", w, (map_a[None, None, :] < limits[:, [col[v] for v in map_s], None]))
+    for name, lo, hi in (("speed", s_axis[0], s_axis[-1]), ("depth", a_axis[0], a_axis[-1])):
+        if lo == hi:
+            warnings.append(f"warning: a single candidate {name}; the ranking is over the other axis only")
+    context = {"inputs": {"setup": str(setup_path), "posterior": str(posterior_path),
+                          "cuts": None if cuts_path is None else str(cuts_path),
+                          "n_cuts_so_far": 0 if cuts is None else cuts.n_cuts, "clamping_length_m": float(clamping_length),
+                          "tool": tool, "method": method, "n_draws": n_d, "particles_per_draw": int(particles),
+                          "seed": seed, "label_error": label_error, "coefficient_prior": prior.describe(),
+                          "cutting": {"flutes": cutting.flutes, "radial_immersion": cutting.radial_immersion,
+                                      "milling": cutting.milling, "feed": cutting.feed}}}
+    return NextCutResult(res.target, res.candidates, res.current, res.uncertain_share, res.risk_budget,
+                         res.boundary_width, res.ess, warnings + res.warnings, map_s, map_a, p_map, context, so_far)
+
+
+def write_next_cut_outputs(result: NextCutResult, out_dir, plots: bool = True) -> list:
+    """Write ``design.json`` (and ``design.png``: the P(stable) map, the candidates' gains, the proposal)."""
+    from pathlib import Path
+
+    from ..io.atomic import atomic_write_text
+    from ..io.jsonable import dumps_strict
+
+    out = Path(out_dir)
+    doc = {"mode": "next_cut", **result.as_dict()}
+    written = []
+    if plots:
+        written.append(_plot(result, out / "design.png"))
+        doc["plot"] = "design.png"
+    atomic_write_text(out / "design.json", dumps_strict(doc, indent=2) + "\n")
+    return [out / "design.json"] + written
+
+
+def _plot(result: NextCutResult, path):
+    from ..io.figures import new_figure, save_png
+
+    fig = new_figure(7.0, 4.4)
+    ax = fig.add_subplot(111)
+    s, a = result.map_speed_rpm, result.map_depth_m
+    im = ax.pcolormesh(s, 1e3 * a, result.p_stable_map.T, cmap="RdYlGn", vmin=0, vmax=1, shading="nearest")
+    fig.colorbar(im, ax=ax, label="P(stable) now")
+    c = result.candidates
+    ok = [x for x in c if x.allowed]
+    bad = [x for x in c if not x.allowed]
+    gmax = max((x.gain for x in c), default=0.0)
+    if ok:
+        ax.scatter([x.speed_rpm for x in ok], [1e3 * x.depth_m for x in ok],
+                   s=[4 + 60 * max(x.gain, 0) / gmax if gmax > 0 else 4 for x in ok], c="k", alpha=0.5,
+                   label="candidates (size: expected gain)")
+    if bad:
+        ax.scatter([x.speed_rpm for x in bad], [1e3 * x.depth_m for x in bad], s=6, marker="x", c="0.3", alpha=0.5,
+                   label=f"P(chatter) > risk budget {result.risk_budget:g}")
+    if result.cuts_so_far is not None:
+        sp, dp, st = result.cuts_so_far
+        ax.scatter(sp[st], 1e3 * dp[st], marker="o", facecolors="none", edgecolors="b", label="cuts so far: stable")
+        ax.scatter(sp[~st], 1e3 * dp[~st], marker="^", c="m", label="cuts so far: chatter")
+    b = result.best
+    if b is not None:
+        ax.scatter([b.speed_rpm], [1e3 * b.depth_m], marker="*", s=220, c="gold", edgecolors="k",
+                   label=f"next cut: {b.speed_rpm:.0f} rpm, {1e3 * b.depth_m:.3g} mm (P(chatter) {b.p_chatter:.2f})")
+    ax.set_xlabel("spindle speed (rpm)")
+    ax.set_ylabel("axial depth (mm)")
+    ax.set_title(f"next cut for target {result.target.text or result.target.kind}", fontsize=9)
+    ax.legend(fontsize=6, loc="upper right")
+    fig.tight_layout()
+    return save_png(fig, path)

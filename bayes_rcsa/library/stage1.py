@@ -1,0 +1,214 @@
+"""Stage 1: every combination's own posterior under the broad common prior, through :mod:`bayes_rcsa.batch`.
+
+Each setup of the manifest is run by ``identify`` alone (the manifest's
+``predict`` and ``lobes`` steps are not needed for the population), one task
+per setup on any executor -- the local process pool or a Dask cluster --
+and cached per setup exactly as ``batch`` caches it (a finished setup with
+the same options and setup file is not recomputed).  :func:`collect` then
+reads each ``posterior.nc`` into population coordinates.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..errors import DataError, SetupError
+from .population import COORDINATES, SCALES, covariate, to_coordinates
+from .stage2 import SetupDraws
+
+__all__ = ["identify_only", "run_stage1", "collect", "holder_type_of", "shank_diameter", "stage1_prior",
+           "Stage1"]
+
+_LN10 = math.log(10.0)
+
+
+def holder_type_of(setup) -> str | None:
+    """The setup's ``[holder] type``, or ``None`` when absent (or on a version without the key)."""
+    value = getattr(setup, "holder_type", None)
+    return None if value is None else str(value)
+
+
+def shank_diameter(setup) -> float:
+    """m, diameter of the clamped shank (the tool's last segment); one tool per library setup.
+
+    Raises
+    ------
+    SetupError
+        Several tools in the setup (a combination is one tool in one holder).
+    """
+    tools = getattr(setup, "tools", {}) or {}
+    if len(tools) != 1:
+        raise SetupError(f"{setup.path}: {len(tools)} tools {sorted(tools)}; a library combination is one tool in "
+                         "one holder")
+    tool = next(iter(tools.values()))
+    return float(tool.segments[-1].diameter)
+
+
+def identify_only(jobs) -> tuple:
+    """The manifest's jobs with their ``identify`` step only (stage 1 needs no predictions or lobes)."""
+    out = []
+    for job in jobs:
+        cmds = tuple((s, a) for s, a in job.commands if s == "identify")
+        out.append(dataclasses.replace(job, commands=cmds))
+    return tuple(out)
+
+
+def run_stage1(jobs, out_dir, run_command: Callable[[list[str]], int], executor=None, workers: int = 1,
+               force: bool = False, progress=None):
+    """Run (or reuse) every setup's ``identify`` into ``out_dir/setups/<name>/identify``.
+
+    Parameters
+    ----------
+    jobs : sequence of SetupJob (from :func:`bayes_rcsa.batch.load_manifest`)
+    out_dir : path-like
+    run_command : ``argv -> exit status`` (:func:`bayes_rcsa.cli.main.main`, passed in by the command line)
+    executor : concurrent.futures.Executor or None (local process pool of ``workers``)
+    workers, force, progress : as :func:`bayes_rcsa.batch.run_batch`
+
+    Returns
+    -------
+    BatchResult
+    """
+    from ..batch import run_batch
+
+    return run_batch(identify_only(jobs), out_dir, run_command, executor=executor, workers=workers, force=force,
+                     progress=progress)
+
+
+def stage1_prior(pm, names: Sequence[str], where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Gaussian part (mean, precision) and box of a fit's prior in the population coordinates.
+
+    Flat priors (log-uniform stiffness or damping, uniform growth) have zero
+    precision; a log-normal (normal) prior becomes a normal in log10 (linear)
+    coordinates.
+
+    Raises
+    ------
+    SetupError
+        A prior kind the population cannot divide out.
+    """
+    d = len(names)
+    mean, prec, box = np.zeros(d), np.zeros((d, d)), np.zeros((d, 2))
+    for j, n in enumerate(names):
+        p = pm[n].prior
+        desc = p.describe()
+        kind = desc.get("distribution")
+        lo, hi = p.bounds
+        if SCALES[n] == "log10":
+            if kind == "log-uniform":
+                box[j] = (lo, hi)
+            elif kind == "log-normal":
+                box[j] = (lo / _LN10, hi / _LN10)
+                mean[j], prec[j, j] = math.log10(desc["median"]), (_LN10 / desc["sigma"]) ** 2
+            else:
+                raise SetupError(f"{where}: prior of {n} is {kind}; a library's stage 1 needs a log-uniform or "
+                                 "log-normal prior (flat or normal in log10)")
+        else:
+            if kind == "uniform":
+                box[j] = (lo, hi)
+            elif kind == "normal":
+                box[j] = (lo, hi)
+                mean[j], prec[j, j] = desc["mu"], 1.0 / desc["sigma"] ** 2
+            else:
+                raise SetupError(f"{where}: prior of {n} is {kind}; a library's stage 1 needs a uniform or normal "
+                                 "prior of the growth factors")
+    return mean, prec, box
+
+
+@dataclasses.dataclass
+class Stage1:
+    """The library's stage-1 posteriors in population coordinates.
+
+    Attributes
+    ----------
+    names : tuple of str, pooled coordinates (sampled in every setup)
+    setups : list of SetupDraws
+    growth : (l_a, l_b, Q) common growth law
+    box : (d, 2) the widest stage-1 prior box over the setups (for the hyperprior and new setups)
+    warnings : list of str
+    """
+
+    names: tuple
+    setups: list
+    growth: tuple
+    box: np.ndarray
+    warnings: list
+
+
+def collect(jobs, out_dir, rows: Sequence[dict] | None = None) -> Stage1:
+    """Read every finished setup's posterior into population coordinates.
+
+    Parameters
+    ----------
+    jobs : sequence of SetupJob
+    out_dir : path-like, the stage-1 folder (``setups/<name>/identify/posterior.nc``)
+    rows : batch rows or None; setups whose row is not ``done`` are left out with a warning
+
+    Raises
+    ------
+    SetupError
+        A setup without ``[holder] type``, with several tools, an implausible
+        shank diameter (mixed units), a growth law or set of sampled contact
+        parameters that differs from the others, or fewer than two usable
+        setups.
+    """
+    from ..io.setup import load_setup
+    from ..posterior.draws import load_posterior
+
+    status = {r["name"]: r for r in rows or ()}
+    warns: list[str] = []
+    entries = []
+    for job in jobs:
+        row = status.get(job.name)
+        if row is not None and row.get("status") != "done":
+            warns.append(f"setup {job.name}: stage 1 {row.get('status')} ({row.get('error')}); left out of the "
+                         "population")
+            continue
+        setup = load_setup(job.setup_file, load_data=False, load_spindle=False)
+        htype = holder_type_of(setup)
+        if htype is None:
+            raise SetupError(f"{job.setup_file}: no [holder] type; every setup of a library needs one (e.g. "
+                             'type = "ER32")')
+        diameter = shank_diameter(setup)
+        covariate(diameter, f"{job.setup_file}: shank diameter")
+        path = Path(out_dir) / "setups" / job.name / "identify" / "posterior.nc"
+        try:
+            draws = load_posterior(path)
+        except DataError as exc:
+            warns.append(f"setup {job.name}: {exc}; left out of the population")
+            continue
+        if row is not None and row.get("converged") is False:
+            warns.append(f"setup {job.name}: its stage-1 posterior did not converge; pooled as it is")
+        entries.append((job.name, htype, diameter, draws))
+    if len(entries) < 2:
+        raise SetupError(f"a library needs at least two usable combinations to estimate a population; got "
+                         f"{len(entries)}")
+    names_of = {e[0]: tuple(n for n in COORDINATES if n in e[3].parameters.names) for e in entries}
+    ref_name, ref = entries[0][0], names_of[entries[0][0]]
+    g0 = entries[0][3].parameters.growth
+    for name, _, _, draws in entries:
+        if names_of[name] != ref:
+            raise SetupError(f"setup {name}: samples the contact parameters {list(names_of[name])}, setup {ref_name} "
+                             f"{list(ref)}; a library pools one set (give every setup the same [contact] table "
+                             "kinds and the same number of clamping lengths)")
+        g = draws.parameters.growth
+        if (g.l_a, g.l_b, g.growth_bound) != (g0.l_a, g0.l_b, g0.growth_bound):
+            hint = " (mixed units?)" if max(g.l_b, g0.l_b) > 100 * min(g.l_b, g0.l_b) else ""
+            raise SetupError(f"setup {name}: growth law [l_a, l_b] = [{g.l_a:g}, {g.l_b:g}] m, Q = {g.growth_bound:g}; "
+                             f"setup {ref_name} has [{g0.l_a:g}, {g0.l_b:g}] m, Q = {g0.growth_bound:g}{hint}; a "
+                             "library's stiffness refers to one reference length: give every setup the same "
+                             "contact.clamping_range and growth_bound")
+    if not ref:
+        raise SetupError("no contact parameter is sampled in the stage-1 fits; nothing to pool")
+    setups = []
+    for name, htype, diameter, draws in entries:
+        mean, prec, box = stage1_prior(draws.parameters, ref, f"setup {name}")
+        z = to_coordinates(ref, draws.values)
+        setups.append(SetupDraws(name, htype, diameter, z, mean, prec, box))
+    box = np.column_stack([np.min([s.box[:, 0] for s in setups], axis=0), np.max([s.box[:, 1] for s in setups], axis=0)])
+    return Stage1(ref, setups, (g0.l_a, g0.l_b, g0.growth_bound), box, warns)

@@ -1,0 +1,97 @@
+"""Fit a library's population from its stage-1 posteriors and write every output (``bayes-rcsa library``)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SetupError
+from .outliers import flag_outliers, loo_p_values
+from .population import Hyperprior
+from .predictive import Population
+from .stage1 import Stage1
+from .stage2 import ESS_MIN, Stage2Result, Stage2Settings, fit_population
+
+__all__ = ["LibraryFit", "fit_library", "write_library", "OUTPUT_FILES"]
+
+#: Files ``bayes-rcsa library`` writes beside the stage-1 folder ``setups/``.
+OUTPUT_FILES = ("population.nc", "laws.json", "laws.csv", "library.json", "shrinkage.png")
+
+
+@dataclass
+class LibraryFit:
+    """A fitted library: the population, stage 2's result, per-setup rows and warnings."""
+
+    population: Population
+    stage2: Stage2Result
+    setups: list
+    warnings: list
+
+
+def fit_library(stage1: Stage1, rng: np.random.Generator, settings: Stage2Settings = Stage2Settings(),
+                ess_min: float = ESS_MIN, outliers: bool = True) -> LibraryFit:
+    """Stage 2, the outlier check and the population of a library.
+
+    Parameters
+    ----------
+    stage1 : Stage1 (from :func:`bayes_rcsa.library.stage1.collect`)
+    rng : numpy Generator
+    settings : Stage2Settings
+    ess_min : float, smallest per-setup importance ESS for a pooled estimate
+    outliers : bool, run the leave-one-out check
+
+    Raises
+    ------
+    SetupError
+        One holder type with a single combination (nothing to pool).
+    """
+    warns = list(stage1.warnings)
+    types = sorted({s.holder_type for s in stage1.setups})
+    if len(stage1.setups) < 2:
+        raise SetupError(f"a library of {len(stage1.setups)} combination(s) in {len(types)} holder type(s): a "
+                         "population needs at least two combinations")
+    hyper = Hyperprior.from_box(stage1.names, stage1.box, stage1.growth[2])
+    res = fit_population(stage1.setups, hyper, rng, settings, ess_min=ess_min)
+    warns += res.warnings
+    rows = [dict(r) for r in res.setups]
+    if outliers:
+        p_rows = []
+        for t in types:
+            p_rows += loo_p_values(res.types[t], hyper, rng)
+        flagged, w = flag_outliers(p_rows, len(rows))
+        warns += w
+        by_name = {r["name"]: r for r in flagged}
+        for r in rows:
+            f = by_name[r["name"]]
+            r.update({"p_value": f["p_value"], "p_method": f["method"], "outlier": f["outlier"],
+                      "outlier_threshold": f["threshold"]})
+    diameters = {t: (min(s.diameter for s in stage1.setups if s.holder_type == t),
+                     max(s.diameter for s in stage1.setups if s.holder_type == t)) for t in types}
+    pop = Population(stage1.names, {t: res.types[t].flat for t in types}, stage1.box, stage1.growth, diameters)
+    return LibraryFit(pop, res, rows, list(dict.fromkeys(warns)))
+
+
+def write_library(out_dir, fit: LibraryFit, plots: bool = True, attrs: dict | None = None) -> dict[str, Path]:
+    """population.nc, laws.json/csv, library.json (per-setup rows, ESS, outliers, warnings), shrinkage.png."""
+    from ..io.atomic import atomic_write_text
+    from .outputs import law_table, shrinkage_plot, write_law_table, write_population
+
+    out = Path(out_dir)
+    paths = {"population": write_population(out / "population.nc", fit.population, fit.setups,
+                                            fit.stage2.hyper.describe(),
+                                            {"warnings": json.dumps(fit.warnings), **(attrs or {})})}
+    laws = law_table(fit.population)
+    paths["laws_json"], paths["laws_csv"] = write_law_table(out, laws)
+    stage2 = {t: {"n_setups": len(f.names), "ess": f.ess, "acceptance": f.acceptance,
+                  "autocorrelation_steps": float(np.max(f.tau))} for t, f in fit.stage2.types.items()}
+    doc = {"holder_types": list(fit.population.holder_types), "coordinates": list(fit.population.names),
+           "stage2": stage2, "setups": fit.setups, "laws": laws,
+           "outliers": [r["name"] for r in fit.setups if r.get("outlier")], "warnings": fit.warnings}
+    atomic_write_text(out / "library.json", json.dumps(doc, indent=1, default=float))
+    paths["json"] = out / "library.json"
+    if plots:
+        paths["shrinkage"] = shrinkage_plot(out / "shrinkage.png", fit.population.names, fit.setups)
+    return paths
