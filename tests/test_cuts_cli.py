@@ -89,6 +89,12 @@ def test_update_writes_a_posterior_with_coefficients_that_lobes_uses(world, tmp_
     assert main([*lob, "--kt", "600e6", "--kr", "180e6", "--out", str(tmp_path / "l2")]) == 0
     l2 = json.loads((tmp_path / "l2" / "lobes.json").read_text())
     assert "cutting_coefficients" not in l2 and l2["cutting"]["kt_pa"] == 600e6
+    # the report shows hammer only and hammer + 6 cuts side by side, and what each cut moved
+    assert main(["report", str(out), "--out", str(tmp_path / "r.html")]) == 0
+    html = (tmp_path / "r.html").read_text()
+    assert 'id="cuts-1"' in html and "<th>hammer + 6 cuts</th>" in html and html.count("this cut moved") == 1
+    before_rec = doc["lobes"]["hammer_only"]["recommended"]
+    assert f"{before_rec['spindle_speed_rpm']:.0f}"[:3] in html and html.count('alt="hammer only vs hammer + cuts"') == 1
 
 
 @pytest.mark.parametrize("row, message", [

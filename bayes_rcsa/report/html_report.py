@@ -23,6 +23,7 @@ from ..errors import DataError
 from ..io.atomic import atomic_write_text
 from . import figures as F
 from .answer import answer_markdown, build_answer, num, template_environment, yes_no
+from .cuts_section import cuts_section
 from .runs import KINDS, RunDir, collect_runs
 
 __all__ = ["build_report", "write_report_html", "answer_of_runs", "num", "yes_no", "FRF_DRAWS"]
@@ -306,6 +307,7 @@ def build_report(paths: Sequence, seed: int = 0, title: str | None = None) -> st
             "discrepancy": [_discrepancy_section(r) for r in by_kind.get("discrepancy", [])],
             "lobes": [_lobes_section(r) for r in by_kind.get("lobes", [])],
             "design": [_design_section(r) for r in by_kind.get("design", [])],
+            "cuts": [cuts_section(r) for r in by_kind.get("update", [])],
             "answer": answer_of_runs(runs),
             "href": "",
         }

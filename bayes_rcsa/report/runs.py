@@ -12,6 +12,7 @@ lobes              ``lobes.json`` (+ ``p_stable.npz``, ``lobes.png``)
 identifiability    ``identifiability.json``
 discrepancy        ``discrepancy.json``
 design             ``design.json``
+update             ``update.json`` (+ ``posterior.nc``; ``bayes-rcsa update``)
 =================  ===========================================
 
 A directory holding none of them but sub-directories that do (the output of
@@ -38,6 +39,7 @@ KINDS = {
     "identifiability": "identifiability.json",
     "discrepancy": "discrepancy.json",
     "design": "design.json",
+    "update": "update.json",
 }
 
 
@@ -80,6 +82,7 @@ REQUIRED_KEYS = {
     "identify": ("method", "converged", "parameters", "warnings"),
     "predict": ("predictions", "posterior", "setup"),
     "lobes": ("method", "recommended", "warnings"),
+    "update": ("inputs", "ess", "kt_pa", "kr_pa", "cuts", "warnings"),
 }
 
 
