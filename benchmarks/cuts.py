@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import statistics
 import sys
 import tempfile
@@ -58,9 +59,11 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scipy.special import log_ndtr
-
+from bayes_rcsa.cuts import (DEFAULT_BOUNDARY_WIDTH, DEFAULT_LABEL_ERROR, BoundaryWidth, CoefficientPrior, CutGroup,
+                             CutLikelihood, inverse_limits_at_cuts, outcome_log_likelihood)
 from bayes_rcsa.cuts.next_cut import candidate_grid, parse_next_cut_target, rank_next_cuts
+from bayes_rcsa.cuts.update import UpdateSettings, importance_update
+from bayes_rcsa.errors import ConvergenceError
 from bayes_rcsa.stability import CuttingConditions, Tolerances, recommend, zoa_lobes
 from bayes_rcsa.synthetic import default_bench_config, generate_campaign, write_campaign
 from bayes_rcsa.synthetic.cuts import CutPlan, label_cuts, true_cut_frfs, true_depth_limit
@@ -74,8 +77,9 @@ CUT = dict(flutes=4, radial_immersion=0.95, milling="down", feed="y")
 SPEEDS = (5000.0, 30000.0)
 DEPTHS = (5e-6, 8e-5)
 LENGTHS = (0.030, 0.035)
-BOUNDARY_WIDTH = 0.1
-KT_SIGMA = 0.3
+BOUNDARY_WIDTH = DEFAULT_BOUNDARY_WIDTH  # the update's defaults: w = 0.1, label error 0.01
+LABEL_ERROR = DEFAULT_LABEL_ERROR
+KT_SIGMA = math.log(1.3)  # "--kt 790e6±30%": log-normal level, sd ln(1.3), as bayes-rcsa update
 LEVEL = 0.95
 ANCHOR_FN, ANCHOR_K, ANCHOR_ZETA = 1000.0, 1e6, 0.02  # generic one-mode priors (medians), near the truth
 RANK_DRAWS = 2000
@@ -87,11 +91,10 @@ def unit_cutting() -> CuttingConditions:
     return CuttingConditions(kt=1.0, kr=KR / KT, **CUT)
 
 
-def log_lik(depth, stable, limits, width=BOUNDARY_WIDTH):
-    """Log-likelihood of cut outcomes, (N,) from depths (C,), outcomes (C,) and the draws' limits (N, C)."""
-    with np.errstate(divide="ignore"):
-        z = np.log(np.asarray(depth)[None, :] / limits) / width
-    return np.sum(np.where(np.asarray(stable)[None, :], log_ndtr(-z), log_ndtr(z)), axis=1)
+def log_lik(depth, stable, limits):
+    """Log-likelihood of cut outcomes (the update's probit), (N,) from depths (C,), outcomes (C,), limits (N, C)."""
+    return outcome_log_likelihood(np.asarray(depth)[None, :], limits, ~np.asarray(stable)[None, :], BOUNDARY_WIDTH,
+                                  LABEL_ERROR).sum(axis=1)
 
 
 def normalise(ll):
@@ -181,48 +184,55 @@ def resample(weights, n, rng):
     return np.minimum(np.searchsorted(np.cumsum(weights), u), weights.size - 1)
 
 
-def posterior_metrics(c: Campaign, w: np.ndarray, prefix: str) -> dict:
-    """K_t interval and coverage, map error and the robust recommendation of the re-weighted pool."""
-    lo, hi = weighted_quantiles(KT * c.scale, w, [0.05, 0.95])
-    post = p_map(c.pool_limits(c.unit_map), w, c.map_depth)
-    idx = resample(w, c.unit_fine.shape[0], c.rng)
-    rec = recommend(FINE, c.pool_limits(c.unit_fine)[idx], LEVEL, Tolerances())["recommended"]
-    return {prefix + "kt_lo": lo, prefix + "kt_hi": hi, prefix + "covered": bool(lo <= c.plan.kt_true <= hi),
-            prefix + "ess": float(1 / np.sum(w**2)), prefix + "err": c.map_error(post),
-            prefix + "rec": None if rec is None else (rec.spindle_speed_rpm, rec.depth_m),
-            prefix + "rec_stable": None if rec is None else window_stable(c, rec)}
+def product_update(c: Campaign, speed, depth, stable, seed) -> dict:
+    """``bayes_rcsa.cuts`` importance update (32 particles per draw, ESS >= 50) of the cuts on the campaign's
+    draws: K_t interval and coverage, map error and robust recommendation, or the refusal."""
+    prior = CoefficientPrior.from_tolerances(KT, 0.3, KR, 0.0)
+    group = CutGroup(c.frf.frf_x, c.frf.frf_y, c.frf.frequency_hz, CuttingConditions(kt=KT, kr=KR, **CUT),
+                     np.arange(speed.size), speed)
+    inv = inverse_limits_at_cuts([group], speed.size, prior)
+    rng = np.random.default_rng(seed)
+    try:
+        res = importance_update(CutLikelihood(inv, depth, ~stable, LABEL_ERROR), prior, BoundaryWidth(), rng,
+                                UpdateSettings())
+    except ConvergenceError as exc:
+        return {"refused": str(exc)}
+    lo, hi = np.quantile(res.kt, [0.05, 0.95])
+    lvl = np.exp(res.particle_u)[:, None]
+    post = p_map(c.unit_map[res.particle_draw] / (KT * lvl), res.weights, c.map_depth)
+    rec = recommend(FINE, c.unit_fine[res.draw] / (KT * np.exp(res.u)[:, None]), LEVEL, Tolerances())["recommended"]
+    return {"kt_lo": float(lo), "kt_hi": float(hi), "covered": bool(lo <= c.plan.kt_true <= hi),
+            "ess": res.ess_draws, "err": c.map_error(post), "n_stable": int(np.sum(stable)),
+            "rec": None if rec is None else (rec.spindle_speed_rpm, rec.depth_m),
+            "rec_stable": None if rec is None else window_stable(c, rec), "refused": None}
 
 
 def recovery(c: Campaign) -> dict:
-    """10 random cuts and 10 cuts chosen one by one with --next-cut (map target), each from the same pool."""
+    """10 random cuts, and 10 cuts chosen one by one with --next-cut (map target), each updated by bayes_rcsa.cuts."""
     from bayes_rcsa.synthetic.cuts import generate_cuts
 
     cuts = generate_cuts(c.cfg, c.plan, np.random.default_rng([c.seed, 1]))
-    order = np.argsort(cuts.speed_rpm)
-    u = np.empty((c.unit_fine.shape[0], order.size))
-    u[:, order] = c.unit_at(cuts.speed_rpm[order])
-    w_random = normalise(log_lik(cuts.depth_m, cuts.stable, c.pool_limits(u)))
-    _, _, w_next = sequence(c, c.unit_map, c.unit_fine, c.theta, c.scale, "next", np.random.default_rng([c.seed, 6]),
-                            max_cuts=c.plan.n_cuts)
+    _, _, _, made = sequence(c, c.unit_map, c.unit_fine, c.theta, c.scale, "next", np.random.default_rng([c.seed, 6]),
+                             max_cuts=c.plan.n_cuts)
     n_draws, n_pool = c.unit_map.shape[0], c.theta.size
     hammer = p_map(c.unit_map / KT, np.full(n_draws, 1 / n_draws), c.map_depth)
     prior = p_map(c.pool_limits(c.unit_map), np.full(n_pool, 1 / n_pool), c.map_depth)
     rec_hammer = recommend(FINE, c.unit_fine / KT, LEVEL, Tolerances())["recommended"]
-    return {
-        "campaign": c.i, "length_mm": 1e3 * c.length, "factor": c.factor, "kt_true": c.plan.kt_true,
-        "n_stable_random": int(cuts.stable.sum()), "err_hammer": c.map_error(hammer), "err_prior": c.map_error(prior),
-        "rec_hammer_stable": None if rec_hammer is None else window_stable(c, rec_hammer),
-        **posterior_metrics(c, w_random, "random_"), **posterior_metrics(c, w_next, "next_"),
-        "t_identify": c.t_identify,
-    }
+    out = {"campaign": c.i, "length_mm": 1e3 * c.length, "factor": c.factor, "kt_true": c.plan.kt_true,
+           "err_hammer": c.map_error(hammer), "err_prior": c.map_error(prior),
+           "rec_hammer_stable": None if rec_hammer is None else window_stable(c, rec_hammer), "t_identify": c.t_identify}
+    for prefix, (s, a, st) in (("random_", (cuts.speed_rpm, cuts.depth_m, cuts.stable)), ("next_", made)):
+        out.update({prefix + k: v for k, v in product_update(c, s, a, st, c.seed).items()})
+    return out
 
 
 # ------------------------------------------------------------------ design race --
 def sequence(c: Campaign, unit_map, unit_fine, theta, scale, strategy: str, rng, max_cuts=20, stop_err=None,
-             risk_budget=1.0) -> tuple[int | None, list, np.ndarray]:
+             risk_budget=1.0) -> tuple[int | None, list, np.ndarray, tuple]:
     """Cuts one at a time (strategy next/random/grid) from the pool (theta, scale).
 
-    Returns (cuts until the map error is <= stop_err or None, map error after each cut, final weights).
+    Returns (cuts until the map error is <= stop_err or None, map error after each cut, final weights,
+    (speeds, depths, stable) of the cuts made).
     """
     pool_map = unit_map[theta] / (KT * scale[:, None])
     pool_fine = unit_fine[theta] / (KT * scale[:, None])
@@ -234,7 +244,7 @@ def sequence(c: Campaign, unit_map, unit_fine, theta, scale, strategy: str, rng,
     grid_a = DEPTHS[0] + (np.arange(4) + 0.5) * (DEPTHS[1] - DEPTHS[0]) / 4
     gs, ga = (x.ravel() for x in np.meshgrid(grid_s, grid_a, indexing="ij"))
     grid_order = rng.permutation(gs.size)
-    errors = []
+    errors, made = [], []
     target = parse_next_cut_target("map")
     for n in range(max_cuts):
         w = normalise(ll)
@@ -242,7 +252,7 @@ def sequence(c: Campaign, unit_map, unit_fine, theta, scale, strategy: str, rng,
             # large pools are ranked on RANK_DRAWS draws resampled by weight (the update uses the whole pool)
             use, wr = (np.arange(w.size), w) if w.size <= RANK_DRAWS else (resample(w, RANK_DRAWS, rng), None)
             r = rank_next_cuts(target, cs, ca, pool_fine[use][:, ci], c.map_speed, c.map_depth, pool_map[use], wr,
-                               BOUNDARY_WIDTH, risk_budget)
+                               BOUNDARY_WIDTH, risk_budget, label_error=LABEL_ERROR)
             best = r.best or r.candidates[0]
             k, a = int(np.searchsorted(FINE, best.speed_rpm)), best.depth_m
         elif strategy == "random":
@@ -251,11 +261,12 @@ def sequence(c: Campaign, unit_map, unit_fine, theta, scale, strategy: str, rng,
             j = grid_order[n % gs.size]
             k, a = int(np.searchsorted(FINE, gs[j])), float(ga[j])
         stable, _ = label_cuts(np.array([a]), c.fine_truth[k:k + 1], 0.0, rng)
+        made.append((FINE[k], a, bool(stable[0])))
         ll += log_lik(np.array([a]), stable, pool_fine[:, k:k + 1])
         errors.append(c.map_error(p_map(pool_map, normalise(ll), c.map_depth)))
         if stop_err is not None and errors[-1] <= stop_err:
-            return n + 1, errors, normalise(ll)
-    return None, errors, normalise(ll)
+            return n + 1, errors, normalise(ll), tuple(np.array(v) for v in zip(*made))
+    return None, errors, normalise(ll), tuple(np.array(v) for v in zip(*made))
 
 
 def generic_modal_draws(c: Campaign, n: int, rng):
@@ -281,7 +292,7 @@ def design(c: Campaign, pairs: int, anchor_draws: int) -> dict:
     out = {"campaign": c.i, "hammer_err": hammer_err, "target": target}
     for name, kw in (("next", {}), ("next_budget", {"risk_budget": 0.3}), ("random", {}), ("grid", {})):
         t0 = time.perf_counter()
-        n, errs, _ = sequence(c, c.unit_map, c.unit_fine, theta, scale, name.split("_")[0],
+        n, errs, _, _ = sequence(c, c.unit_map, c.unit_fine, theta, scale, name.split("_")[0],
                               np.random.default_rng([c.seed, 3]), stop_err=target, **kw)
         out[name] = n
         out[name + "_errors"] = errs
@@ -293,7 +304,7 @@ def design(c: Campaign, pairs: int, anchor_draws: int) -> dict:
     out["anchor_prior_err"] = c.map_error(p_map(um / (KT * a_scale[:, None]), np.full(anchor_draws, 1 / anchor_draws),
                                                 c.map_depth))
     for name in ("next", "random"):
-        n, errs, w = sequence(c, um, uf, a_theta, a_scale, name, np.random.default_rng([c.seed, 3]),
+        n, errs, w, _ = sequence(c, um, uf, a_theta, a_scale, name, np.random.default_rng([c.seed, 3]),
                               stop_err=target)
         out["anchor_" + name] = n
         out["anchor_" + name + "_errors"] = errs
@@ -304,46 +315,35 @@ def design(c: Campaign, pairs: int, anchor_draws: int) -> dict:
 
 # ------------------------------------------------------------------------- cost --
 def cost(c: Campaign, runs: int) -> dict:
-    """Update from 20 cuts on a 1000-draw posterior with ZOA: bayes_rcsa.cuts if it offers it, else this engine."""
-    plan = CutPlan(**{**c.plan.__dict__, "n_cuts": 20})
+    """``bayes-rcsa update`` with 20 cuts on 1000 draws, ZOA: in-process (median of ``runs``) and one subprocess."""
+    import subprocess
+
+    from bayes_rcsa.cli.main import main as cli
     from bayes_rcsa.synthetic.cuts import generate_cuts, write_cuts
 
+    plan = CutPlan(**{**c.plan.__dict__, "n_cuts": 20})
     cuts = generate_cuts(c.cfg, plan, np.random.default_rng([c.seed, 5]))
-    from bayes_rcsa.stability.posterior_frf import posterior_frf_draws
-
-    def engine():
-        frf = posterior_frf_draws(c.setup, c.posterior, c.length, 1000, np.random.default_rng(0))
-        order = np.argsort(cuts.speed_rpm)
-        lim = np.empty((1000, order.size))
-        lim[:, order] = zoa_lobes(frf.frf_x, frf.frf_y, frf.frequency_hz, unit_cutting(),
-                                  cuts.speed_rpm[order]).depth_limit_m
-        scale = np.exp(np.random.default_rng(1).normal(0, KT_SIGMA, 1000))
-        return normalise(log_lik(cuts.depth_m, cuts.stable, lim / (KT * scale[:, None])))
-
-    times = []
-    for _ in range(runs):
+    out = {"n_cuts": 20, "n_stable": int(cuts.stable.sum())}
+    with tempfile.TemporaryDirectory() as d:
+        write_cuts(cuts, d)
+        argv = ["update", str(c.setup), "--posterior", str(c.posterior), "--cuts", str(Path(d) / "cuts.csv"),
+                "--clamping-length", str(c.length), "--flutes", "4", "--kt", f"{KT:g}±30%", "--kr", f"{KR:g}",
+                "--immersion", "0.95", "--milling", "down", "--feed", "y", "--draws", "1000"]
+        times, cpu = [], []
+        for k in range(runs):
+            t0, c0 = time.perf_counter(), time.process_time()
+            status = cli(argv + ["--out", str(Path(d) / f"u{k}")])
+            times.append(time.perf_counter() - t0 if status == 0 else float("nan"))
+            cpu.append(time.process_time() - c0)
+        out["in_process_median_s"] = statistics.median(times)
+        out["in_process_cpu_median_s"] = statistics.median(cpu)
         t0 = time.perf_counter()
-        engine()
-        times.append(time.perf_counter() - t0)
-    out = {"engine_median_s": statistics.median(times), "engine_runs": runs}
-    cli_times = []
-    try:
-        from bayes_rcsa.cli.main import COMMANDS
-    except ImportError:  # pragma: no cover
-        COMMANDS = ()
-    if "update" in COMMANDS:
-        from bayes_rcsa.cli.main import main as cli
-
-        with tempfile.TemporaryDirectory() as d:
-            write_cuts(cuts, d)
-            for k in range(runs):
-                t0 = time.perf_counter()
-                status = cli(["update", str(c.setup), "--posterior", str(c.posterior), "--cuts",
-                              str(Path(d) / "cuts.csv"), "--clamping-length", str(c.length), "--flutes", "4",
-                              "--kt", f"{KT:g}±30%", "--kr", f"{KR:g}±30%", "--immersion", "0.95", "--milling",
-                              "down", "--feed", "y", "--draws", "1000", "--out", str(Path(d) / f"u{k}"), "--quiet"])
-                cli_times.append(time.perf_counter() - t0 if status == 0 else float("nan"))
-        out["update_cli_median_s"] = statistics.median(cli_times)
+        r = subprocess.run([sys.executable, "-m", "bayes_rcsa", *argv, "--out", str(Path(d) / "sub")],
+                           capture_output=True, text=True)
+        out["subprocess_s"] = time.perf_counter() - t0 if r.returncode == 0 else float("nan")
+        doc = json.loads((Path(d) / "u0" / "update.json").read_text())
+        out["ess_draws"] = doc["ess"]["draws"]
+        out["kt_after"] = doc["kt_pa"]["after"]
     return out
 
 
@@ -374,9 +374,13 @@ def main() -> None:
                   f"elapsed {time.perf_counter() - t_start:.0f} s): map error hammer {r['err_hammer']:.3f}, "
                   f"prior {r['err_prior']:.3f}; hammer-only point stable {r['rec_hammer_stable']}", flush=True)
             for p in ("random_", "next_"):
-                print(f"    {p[:-1]:6s} 10 cuts: K_t 90 % [{r[p + 'kt_lo'] / 1e6:.0f}, {r[p + 'kt_hi'] / 1e6:.0f}] MPa "
-                      f"(true {r['kt_true'] / 1e6:.0f}) covered {r[p + 'covered']}, ESS {r[p + 'ess']:.0f}, map error "
-                      f"{r[p + 'err']:.3f}, point {r[p + 'rec']} stable {r[p + 'rec_stable']}", flush=True)
+                if r[p + "refused"]:
+                    print(f"    {p[:-1]:6s} 10 cuts: update refused: {r[p + 'refused']}", flush=True)
+                    continue
+                print(f"    {p[:-1]:6s} 10 cuts ({r[p + 'n_stable']} stable): K_t 90 % [{r[p + 'kt_lo'] / 1e6:.0f}, "
+                      f"{r[p + 'kt_hi'] / 1e6:.0f}] MPa (true {r['kt_true'] / 1e6:.0f}) covered {r[p + 'covered']}, "
+                      f"ESS {r[p + 'ess']:.0f}, map error {r[p + 'err']:.3f}, point {r[p + 'rec']} stable "
+                      f"{r[p + 'rec_stable']}", flush=True)
             if i < args.design_campaigns:
                 races.append(design(c, args.pairs, args.anchor_draws))
             if i == 0:
@@ -397,17 +401,19 @@ def report(rows, races, timing) -> None:
     okh = [r["rec_hammer_stable"] for r in rows]
     print(f"hammer-only recommended point stable in the truth: {sum(bool(x) for x in okh)}/{n}")
     for p in ("random_", "next_"):
-        k = sum(r[p + "covered"] for r in rows)
+        done = [r for r in rows if not r[p + "refused"]]
+        k = sum(r[p + "covered"] for r in done)  # a refused update counts as not covering
         lo, hi = clopper_pearson(k, n)
-        v = [r[p + "err"] for r in rows]
-        ratio = [r[p + "err"] / r["err_hammer"] for r in rows]
-        ok = [r[p + "rec_stable"] for r in rows]
-        print(f"[{p[:-1]} 10 cuts] K_t 90 % interval covers the truth: {k}/{n} = {k / n:.2f} (95 % Clopper-Pearson "
-              f"[{lo:.2f}, {hi:.2f}]); map error mean {np.mean(v):.4f}, median {np.median(v):.4f}; ratio to hammer "
-              f"only: mean-error ratio {np.mean(v) / np.mean([r['err_hammer'] for r in rows]):.2f}, median "
-              f"{np.median(ratio):.2f}, halved in {sum(x <= 0.5 for x in ratio)}/{n}; recommended point stable "
-              f"{sum(bool(x) for x in ok)}/{n} (none recommended {sum(x is None for x in ok)}); median ESS "
-              f"{np.median([r[p + 'ess'] for r in rows]):.0f}, min {np.min([r[p + 'ess'] for r in rows]):.0f}")
+        v = [r[p + "err"] for r in done]
+        ratio = [r[p + "err"] / r["err_hammer"] for r in done]
+        ok = [r[p + "rec_stable"] for r in done]
+        print(f"[{p[:-1]} 10 cuts] refused {n - len(done)}/{n}; K_t 90 % interval covers the truth: {k}/{n} = "
+              f"{k / n:.2f} (95 % Clopper-Pearson [{lo:.2f}, {hi:.2f}]); map error mean {np.mean(v):.4f}, median "
+              f"{np.median(v):.4f}; ratio of mean errors to hammer only "
+              f"{np.mean(v) / np.mean([r['err_hammer'] for r in done]):.2f}, per campaign median {np.median(ratio):.2f}, "
+              f"halved in {sum(x <= 0.5 for x in ratio)}/{n}; recommended point stable in the truth "
+              f"{sum(bool(x) for x in ok)}/{n} (none recommended {sum(x is None for x in ok)}); ESS of the draws median "
+              f"{np.median([r[p + 'ess'] for r in done]):.0f}, min {np.min([r[p + 'ess'] for r in done]):.0f}")
     if races:
         print("\n## Design (cuts to reach half the hammer-only map error; None = not within 20)")
         for r in races:
