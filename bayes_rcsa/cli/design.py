@@ -160,7 +160,10 @@ def _axis(text, option: str, count: int):
     if len(parts) not in (2, 3):
         raise SetupError(f"{option} {text!r}: expected START:STOP[:COUNT]")
     lo, hi = (parse_float(v, option, positive=True) for v in parts[:2])
-    n = count if len(parts) == 2 else positive_int(parts[2])
+    try:
+        n = count if len(parts) == 2 else positive_int(parts[2])
+    except argparse.ArgumentTypeError as exc:
+        raise SetupError(f"{option} {text!r}: COUNT {exc}") from None
     if hi < lo or (hi == lo and n != 1):
         raise SetupError(f"{option} {text!r}: expected START <= STOP")
     return np.linspace(lo, hi, n)
