@@ -91,7 +91,58 @@ def register(subparsers) -> None:
                         "refuse; such a file cannot determine the contact)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress output on stderr")
+    lib = p.add_argument_group("tool library (docs/library.md)")
+    lib.add_argument("--library", type=Path, default=None, metavar="FILE",
+                     help="population.nc of 'bayes-rcsa library': the contact prior is the population predictive of "
+                          "the setup's [holder] type and shank diameter (method multi)")
+    lib.add_argument("--no-taps", action="store_true",
+                     help="with --library: use no measurement; write a posterior.nc of population-predictive draws "
+                          "(predict and lobes read it like any posterior)")
     p.set_defaults(func=run)
+
+
+def _library(args):
+    """The population of --library and the options it sets (None without --library); checks the combinations."""
+    if args.library is None:
+        if args.no_taps:
+            raise SetupError("--no-taps needs --library (the population the prediction comes from)")
+        return None
+    if args.method != "multi":
+        raise SetupError(f"--library: method {args.method!r}; a library prior is used with method 'multi'")
+    if args.resume:
+        raise SetupError("--library cannot be combined with --resume")
+    if args.no_taps and (args.lengths is not None or args.spindle_uncertainty is not None):
+        raise SetupError("--no-taps uses no measurement: drop --lengths and --spindle-uncertainty")
+    from ..library.outputs import read_population
+
+    return read_population(args.library)
+
+
+def _run_zero_taps(args, population) -> Summary:
+    import warnings
+
+    import numpy as np
+
+    from ..errors import DataWarning
+    from ..io.atomic import directory_lock, new_output_directory
+    from ..io.setup import load_setup
+    from ..library.newsetup import write_zero_tap
+
+    setup = load_setup(args.setup, load_data=False)
+    with directory_lock(args.out):
+        check_output_directory(args.out, args.force, False, resumable=False)
+        if args.force:
+            for name in EARLIER_OUTPUTS:
+                (args.out / name).unlink(missing_ok=True)
+        with new_output_directory(args.out):
+            summary = write_zero_tap(args.out, population, setup, np.random.default_rng(args.seed),
+                                     warnings=command_warnings())
+    for w in summary["warnings"]:
+        warnings.warn(w, DataWarning, stacklevel=2)
+    return Summary(f"zero taps: population predictive of holder type {summary['holder_type']}; results in {args.out}",
+                   {"out": str(args.out), "method": summary["method"], "converged": True,
+                    "summary": str(args.out / "summary.json"), "posterior": str(args.out / "posterior.nc")},
+                   warnings=tuple(summary["warnings"]))
 
 
 def _check_resonances(problem, allow: bool) -> None:
@@ -129,11 +180,27 @@ def run(args) -> Summary:
         raise SetupError("--resume applies to the Bayesian methods only")
     if args.spindle_uncertainty is not None and not bayesian:
         raise SetupError("--spindle-uncertainty applies to the Bayesian methods only")
+    population = _library(args)
+    if args.no_taps:
+        return _run_zero_taps(args, population)
     ckpt = args.out / "chain.h5"
     if args.resume and not (ckpt.exists() or ckpt.with_name("chain.mirror.h5").exists()):
         raise SetupError(f"--resume: no checkpoint found at {ckpt}")
     setup = load_setup(args.setup)
-    options = IdentificationOptions.from_setup(setup.extra, method=args.method, lengths=args.lengths, band=args.band)
+    library_kw = {}
+    if population is not None:
+        import warnings
+
+        import numpy as np
+
+        from ..errors import DataWarning
+        from ..library.newsetup import library_options
+
+        library_kw, lib_warnings = library_options(population, setup, np.random.default_rng(args.seed))
+        for w in lib_warnings:
+            warnings.warn(w, DataWarning, stacklevel=2)
+    options = IdentificationOptions.from_setup(setup.extra, method=args.method, lengths=args.lengths, band=args.band,
+                                               **library_kw)
     problem = build_problem_from_setup(setup, options)
     _check_resonances(problem, args.allow_no_resonance)
     sampler_extra = dict(setup.extra.get("sampler", {}) or {})

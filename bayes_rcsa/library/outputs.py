@@ -4,7 +4,8 @@
 group ``posterior`` holds ``a``, ``b``, ``sigma`` with dims ``(chain, draw,
 holder_type, coordinate)`` (one chain of evenly thinned draws per type);
 ``constant_data`` the per-setup summary.  Attributes: ``model_version``,
-``coordinates``, ``coordinate_units``, ``scales``, ``holder_types``,
+``pooled_parameters`` (the coordinates' names; xarray reserves
+``coordinates``), ``coordinate_units``, ``scales``, ``holder_types``,
 ``covariate`` (its definition), ``d_ref_m``, ``l_a``, ``l_b``,
 ``growth_bound``, ``box`` and ``diameters`` (JSON), ``hyperprior`` (JSON).
 """
@@ -68,7 +69,7 @@ def write_population(path, pop: Population, setups: list[dict], hyper_descriptio
     dims.update({"setup_own_median": ["setup", "coordinate"], "setup_pooled_median": ["setup", "coordinate"]})
     a = {
         "model_version": MODEL_VERSION, "created_by": "bayes_rcsa library",
-        "coordinates": json.dumps(list(pop.names)),
+        "pooled_parameters": json.dumps(list(pop.names)),
         "coordinate_units": json.dumps({c: coordinate_units(c) for c in pop.names}),
         "scales": json.dumps({c: SCALES[c] for c in pop.names}),
         "holder_types": json.dumps(list(types)),
@@ -105,13 +106,15 @@ def read_population(path) -> Population:
         post = idata.posterior
     except Exception as exc:  # netCDF/HDF5 readers raise many unrelated types
         raise DataError(f"{path}: cannot read as a population file ({type(exc).__name__}: {exc})") from None
-    attrs = dict(post.attrs)
+    attrs = {}
+    for group in (idata, getattr(idata, "constant_data", None), post):  # ArviZ puts them on the root group
+        attrs.update(dict(getattr(group, "attrs", None) or {}))
     version = attrs.get("model_version")
     if version != MODEL_VERSION:
         raise DataError(f"{path}: model_version {version!r}, expected {MODEL_VERSION!r}; the population was fitted "
                         "by another version of the model: rerun 'bayes-rcsa library'")
     try:
-        names = tuple(json.loads(attrs["coordinates"]))
+        names = tuple(json.loads(attrs["pooled_parameters"]))
         types = tuple(json.loads(attrs["holder_types"]))
         draws = {}
         for i, t in enumerate(types):

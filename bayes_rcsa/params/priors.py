@@ -423,7 +423,11 @@ class JointNormal:
 
     def member(self, name: str) -> "JointMember":
         """The one-parameter prior of ``name`` that belongs to this group."""
-        return JointMember(self, self.names.index(name))
+        j = self.names.index(name)
+        lo, hi = self.box[j]
+        return JointMember(float(self.mean[j]), math.sqrt(float(self.cov[j][j])),
+                           None if math.isinf(lo) else float(lo), None if math.isinf(hi) else float(hi),
+                           joint=self, index=j)
 
     def describe(self) -> dict:
         return {"names": list(self.names), "mean": [float(v) for v in self.mean],
@@ -444,39 +448,28 @@ class JointNormal:
 
 
 @dataclass(frozen=True)
-class JointMember(Prior):
+class JointMember(Normal):
     """One parameter of a :class:`JointNormal`: its marginal, coordinate and bounds.
 
-    Alone (outside a :class:`PriorSet` holding the whole group) it is the
-    normal marginal of its coordinate, truncated to the box's interval; in a
-    PriorSet with all members the group's joint density is used.
+    A :class:`Normal` (its truncated normal marginal, ``mu``, ``sigma``,
+    ``lo``, ``hi`` in the sampling coordinate) that also knows its group:
+    alone it is that marginal (so every consumer of a normal prior reads
+    it), and in a :class:`PriorSet` holding all members of the group the
+    group's joint density is used.  Made by :meth:`JointNormal.member`.
     """
 
-    joint: JointNormal
-    index: int
+    joint: JointNormal | None = None
+    index: int = 0
     kind = "joint-normal"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not isinstance(self.joint, JointNormal) or not 0 <= self.index < self.joint.ndim:
+            raise SetupError("a joint-normal member needs its JointNormal group and an index into it")
 
     @property
     def name(self) -> str:
         return self.joint.names[self.index]
-
-    @property
-    def _marginal(self) -> Normal:
-        j = self.index
-        lo, hi = self.joint.box[j]
-        return Normal(float(self.joint.mean[j]), math.sqrt(float(self.joint.cov[j][j])),
-                      None if math.isinf(lo) else float(lo), None if math.isinf(hi) else float(hi))
-
-    @property
-    def bounds(self):
-        lo, hi = self.joint.box[self.index]
-        return (float(lo), float(hi))
-
-    def ln_prob(self, u):
-        return self._marginal.ln_prob(u)
-
-    def sample(self, rng, n):
-        return self._marginal.sample(rng, n)
 
     def to_physical(self, u):
         u = np.asarray(u, dtype=float)
@@ -485,9 +478,6 @@ class JointMember(Prior):
     def to_sampling(self, x):
         x = np.asarray(x, dtype=float)
         return np.log10(x) if self.joint.scales[self.index] == "log10" else x
-
-    def optimisation_bounds(self):
-        return self._marginal.optimisation_bounds()
 
     def describe(self):
         return {"distribution": "joint-normal", "member": self.name, "joint": self.joint.describe()}
