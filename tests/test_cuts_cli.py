@@ -124,3 +124,22 @@ def test_cuts_at_a_length_the_posterior_cannot_predict_exit_2(world, tmp_path, c
     assert main(["lobes", str(world / "data" / "setup.toml"), "--posterior", str(world / "posterior.nc"),
                  "--clamping-length", "0.03", *CUT, "--speeds", "6000:18000:20", "--out", str(tmp_path / "l")]) == 2
     assert "carries no cutting-coefficient draws" in capsys.readouterr().err
+
+
+def test_collapsed_reweighting_falls_back_to_mcmc_or_is_refused(world, tmp_path, capsys):
+    from bayes_rcsa.posterior import load_posterior
+
+    # --min-ess above the 60 draws forces the collapse; a short chain (the fallback's cost, not its accuracy)
+    assert _update(world, tmp_path / "m", "--min-ess", "200", "--mcmc-steps", "30", "--mcmc-walkers", "8") == 0
+    doc = json.loads((tmp_path / "m" / "update.json").read_text())
+    assert doc["sampler"] == "mcmc" and doc["ess"]["importance_draws"] < 200
+    assert any("sampled by MCMC" in w for w in doc["warnings"])
+    assert doc["mcmc"]["parameters"] == ["k_xf", "k_thetaM", "g_xf", "g_thetaM", "log_level"]
+    assert doc["kt_pa"]["after"][1] > 1.05 * 600e6  # the cuts' evidence for stronger coefficients survives
+    hammer = load_posterior(world / "posterior.nc").values["k_xf"]
+    new = load_posterior(tmp_path / "m" / "posterior.nc").values["k_xf"]
+    assert new.size == 60 and not np.isin(new, hammer).all()  # new draws, not a re-weighting of the old ones
+    capsys.readouterr()
+    assert _update(world, tmp_path / "r", "--min-ess", "200", "--no-mcmc") == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "effective sample size" in err[0] and not (tmp_path / "r").exists()

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import argparse
 
+import numpy as np
+
 from ..errors import SetupError
 from ._common import Summary, add_force_argument, check_output_directory, command_warnings, merge_warnings, \
     nonnegative_int, parse_float, positive_int
@@ -36,7 +38,8 @@ def register(subparsers) -> None:
         "probability of the observed outcomes (a probit boundary of width --boundary-width on the stability limit of "
         "--method at each cut's speed, X and Y coupled), checked by its effective sample size and resampled.  Writes "
         "OUT/posterior.nc (with per-draw K_t/K_r, read by predict, lobes and report) and OUT/update.json (ESS, "
-        "K_t/K_r quantiles, what each cut moved).  Refused (exit 2) when the ESS collapses.",
+        "K_t/K_r quantiles, what each cut moved).  When the ESS collapses the posterior is sampled by MCMC instead "
+        "(emcee; the hammer posterior approximated by a Gaussian), or refused with --no-mcmc (exit 2).",
     )
     p.add_argument("setup", metavar="SETUP", help="setup TOML of the fit")
     p.add_argument("--posterior", required=True, metavar="FILE", help="posterior.nc of 'bayes-rcsa identify'")
@@ -62,6 +65,12 @@ def register(subparsers) -> None:
                      help=f"cutting-coefficient draws per posterior draw (default {DEFAULT_PARTICLES_PER_DRAW})")
     lik.add_argument("--min-ess", default=str(DEFAULT_MIN_ESS), metavar="N",
                      help=f"least effective number of posterior draws accepted (default {DEFAULT_MIN_ESS:g})")
+    lik.add_argument("--no-mcmc", action="store_true",
+                     help="refuse (exit 2) when the ESS collapses instead of sampling the posterior by MCMC")
+    lik.add_argument("--mcmc-steps", type=positive_int, default=300, metavar="N",
+                     help="steps of the MCMC fallback (default 300, half burn-in)")
+    lik.add_argument("--mcmc-walkers", type=positive_int, default=32, metavar="N",
+                     help="walkers of the MCMC fallback (default 32)")
     lik.add_argument("--seed", type=nonnegative_int, default=0, help="seed of every random choice (default 0)")
     rec = p.add_argument_group("hammer only vs hammer + cuts (optional)")
     rec.add_argument("--speeds", metavar="START:STOP[:COUNT]",
@@ -89,6 +98,7 @@ def _width(text: str):
 
 def run(args: argparse.Namespace) -> Summary:
     from ..cuts import CoefficientPrior
+    from ..cuts.mcmc import MCMCSettings
     from ..cuts.update import UpdateSettings
     from ..cuts.workflow import run_update, write_update
     from ..io.atomic import directory_is_empty, directory_lock, new_output_directory
@@ -119,17 +129,22 @@ def run(args: argparse.Namespace) -> Summary:
         if clamping is None:
             raise SetupError("--speeds compares the lobes at --clamping-length; give --clamping-length M")
     options = MethodOptions(intervals=args.intervals, max_modes=args.max_modes)
+    mcmc = None if args.no_mcmc else MCMCSettings(args.mcmc_walkers, args.mcmc_steps)
     if not directory_is_empty(args.out):
         check_output_directory(args.out, args.force)  # refused before the work (checked again under the lock)
     result = run_update(args.setup, args.posterior, args.cuts, cutting, clamping, prior, width, label_error,
                         args.method, options, UpdateSettings(args.particles, min_ess), args.draws, args.seed,
-                        args.tool, speeds, level, tol, max_depth)
+                        args.tool, speeds, level, tol, max_depth, mcmc)
     doc = result.document
     doc["warnings"] = merge_warnings(command_warnings(), warnings, doc["warnings"])
     with directory_lock(args.out), new_output_directory(check_output_directory(args.out, args.force)):
         paths = write_update(result, args.out)
     kt = doc["kt_pa"]["after"]
-    msg = (f"wrote {paths[0]}, {paths[1].name}; {doc['inputs']['n_cuts']} cuts, ESS {doc['ess']['draws']:.0f} of "
+    ess = doc["ess"]["draws"]
+    ess = ess if ess is not None and np.isfinite(ess) else None
+    msg = (f"wrote {paths[0]}, {paths[1].name}; {doc['inputs']['n_cuts']} cuts, "
+           + ("MCMC fallback, " if doc["sampler"] == "mcmc" else "") + ("ESS unknown of " if ess is None else f"ESS {ess:.0f} of ")
+           + f""
            f"{doc['ess']['n_draws']} draws; K_t {kt[1]:.4g} Pa (90 % {kt[0]:.4g}-{kt[2]:.4g})")
     lobes = doc.get("lobes")
     if lobes is not None:
@@ -137,6 +152,6 @@ def run(args: argparse.Namespace) -> Summary:
         fmt = lambda r: "none" if r is None else f"{r['spindle_speed_rpm']:.0f} rpm, {r['depth_m'] * 1e3:.3f} mm"  # noqa: E731
         msg += f"; recommendation hammer only {fmt(b)} -> with cuts {fmt(a)}"
     return Summary(msg, {"out": str(args.out), "posterior": str(paths[0]), "update": str(paths[1]),
-                         "ess_draws": doc["ess"]["draws"], "kt_pa": kt, "kr_pa": doc["kr_pa"]["after"],
+                         "ess_draws": ess, "kt_pa": kt, "kr_pa": doc["kr_pa"]["after"],
                          "recommended": None if lobes is None else lobes["with_cuts"]["recommended"]},
                    warnings=tuple(doc["warnings"]))

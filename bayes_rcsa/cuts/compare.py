@@ -42,14 +42,15 @@ def _summary(speeds, limits, level, tolerances, max_depth, flute_length) -> dict
             "median_limit_m": [float(v) for v in q[0.5]], "q05_limit_m": [float(v) for v in q[0.05]]}
 
 
-def compare_recommendations(speeds, limits, weights, loo_weights, n_draws: int, rng, level: float = 0.95,
-                            tolerances=None, max_depth=None, flute_length=None) -> dict:
+def compare_recommendations(speeds, before_limits, limits, weights, loo_weights, n_draws: int, rng,
+                            level: float = 0.95, tolerances=None, max_depth=None, flute_length=None) -> dict:
     """Recommendations before and after the cuts, and each cut's move.
 
     Parameters
     ----------
     speeds : (n_speed,) rpm
-    limits : (n_particles, n_speed) m
+    before_limits : (n_before, n_speed) m, the hammer-only particles (equal weights)
+    limits : (n_particles, n_speed) m, the updated particles
     weights : (n_particles,) after all cuts
     loo_weights : (n_cuts, n_particles), without each cut
     n_draws : int, draws resampled for each recommendation
@@ -61,10 +62,10 @@ def compare_recommendations(speeds, limits, weights, loo_weights, n_draws: int, 
     dict ``{"speed_rpm", "hammer_only", "with_cuts", "per_cut": [{"recommended_without", "speed_moved_rpm",
     "depth_moved_m"}]}``.
     """
-    n_p = limits.shape[0]
-    flat = np.full(n_p, 1.0 / n_p)
     pick = lambda w: limits[systematic_resample(w, n_draws, rng)]  # noqa: E731
-    before = _summary(speeds, pick(flat), level, tolerances, max_depth, flute_length)
+    flat = np.full(before_limits.shape[0], 1.0 / before_limits.shape[0])
+    before = _summary(speeds, before_limits[systematic_resample(flat, n_draws, rng)], level, tolerances, max_depth,
+                      flute_length)
     after = _summary(speeds, pick(weights), level, tolerances, max_depth, flute_length)
     per_cut = []
     a = after["recommended"]

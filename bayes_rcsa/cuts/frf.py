@@ -16,7 +16,7 @@ import numpy as np
 
 from ..errors import SetupError
 
-__all__ = ["CutDynamics", "posterior_dynamics"]
+__all__ = ["CutDynamics", "posterior_dynamics", "configuration_caches", "frfs_of_draws"]
 
 
 @dataclass(frozen=True)
@@ -30,6 +30,8 @@ class CutDynamics:
     frequency_hz : (n_freq,) Hz, the X spindle file's lines inside both spindle files' range
     frfs : dict (clamping length m, tool) -> (frf_x, frf_y), each (n_draws, n_freq) complex m/N
     source : dict, JSON-able provenance
+    model : ToolPointModel of the setup
+    caches : dict (length, tool, direction) -> the model's precomputation (reused by the MCMC fallback)
     """
 
     setup: object
@@ -37,6 +39,8 @@ class CutDynamics:
     frequency_hz: np.ndarray
     frfs: dict
     source: dict
+    model: object = None
+    caches: dict | None = None
 
 
 def posterior_dynamics(setup_path, posterior_path, setups, n_draws: int | None, rng) -> CutDynamics:
@@ -56,8 +60,7 @@ def posterior_dynamics(setup_path, posterior_path, setups, n_draws: int | None, 
         A clamping length the posterior cannot predict, a setup without X and Y spindle files.
     """
     from ..io import load_setup
-    from ..model import Configuration
-    from ..posterior import load_posterior, predictive_frf
+    from ..posterior import load_posterior
     from ..posterior.growth_prior import transfer_draws
     from ..posterior.prediction_outputs import check_prediction_lengths, posterior_status
 
@@ -76,10 +79,28 @@ def posterior_dynamics(setup_path, posterior_path, setups, n_draws: int | None, 
     lo, hi = max(sx[0], sy[0]), min(sx[-1], sy[-1])
     f = sx[(sx >= lo) & (sx <= hi)]
     model = setup.model()
-    frfs = {}
-    for length, tool in setups:  # a few cut setups; each vectorised over draws and lines
-        frfs[(float(length), tool)] = tuple(predictive_frf(draws, model, Configuration(float(length), d, tool), f)
-                                            for d in ("x", "y"))
+    caches = configuration_caches(model, setups, f)
+    frfs = frfs_of_draws(draws, model, caches)
     source = {"setup": str(setup_path), "posterior": str(posterior_path), "n_draws": int(draws.n_draws),
               "method": draws.method, **draws.provenance(), "posterior_status": posterior_status(posterior_path)}
-    return CutDynamics(setup, draws, f, frfs, source)
+    return CutDynamics(setup, draws, f, frfs, source, model, caches)
+
+
+def configuration_caches(model, setups, frequency_hz) -> dict:
+    """The model's contact-independent precomputation of every (clamping length, tool) in X and Y."""
+    from ..model import Configuration
+
+    return {(float(l), tool, d): model.precompute(Configuration(float(l), d, tool), frequency_hz)
+            for l, tool in setups for d in ("x", "y")}
+
+
+def frfs_of_draws(draws, model, caches) -> dict:
+    """(frf_x, frf_y), each (n_draws, n_freq) complex m/N, of ``draws`` at every (length, tool) of ``caches``."""
+    from ..model import Configuration
+    from ..posterior import predictive_frf
+
+    out = {}
+    for (l, tool, d), cache in caches.items():  # a few cut setups; each vectorised over draws and lines
+        out.setdefault((l, tool), {})[d] = predictive_frf(draws, model, Configuration(l, d, tool),
+                                                          cache.frequency_hz, cache=cache)
+    return {k: (v["x"], v["y"]) for k, v in out.items()}

@@ -35,7 +35,8 @@ from .coefficients import CoefficientPrior
 from .likelihood import BoundaryWidth, CutLikelihood, chatter_probability
 
 __all__ = ["UpdateSettings", "UpdateResult", "importance_update", "systematic_resample", "weighted_quantile",
-           "effective_sample_size", "DEFAULT_MIN_ESS", "DEFAULT_PARTICLES_PER_DRAW"]
+           "effective_sample_size", "per_cut_summary", "normalise_log_weights", "DEFAULT_MIN_ESS",
+           "DEFAULT_PARTICLES_PER_DRAW"]
 
 #: Coefficient (and width) draws per hammer draw: the level scales exactly, so many are cheap.
 DEFAULT_PARTICLES_PER_DRAW = 32
@@ -84,6 +85,7 @@ class UpdateResult:
     limits : (n_particles, n_cuts) m, every particle's limit at every cut
     particle_u, particle_node : (n_particles,) the particles' log level and ratio node
     loo_weights : (n_cuts, n_particles) normalised weights without each cut
+    particle_width : (n_particles,) the particles' boundary widths
     """
 
     draw: np.ndarray
@@ -106,6 +108,7 @@ class UpdateResult:
     particle_u: np.ndarray | None = None
     particle_node: np.ndarray | None = None
     loo_weights: np.ndarray | None = None
+    particle_width: np.ndarray | None = None
 
 
 def effective_sample_size(weights) -> float:
@@ -135,7 +138,8 @@ def weighted_quantile(values, weights, q) -> np.ndarray:
     return v[order][np.minimum(i, v.size - 1)]
 
 
-def _normalise(logw: np.ndarray) -> np.ndarray:
+def normalise_log_weights(logw: np.ndarray) -> np.ndarray:
+    """exp(logw) / sum, computed stably; ConvergenceError when every weight is zero."""
     m = np.max(logw)
     if not np.isfinite(m):
         raise ConvergenceError("every particle has zero likelihood under the cut outcomes; the cuts contradict the "
@@ -145,7 +149,8 @@ def _normalise(logw: np.ndarray) -> np.ndarray:
 
 
 def importance_update(likelihood: CutLikelihood, prior: CoefficientPrior, width: BoundaryWidth,
-                      rng: np.random.Generator, settings: UpdateSettings | None = None) -> UpdateResult:
+                      rng: np.random.Generator, settings: UpdateSettings | None = None,
+                      refuse: bool = True) -> UpdateResult:
     """Re-weight the draws of ``likelihood`` (its inverse limits) with the cut outcomes and resample.
 
     Parameters
@@ -155,6 +160,8 @@ def importance_update(likelihood: CutLikelihood, prior: CoefficientPrior, width:
     width : BoundaryWidth
     rng : numpy.random.Generator
     settings : UpdateSettings
+    refuse : bool, raise when the ESS of the draws is below ``settings.min_ess`` (False: return the result,
+        e.g. to start the MCMC fallback of :mod:`.mcmc` from it)
 
     Returns
     -------
@@ -176,12 +183,12 @@ def importance_update(likelihood: CutLikelihood, prior: CoefficientPrior, width:
     w = width.sample(rng, draw.size)
     pw = likelihood.pointwise(draw, u, node, w)  # (P, C)
     logl = pw.sum(axis=1)
-    weights = _normalise(logl)
+    weights = normalise_log_weights(logl)
     ess_p = effective_sample_size(weights)
     ess_d = effective_sample_size(np.bincount(draw, weights, n_draws))
     top = float(np.max(logl))
     log_evidence = top + float(np.log(np.mean(np.exp(logl - top))))
-    if ess_d < s.min_ess:
+    if refuse and ess_d < s.min_ess:
         raise ConvergenceError(
             f"importance re-weighting collapsed: the {likelihood.n_cuts} cut(s) leave an effective sample size of "
             f"{ess_d:.1f} hammer draws (of {n_draws}; {ess_p:.1f} of {draw.size} particles), below {s.min_ess:g}: the "
@@ -192,29 +199,38 @@ def importance_update(likelihood: CutLikelihood, prior: CoefficientPrior, width:
     pick = systematic_resample(weights, n_out, rng)
     kt_all, kr_all = prior.coefficients(u, node)
     limits = likelihood.limits(draw, u, node)
-    loo = np.array([_normalise(logl - pw[:, c]) for c in range(pw.shape[1])])  # a few tens of cuts
-    per_cut = _per_cut(likelihood, loo, weights, limits, w, kt_all)
+    loo = np.array([normalise_log_weights(logl - pw[:, c]) for c in range(pw.shape[1])])  # a few tens of cuts
+    per_cut = per_cut_summary(likelihood, limits, w, limits, weights, loo, w, kt_all)
     return UpdateResult(draw[pick], u[pick], node[pick], w[pick], kt_all[pick], kr_all[pick], ess_p, ess_d,
                         int(draw.size), n_draws, log_evidence, per_cut, kt_all, kr_all, weights, draw, limits,
-                        u, node, loo)
+                        u, node, loo, w)
 
 
-def _per_cut(likelihood, loo_weights, weights, limits, width, kt) -> list[dict]:
-    """What each cut did: median limit at it before/after/without it, P(chatter), K_t without it."""
-    n_p, n_c = limits.shape
-    flat = np.full(n_p, 1.0 / n_p)
+def per_cut_summary(likelihood, before_limits, before_width, limits, weights, loo_weights, width, kt) -> list[dict]:
+    """What each cut did: median limit at it before/after/without it, P(chatter), K_t without it.
+
+    Parameters
+    ----------
+    likelihood : CutLikelihood (depths, outcomes, label error)
+    before_limits : (n_before, n_cuts) m, limits of the hammer-only particles (equal weights)
+    before_width : (n_before,) their boundary widths
+    limits : (n, n_cuts) m, of the updated particles; weights (n,); loo_weights (n_cuts, n) without each cut
+    width, kt : (n,) of the updated particles
+    """
+    flat = np.full(before_limits.shape[0], 1.0 / before_limits.shape[0])
     out = []
-    for c in range(n_c):  # a few tens of cuts, each vectorised over particles
+    for c in range(limits.shape[1]):  # a few tens of cuts, each vectorised over particles
         loo = loo_weights[c]
-        before = float(weighted_quantile(limits[:, c], flat, 0.5)[0])
+        before = float(weighted_quantile(before_limits[:, c], flat, 0.5)[0])
         after = float(weighted_quantile(limits[:, c], weights, 0.5)[0])
         without = float(weighted_quantile(limits[:, c], loo, 0.5)[0])
-        p_ch = chatter_probability(likelihood.depth_m[c], limits[:, c], width, likelihood.label_error)
+        p_after = chatter_probability(likelihood.depth_m[c], limits[:, c], width, likelihood.label_error)
+        p_before = chatter_probability(likelihood.depth_m[c], before_limits[:, c], before_width, likelihood.label_error)
         out.append({
             "depth_m": float(likelihood.depth_m[c]), "outcome": "chatter" if likelihood.chatter[c] else "stable",
             "median_limit_before_m": before, "median_limit_after_m": after, "median_limit_without_m": without,
             "moved": (after / without - 1.0) if np.isfinite(after) and np.isfinite(without) and without > 0 else None,
-            "p_chatter_before": float(np.mean(p_ch)), "p_chatter_after": float(np.sum(weights * p_ch)),
+            "p_chatter_before": float(np.mean(p_before)), "p_chatter_after": float(np.sum(weights * p_after)),
             "kt_median_without_pa": float(weighted_quantile(kt, loo, 0.5)[0]),
         })
     return out

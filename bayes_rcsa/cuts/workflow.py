@@ -31,11 +31,12 @@ class UpdateRun:
     Attributes
     ----------
     document : dict, the content of update.json
-    result : UpdateResult
+    result : UpdateResult (its ``draw`` indexes ``draws``)
     dynamics : CutDynamics
     cuts : CutSet
     attrs : dict, attributes of the updated posterior.nc
     warnings : list of str
+    draws : PosteriorDraws the result's ``draw`` refers to (the hammer draws, or the MCMC samples)
     """
 
     document: dict
@@ -44,6 +45,7 @@ class UpdateRun:
     cuts: object
     attrs: dict
     warnings: list = field(default_factory=list)
+    draws: object = None
 
 
 def _q(values, weights=None) -> list[float]:
@@ -56,7 +58,7 @@ def run_update(setup_path, posterior_path, cuts_path, cutting, clamping_length, 
                width: BoundaryWidth | None = None, label_error: float = DEFAULT_LABEL_ERROR, method: str = "zoa",
                options=None, settings: UpdateSettings | None = None, n_draws: int | None = None, seed: int = 0,
                tool: str | None = None, speeds=None, level: float = 0.95, tolerances=None,
-               max_depth: float | None = None) -> UpdateRun:
+               max_depth: float | None = None, mcmc=None) -> UpdateRun:
     """Update the posterior ``posterior_path`` with the cut outcomes of ``cuts_path``.
 
     Parameters
@@ -76,6 +78,8 @@ def run_update(setup_path, posterior_path, cuts_path, cutting, clamping_length, 
     speeds : (n_speed,) rpm or None; when given, hammer-only vs updated lobes and recommendations at
         ``clamping_length`` with ``cutting`` are compared, and each cut's move of the recommendation
     level, tolerances, max_depth : of the recommendation
+    mcmc : MCMCSettings or None; when the ESS of the draws falls below ``settings.min_ess`` the posterior is
+        sampled by the MCMC fallback (:mod:`.mcmc`) with these settings, or the update is refused (None)
 
     Returns
     -------
@@ -109,18 +113,28 @@ def run_update(setup_path, posterior_path, cuts_path, cutting, clamping_length, 
     inverse = inverse_limits_at_cuts(groups, cuts.n_cuts, prior, method, options)
     check_supported(cuts, inverse)
     likelihood = CutLikelihood(inverse, cuts.depth_m, cuts.chatter, label_error)
-    result = importance_update(likelihood, prior, width, rng, settings)
+    result = importance_update(likelihood, prior, width, rng, settings, refuse=mcmc is None)
+    start, draws_out, mcmc_info = result, dyn.draws, None
     warnings: list[str] = []
-    pm = dyn.draws.parameters
+    if result.ess_draws < settings.min_ess:  # only reachable with the MCMC fallback
+        from .mcmc import mcmc_update
+
+        warnings.append(f"importance re-weighting collapsed (ESS {result.ess_draws:.1f} of {result.n_draws} hammer "
+                        f"draws, below {settings.min_ess:g}); the posterior was sampled by MCMC instead, with the "
+                        "hammer posterior approximated by a Gaussian in its sampling coordinates")
+        draws_out, result, mcmc_info = mcmc_update(dyn, cuts, prior, width, label_error, method, options, start,
+                                                   rng, start.n_draws, mcmc)
+        if not mcmc_info["converged"]:
+            tau = max((x for x in mcmc_info["autocorrelation_time"] if x is not None), default=None)
+            warnings.append(f"the MCMC fallback kept {mcmc_info['steps'] - mcmc_info['burn']} steps after burn-in, "
+                            "fewer than 20 autocorrelation times (" + ("unknown" if tau is None else f"{tau:.1f}")
+                            + " steps); give more --mcmc-steps")
+    elif result.ess_draws < 4 * settings.min_ess:
+        warnings.append(f"the cuts leave {result.ess_draws:.0f} effective hammer draws of {result.n_draws}; the "
+                        "updated posterior repeats few draws (use more --draws for smoother results)")
     contact = {}
     for name in dyn.draws.sampled:
-        v = dyn.draws.values[name]
-        contact[name] = {"before": _q(v), "after": _q(v[result.draw])}
-    ess_note = None
-    if result.ess_draws < 4 * settings.min_ess:
-        ess_note = (f"the cuts leave {result.ess_draws:.0f} effective hammer draws of {result.n_draws}; the updated "
-                    "posterior repeats few draws (use more --draws for smoother results)")
-        warnings.append(ess_note)
+        contact[name] = {"before": _q(dyn.draws.values[name]), "after": _q(draws_out.values[name][result.draw])}
     for name, values in (("kt", result.kt), ("kr", result.kr)):
         lo, hi = np.quantile(values, [0.05, 0.95])
         plo, phi = np.quantile(result.prior_kt if name == "kt" else result.prior_kr, [0.01, 0.99])
@@ -140,8 +154,10 @@ def run_update(setup_path, posterior_path, cuts_path, cutting, clamping_length, 
                    "coefficient_prior": prior.describe(), "boundary_width": width.describe(),
                    "label_error": label_error, "particles_per_draw": settings.particles_per_draw,
                    "min_ess": settings.min_ess},
+        "sampler": "importance" if mcmc_info is None else "mcmc",
         "ess": {"draws": result.ess_draws, "particles": result.ess_particles, "n_draws": result.n_draws,
-                "n_particles": result.n_particles},
+                "n_particles": result.n_particles, "importance_draws": start.ess_draws},
+        "mcmc": mcmc_info,
         "log_evidence": result.log_evidence,
         "kt_pa": {"quantiles": list(_Q), "before": _q(result.prior_kt), "after": _q(result.kt)},
         "kr_pa": {"quantiles": list(_Q), "before": _q(result.prior_kr), "after": _q(result.kr)},
@@ -151,14 +167,24 @@ def run_update(setup_path, posterior_path, cuts_path, cutting, clamping_length, 
         "source": dyn.source,
     }
     if compare_key is not None:
-        gx, gy = dyn.frfs[compare_key]
-        grid = CutGroup(gx, gy, dyn.frequency_hz, cutting, np.arange(np.size(speeds)), np.asarray(speeds, float))
-        inv_grid = inverse_limits_at_cuts([grid], np.size(speeds), prior, method, options)
-        lim = grid_limits(inv_grid, result.particle_draw, result.particle_u, result.particle_node)
+        def grid_inverse(gx, gy):
+            grid = CutGroup(gx, gy, dyn.frequency_hz, cutting, np.arange(np.size(speeds)), np.asarray(speeds, float))
+            return inverse_limits_at_cuts([grid], np.size(speeds), prior, method, options)
+
+        inv_grid = grid_inverse(*dyn.frfs[compare_key])
+        before = grid_limits(inv_grid, start.particle_draw, start.particle_u, start.particle_node)
+        if mcmc_info is None:
+            after = before
+        else:
+            from .frf import frfs_of_draws
+
+            after = grid_limits(grid_inverse(*frfs_of_draws(draws_out, dyn.model, {
+                k: v for k, v in dyn.caches.items() if k[:2] == compare_key})[compare_key]),
+                result.particle_draw, result.particle_u, result.particle_node)
         fl = flute_length(setup0.tools[compare_key[1]])
         doc["lobes"] = {"clamping_length_m": compare_key[0], "tool": compare_key[1],
-                        **compare_recommendations(speeds, lim, result.weights, result.loo_weights, result.n_draws,
-                                                  rng, level, tolerances, max_depth, fl)}
+                        **compare_recommendations(speeds, before, after, result.weights, result.loo_weights,
+                                                  result.n_draws, rng, level, tolerances, max_depth, fl)}
         for pc, mv in zip(doc["cuts"], doc["lobes"]["per_cut"]):
             pc["recommendation_moved"] = mv
     doc["seconds"] = time.perf_counter() - t0
@@ -166,7 +192,8 @@ def run_update(setup_path, posterior_path, cuts_path, cutting, clamping_length, 
     attrs = {"cuts_file": str(cuts_path), "n_cuts": cuts.n_cuts, "cut_update_ess_draws": result.ess_draws,
              "cut_update": {"coefficient_prior": prior.describe(), "boundary_width": width.describe(),
                             "label_error": label_error, "method": method}}
-    return UpdateRun(doc, result, dyn, cuts, attrs, warnings)
+    attrs["cut_update_sampler"] = doc["sampler"]
+    return UpdateRun(doc, result, dyn, cuts, attrs, warnings, draws_out)
 
 
 def write_update(run: UpdateRun, out_dir) -> list:
@@ -176,7 +203,7 @@ def write_update(run: UpdateRun, out_dir) -> list:
     from .outputs import write_update_json, write_updated_posterior
 
     out = Path(out_dir)
-    p = write_updated_posterior(out / "posterior.nc", run.document["inputs"]["posterior"], run.dynamics.draws,
-                                run.result, run.attrs)
+    p = write_updated_posterior(out / "posterior.nc", run.document["inputs"]["posterior"],
+                                run.draws if run.draws is not None else run.dynamics.draws, run.result, run.attrs)
     j = write_update_json(out / "update.json", run.document)
     return [p, j]
