@@ -163,15 +163,22 @@ def measured(tmp_path):
     return files
 
 
-def test_no_uncertainty_information_stays_deterministic_and_says_so(tmp_path, measured, capsys):
+def test_coherence_without_averages_warns_with_the_assumption_and_stays_deterministic(tmp_path, measured, capsys):
     out = tmp_path / "o"
     status, cap = run(["lobes", "--measured-x", measured["x_noavg"], "--measured-y", measured["y_noavg"], *COMMON,
                        "--speeds", "6000:20000:80", "--out", str(out), "--json"], capsys)
     assert status == 0
-    assert "warning" not in cap.err  # coherence without averages is not an alarm; the summary line says it
+    # one warning per file, naming it, the assumption used and how to give the averages
+    warns = [ln for ln in cap.err.splitlines() if ": warning: " in ln]
+    assert len(warns) == 2 and "tip_x_noavg.csv" in warns[0] and "tip_y_noavg.csv" in warns[1], cap.err
+    for w in warns:
+        assert "no number of averages" in w and "assumed: no random error" in w and "--averages N" in w
+    text = [w.split(": warning: ", 1)[1] for w in warns]
+    doc = json.loads((out / "lobes.json").read_text())
+    assert [w for w in doc["warnings"] if "no number of averages" in w] == text  # printed AND in the files
+    assert [w for w in json.loads(cap.out)["warnings"] if "no number of averages" in w] == text
     summary = [ln for ln in cap.err.splitlines() if "wrote" in ln]
     assert len(summary) == 1 and "deterministic" in summary[0] and "--averages N" in summary[0]
-    doc = json.loads((out / "lobes.json").read_text())
     assert doc["n_draws"] == 1 and doc["deterministic"] and doc["uncertainty"]["deterministic"]
     assert "tip_x_noavg.csv" in doc["uncertainty"]["note"]
     assert json.loads(cap.out)["deterministic"] is True
@@ -179,6 +186,54 @@ def test_no_uncertainty_information_stays_deterministic_and_says_so(tmp_path, me
     assert set(np.unique(p)) <= {0.0, 1.0}
     env = np.array(doc["robust_envelope"]["depth_limit_m"], dtype=float)
     np.testing.assert_array_equal(env, np.array(doc["depth_limit_m"]["q50"], dtype=float))
+
+
+def test_no_averages_warning_when_the_number_is_known_or_not_needed(tmp_path, measured, capsys):
+    """--averages on the same files, files without coherence, and --deterministic raise no such warning."""
+    base = [*COMMON, "--speeds", "6000:20000:20", "--depth-points", "20", "--quiet"]
+    status, cap = run(["lobes", "--measured-x", measured["x_noavg"], "--measured-y", measured["y_noavg"], *base,
+                       "--averages", "5", "--draws", "20", "--out", str(tmp_path / "a")], capsys)
+    assert status == 0 and ": warning: " not in cap.err, cap.err
+    doc = json.loads((tmp_path / "a" / "lobes.json").read_text())
+    assert doc["uncertainty"]["x"]["model"] == "coherence" and not doc["warnings"]
+    status, cap = run(["lobes", "--measured-x", measured["x_plain"], "--measured-y", measured["y_plain"], *base,
+                       "--out", str(tmp_path / "b")], capsys)
+    assert status == 0 and ": warning: " not in cap.err, cap.err  # no coherence: nothing to assume, the note says it
+    assert "no random error is known" in cap.err
+    # --deterministic on files WITH coherence and averages: the measured FRFs as they are, asked for, no warning
+    status, cap = run(["lobes", "--measured-x", measured["x1"], "--measured-y", measured["y1"], *base,
+                       "--deterministic", "--json", "--out", str(tmp_path / "c")], capsys)
+    assert status == 0 and ": warning: " not in cap.err, cap.err
+    doc = json.loads((tmp_path / "c" / "lobes.json").read_text())
+    assert doc["n_draws"] == 1 and doc["deterministic"] and "--deterministic" in doc["uncertainty"]["note"]
+    assert not doc["warnings"] and json.loads(cap.out)["deterministic"] is True
+    from bayes_rcsa.io.frf_csv import read_frf_csv
+
+    ref = zoa_lobes(read_frf_csv(measured["x1"]).values, read_frf_csv(measured["y1"]).values, F, CUT,
+                    np.linspace(6000, 20000, 20)).depth_limit_m
+    np.testing.assert_allclose(np.array(doc["depth_limit_m"]["q50"], dtype=float), ref, rtol=1e-12)
+
+
+def test_bundled_example_files_carry_their_averages(tmp_path, capsys):
+    """The bundled tip files state the 5 averages their bench used: coherence model, no false alarm."""
+    from bayes_rcsa.data import example_dir
+
+    truth = json.loads((example_dir() / "truth.json").read_text())
+    n = truth["noise"]["n_averages"]
+    files = sorted(example_dir().glob("tip_*.csv"))
+    assert len(files) == 8
+    for f in files:
+        assert f"# averages = {n}" in f.read_text(encoding="utf-8").splitlines()[:4], f
+    d = read_measured_direction(str(example_dir() / "tip_x_30mm.csv"), None)
+    assert d.model == "coherence" and d.averages == n and not d.notes
+    # the default run on them is probabilistic and warns about nothing (tiny grid: a cheap end-to-end check)
+    out = tmp_path / "o"
+    status, cap = run(["lobes", "--measured-x", str(example_dir() / "tip_x_30mm.csv"), "--measured-y",
+                       str(example_dir() / "tip_y_30mm.csv"), *COMMON, "--speeds", "5000:30000:8",
+                       "--depth-points", "8", "--draws", "10", "--quiet", "--out", str(out)], capsys)
+    assert status == 0 and ": warning: " not in cap.err, cap.err
+    doc = json.loads((out / "lobes.json").read_text())
+    assert not doc["deterministic"] and doc["n_draws"] == 10 and not doc["warnings"]
 
 
 def test_coherence_with_averages_gives_probabilistic_lobes_and_envelope(tmp_path, measured, capsys):
@@ -201,6 +256,7 @@ def test_coherence_with_averages_gives_probabilistic_lobes_and_envelope(tmp_path
     assert rec["mrr_index"] <= med["mrr_index"] and doc["confidence_cost"]["depth_m"] == pytest.approx(
         med["depth_m"] - rec["depth_m"])
     assert "costs" in cap.err and "coherence" in cap.err
+    assert ": warning: " not in cap.err and not doc["warnings"]  # the header gave the averages: nothing assumed
 
 
 def test_envelope_is_the_level_limit_in_posterior_like_draws():
@@ -266,6 +322,7 @@ def test_uff58_file_with_several_records_gives_repeats(tmp_path, measured):
     ("same-file-twice", "given twice"),
     ("copy", "same FRF as"),
     ("averages-zero", "--averages '0'"),
+    ("averages-and-deterministic", "contradict"),
     ("averages-negative", "--averages '-3'"),
     ("header-averages-zero", "averages = '0'"),
     ("confidence-and-level", "differ"),
@@ -283,6 +340,8 @@ def test_bad_input_one_line_exit_2(tmp_path, measured, capsys, case, fragment):
         x = f"{x},{tmp_path / 'copy.csv'}"
     elif case == "averages-zero":
         extra = ["--averages", "0"]
+    elif case == "averages-and-deterministic":
+        extra = ["--averages", "5", "--deterministic"]
     elif case == "averages-negative":
         extra = ["--averages=-3"]
     elif case == "header-averages-zero":

@@ -26,8 +26,9 @@ from bayes_rcsa.inference.checkpoint import Checkpoint
 IDENTIFY = ["--lengths", "0.03", "--max-steps", "20", "--walkers", "10", "--check-every", "10", "--quiet",
             "--no-plots", "--checkpoint-interval", "0"]
 PREDICT = ["--lengths", "0.03", "--directions", "x", "--max-draws", "20", "--quiet", "--no-plots"]
+# 20 realisations of the bundled files' random error ('# averages = 5'): the default 500 cost ~3 s of CPU per run
 LOBES = ["--flutes", "4", "--kt", "790e6", "--kr", "230e6", "--immersion", "0.95", "--speeds", "5000:30000:12",
-         "--depth-points", "12", "--quiet"]
+         "--depth-points", "12", "--draws", "20", "--quiet"]
 
 
 @pytest.fixture(scope="module")

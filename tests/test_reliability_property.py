@@ -82,7 +82,7 @@ def world(tmp_path_factory):
                      "--max-steps", "20", "--walkers", "10", "--check-every", "10", "--quiet", "--no-plots",
                      "--checkpoint-interval", "0"]) == 0
         assert main(["lobes", "--measured-x", str(data / "tip_x_30mm.csv"), "--measured-y",
-                     str(data / "tip_y_30mm.csv"), *CUT, "--out", str(root / "lob")]) == 0
+                     str(data / "tip_y_30mm.csv"), *CUT, "--draws", "20", "--out", str(root / "lob")]) == 0
         (root / "bench.toml").write_text(BENCH)
         assert main(["synthesize", "--artifact", str(root / "bench.toml"), "--out", str(root / "art")]) == 0
     for f in (root / "art").glob("h*_x.csv"):  # every tenth line: the spindle fit costs ~1 s instead of ~10 s
@@ -312,6 +312,7 @@ def _base_lobes(t):
     for i in range(0, len(CUT) - 1, 2):
         t.opts[CUT[i]] = CUT[i + 1]
     t.opts["--quiet"] = None
+    t.opts["--draws"] = "20"  # the files' '# averages = 5' make it probabilistic; the default 500 cost ~3 s CPU a run
     t.opts["--out"] = str(t.root / "out")
 
 

@@ -16,9 +16,10 @@ from bayes_rcsa.stability.methods import STABILITY_METHODS, MethodResult
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "bayes_rcsa" / "data" / "example"
 FX, FY = str(EXAMPLE / "tip_x_30mm.csv"), str(EXAMPLE / "tip_y_30mm.csv")
-# the demo's lobes case (bayes_rcsa/cli/demo.py): paper case b, 30 mm clamping
+# the demo's lobes case (bayes_rcsa/cli/demo.py): paper case b, 30 mm clamping; deterministic lobes of the measured
+# FRFs as they are (the files' '# averages = 5' header would otherwise draw 500 realisations of their random error)
 CASE = ["--flutes", "4", "--kt", "790e6", "--kr", "230e6", "--immersion", "0.95", "--milling", "down", "--feed", "y",
-        "--speeds", "5000:30000:400"]
+        "--speeds", "5000:30000:400", "--deterministic"]
 CUT = CuttingConditions(kt=790e6, kr=230e6, flutes=4, radial_immersion=0.95, milling="down", feed="y")
 
 

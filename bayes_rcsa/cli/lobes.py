@@ -32,7 +32,8 @@ def register(subparsers) -> None:
         "lobes",
         help="milling stability lobes (ZOA or SDM) and a robust operating point",
         description="Compute milling stability lobes from measured tool-point FRFs in X and Y "
-        "(--measured-x/--measured-y, deterministic) or from posterior draws of the contact parameters "
+        "(--measured-x/--measured-y; probabilistic from their coherence and averages or from repeated hits, "
+        "else deterministic) or from posterior draws of the contact parameters "
         "(SETUP --posterior, probabilistic), and recommend the operating point with the largest removal rate "
         "whose neighbourhood (spindle-speed tolerance, depth margin, cutting-coefficient tolerance) is stable "
         "with probability >= --level.  Writes OUT/lobes.json, OUT/p_stable.npz and OUT/lobes.png.  "
@@ -57,6 +58,10 @@ def register(subparsers) -> None:
                      help="impacts averaged per measured FRF (default: the files' '# averages = N' header line); "
                      "with a coherence column it gives the FRF's random error (Bendat & Piersol) and "
                      "probabilistic lobes")
+    src.add_argument("--deterministic", action="store_true",
+                     help="measured mode: use the measured FRFs (the mean of repeated hits) as they are, without "
+                     "their random error (P(stable) 0 or 1, the classical lobes), even when the files carry coherence "
+                     "and averages")
     add_cutting_arguments(p)
     grid = p.add_argument_group("grid, method and recommendation")
     grid.add_argument("--speeds", required=True, metavar="START:STOP[:COUNT]",
@@ -242,8 +247,11 @@ def _dynamics(args):
             if averages < 1:
                 raise SetupError(f"--averages {args.averages!r}: expected a whole number >= 1 (impacts averaged "
                                  "per FRF)")
+        if args.deterministic and averages is not None:
+            raise SetupError(f"--averages {args.averages} and --deterministic contradict each other (averages give the "
+                             "FRF's random error, --deterministic ignores it); give one of them")
         pair = measured_frf_draws(args.measured_x, args.measured_y, averages, args.draws,
-                                  np.random.default_rng(args.seed))
+                                  np.random.default_rng(args.seed), exact=args.deterministic)
         mx, my = pair.measured
         warn_all(pair.source["notes"])
         warn_all(xy_pair_warnings(Path(mx.files[0]).name, Path(my.files[0]).name, mx.frequency_hz, mx.mean,
@@ -257,6 +265,8 @@ def _dynamics(args):
         )
     if args.averages is not None:
         raise SetupError(f"--averages {args.averages}: only for measured FRFs (--measured-x/--measured-y)")
+    if args.deterministic:
+        raise SetupError("--deterministic: only for measured FRFs (--measured-x/--measured-y)")
     clamping = parse_float(args.clamping_length, "--clamping-length", positive=True)
     if args.draws < 1:
         raise SetupError(f"--draws {args.draws}: expected >= 1")

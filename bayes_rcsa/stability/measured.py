@@ -38,9 +38,16 @@ Repeated hits (R >= 2 files or records)
 
 Neither (one file, no coherence or no number of averages): the FRF is used as
 it is and the lobes are deterministic; the output says so in one line.  A
-coherence column without a number of averages is not refused (the bundled
-example and older campaigns are such files): the assumption -- no random
-error -- and how to give the averages are that line.
+coherence column without a number of averages is not refused (older campaigns
+and analyser exports often omit the count) but WARNED about: the coherence
+cannot be turned into an error without ``n``, so the warning states the
+assumption used -- the FRF is treated as exact, the lobes are deterministic --
+and how to get the measurement's uncertainty (``--averages N`` or a
+``# averages = N`` header line).  The bundled example files carry that header
+(5 averages, as their bench made them), so they raise no warning.  Deterministic
+lobes from files that do have a random-error model are asked for explicitly
+(``exact=True``, ``lobes --deterministic``): the FRF, or the mean of the
+hits, is then used as it is, without a warning.
 
 The number of averages comes from ``--averages N`` or from a header line of
 the file: ``# averages = N`` (also ``n_averages``, ``:`` instead of ``=``) in
@@ -297,7 +304,8 @@ def _read_hits(spec: str, option: str):
     return frfs, averages
 
 
-def read_measured_direction(spec: str, averages: int | None, option: str = "--measured-x") -> MeasuredDirection:
+def read_measured_direction(spec: str, averages: int | None, option: str = "--measured-x",
+                            exact: bool = False) -> MeasuredDirection:
     """Read one direction's files and choose its random-error model (module notes).
 
     Parameters
@@ -305,6 +313,8 @@ def read_measured_direction(spec: str, averages: int | None, option: str = "--me
     spec : str, ``FILE`` or ``FILE1,FILE2,...`` (CSV or UFF58; a UFF58 file may hold several FRF records)
     averages : int or None, ``--averages`` (overrides a header key)
     option : str, option name used in messages
+    exact : bool, use the FRF (the mean of the hits) as it is: model "none" whatever the files carry
+        (every input check still applies)
 
     Returns
     -------
@@ -345,6 +355,9 @@ def read_measured_direction(spec: str, averages: int | None, option: str = "--me
                      f"({', '.join(str(v) for v in header_n if v is not None)})")
     has_coh = [frf.coherence is not None for frf in frfs]
     files = [frf.source for frf in frfs]
+    if exact:
+        mean = np.mean([frf.values for frf in frfs], axis=0) if len(frfs) >= 2 else frfs[0].values
+        return MeasuredDirection(f, mean, "none", files, averages=n, notes=notes, has_coherence=all(has_coh))
     if len(frfs) >= 2:
         hits = np.stack([frf.values for frf in frfs])
         mean, cov, _ = repeat_covariance(hits)
@@ -373,5 +386,10 @@ def read_measured_direction(spec: str, averages: int | None, option: str = "--me
     if frf.coherence is None and averages is not None:
         notes.append(f"{option}: --averages {averages} given but {Path(frf.source).name} has no coherence: its "
                      "random error is unknown and these lobes are deterministic")
+    elif frf.coherence is not None:  # n is None: the coherence alone does not give the error (module notes)
+        notes.append(f"{option}: {Path(frf.source).name} has a coherence column but no number of averages; "
+                     "assumed: no random error (the FRF is taken as exact, the lobes are deterministic); give "
+                     "--averages N or a '# averages = N' header line for the measurement's uncertainty, or "
+                     "--deterministic for exact-FRF lobes")
     return MeasuredDirection(f, frf.values, "none", files, averages=n, notes=notes,
                              has_coherence=frf.coherence is not None)

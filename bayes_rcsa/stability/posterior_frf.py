@@ -78,7 +78,8 @@ def measured_frf_pair(path_x, path_y) -> FRFInput:
     return FRFInput(f, gx[None], gy[None], {"mode": "measured", "measured_x": str(path_x), "measured_y": str(path_y)})
 
 
-def measured_frf_draws(spec_x: str, spec_y: str, averages: int | None, n_draws: int, rng) -> FRFInput:
+def measured_frf_draws(spec_x: str, spec_y: str, averages: int | None, n_draws: int, rng,
+                       exact: bool = False) -> FRFInput:
     """Realisations of the measured X and Y tool-point FRFs on one grid (:mod:`.measured`).
 
     Parameters
@@ -87,6 +88,8 @@ def measured_frf_draws(spec_x: str, spec_y: str, averages: int | None, n_draws: 
     averages : int or None, impacts averaged per FRF (``--averages``; else the files' header key)
     n_draws : int >= 1, realisations drawn when a direction has a random-error model
     rng : numpy.random.Generator (X drawn first, then Y)
+    exact : bool, use the measured FRFs (the mean of the hits) as they are, without their random error
+        (``lobes --deterministic``)
 
     Returns
     -------
@@ -99,8 +102,8 @@ def measured_frf_draws(spec_x: str, spec_y: str, averages: int | None, n_draws: 
     """
     from .measured import draw_measured_frf, interpolate_lines, read_measured_direction
 
-    mx = read_measured_direction(spec_x, averages, "--measured-x")
-    my = read_measured_direction(spec_y, averages, "--measured-y")
+    mx = read_measured_direction(spec_x, averages, "--measured-x", exact)
+    my = read_measured_direction(spec_y, averages, "--measured-y", exact)
     deterministic = mx.model == "none" and my.model == "none"
     if not deterministic and n_draws < 2:
         raise SetupError(f"--draws {n_draws}: the measured FRFs carry a random error ({mx.model} in X, {my.model} "
@@ -122,10 +125,11 @@ def measured_frf_draws(spec_x: str, spec_y: str, averages: int | None, n_draws: 
     note = ""
     if deterministic:
         coh = [Path(m.files[0]).name for m in (mx, my) if m.has_coherence]
-        note = ("deterministic (P(stable) is 0 or 1): " + (
-            f"{' and '.join(coh)} carry coherence but no number of averages, so no random error is assumed; give "
-            "--averages N (or a '# averages = N' header line)" if coh else
-            "no random error is known for the measured FRFs; give files with a coherence column and --averages N")
+        note = "deterministic (P(stable) is 0 or 1): " + (
+            "--deterministic: the measured FRFs are used as they are, without their random error" if exact else (
+                f"{' and '.join(coh)} carry coherence but no number of averages, so no random error is assumed; give "
+                "--averages N (or a '# averages = N' header line)" if coh else
+                "no random error is known for the measured FRFs; give files with a coherence column and --averages N")
             + ", or repeated hits FILE1,FILE2,...")
     source = {"mode": "measured", "measured_x": str(spec_x), "measured_y": str(spec_y),
               "deterministic": deterministic, "deterministic_note": note,
