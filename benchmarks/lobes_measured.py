@@ -27,8 +27,9 @@ Run: ``OMP_NUM_THREADS=1 python benchmarks/lobes_measured.py [--campaigns 20] [-
    against posterior mode (posterior-predictive FRFs of the bundled example at 30 mm, lobes,
    recommendation); median of ``--runs`` runs; budget 2x.
 5. **End to end.**  ``bayes-rcsa lobes --measured-x/-y`` on the bundled 30 mm files at
-   ``--speeds 5000:30000:25001`` (deterministic), as a subprocess, current tree and the tree before issue
-   22 (commit ``BEFORE``, exported with ``git archive``): median wall and CPU time of ``--runs`` runs, and
+   ``--speeds 5000:30000:25001`` (deterministic: ``--deterministic`` in the current tree, which reads the
+   files' ``# averages = 5``; the tree before issue 22 ignores that header), as a subprocess, current tree and
+   the tree before issue 22 (commit ``BEFORE``, exported with ``git archive``): median wall and CPU time of ``--runs`` runs, and
    the ratio to the peer time ``--peer-seconds`` (acornel5's AltintasSLD in Octave, 3.2-3.4 s as quoted in
    issue 22; not re-measured here unless given).
 """
@@ -219,14 +220,14 @@ def _timed(fn):
     return time.perf_counter() - t0, time.process_time() - c0
 
 
-def _cli_time(pythonpath, out: Path):
+def _cli_time(pythonpath, out: Path, extra=()):
     env = dict(os.environ, OMP_NUM_THREADS="1")
     if pythonpath is not None:
         env["PYTHONPATH"] = str(pythonpath)
     argv = [sys.executable, "-m", "bayes_rcsa", "lobes", "--measured-x", str(EXAMPLE / "tip_x_30mm.csv"),
             "--measured-y", str(EXAMPLE / "tip_y_30mm.csv"), "--flutes", "4", "--kt", "790e6", "--kr", "230e6",
             "--immersion", "0.95", "--milling", "down", "--feed", "y", "--speeds", "5000:30000:25001",
-            "--out", str(out), "--force", "--quiet"]
+            *extra, "--out", str(out), "--force", "--quiet"]
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     subprocess.run(argv, env=env, check=True, capture_output=True, cwd=out.parent)
@@ -244,9 +245,9 @@ def end_to_end(args, rows):
                                  capture_output=True).stdout
         subprocess.run(["tar", "-x", "-C", str(old)], input=archive, check=True)
         res = {}
-        for name, path in (("current", None), ("before issue 22", old)):
-            _cli_time(path, tmp / "warm")  # file-system cache and compiled caches
-            runs = [_cli_time(path, tmp / f"o_{k}") for k in range(args.runs)]
+        for name, path, extra in (("current", None, ["--deterministic"]), ("before issue 22", old, [])):
+            _cli_time(path, tmp / "warm", extra)  # file-system cache and compiled caches
+            runs = [_cli_time(path, tmp / f"o_{k}", extra) for k in range(args.runs)]
             res[name] = (statistics.median(r[0] for r in runs), statistics.median(r[1] for r in runs),
                          min(r[0] for r in runs))
     print(f"\n5. end to end, deterministic lobes on the bundled 30 mm files, 25001 speeds (median of {args.runs} "

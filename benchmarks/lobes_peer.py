@@ -16,9 +16,9 @@ Both sides read the bundled 30 mm files (``tip_x_30mm.csv``, ``tip_y_30mm.csv``:
 500-3500 Hz) and compute the lobes of the same cut (4 flutes, Kt 790e6 Pa, Kr 230e6 Pa, 95 % radial
 immersion, down milling, feed along Y) at the same 25001 speeds (5000-30000 rpm, 1 rpm steps):
 
-- project: ``python -m bayes_rcsa lobes --measured-x/-y ... --speeds 5000:30000:25001`` (ZOA, deterministic:
-  the files carry coherence but no number of averages), a subprocess writing lobes.json, p_stable.npz and
-  lobes.png;
+- project: ``python -m bayes_rcsa lobes --measured-x/-y ... --speeds 5000:30000:25001 --deterministic`` (ZOA,
+  the measured FRFs as they are, like the peer: the files' coherence and ``# averages = 5`` would otherwise
+  give 500 realisations of their random error), a subprocess writing lobes.json, p_stable.npz and lobes.png;
 - peer: ``octave-cli -q -f driver.m ...``, a subprocess; the driver (generated here into a temporary
   directory, with everything else) reads the two CSV files, converts the inputs to the peer's conventions
   and writes the depth limit at each speed to a text file (no figure).  Conventions: the peer takes
@@ -159,7 +159,7 @@ def project_argv(out: Path, speeds=SPEEDS, method="zoa") -> list[str]:
     return [sys.executable, "-m", "bayes_rcsa", "lobes", "--measured-x", str(FX), "--measured-y", str(FY),
             "--flutes", CUT["flutes"], "--kt", CUT["kt"], "--kr", CUT["kr"], "--immersion", CUT["immersion"],
             "--milling", CUT["milling"], "--feed", CUT["feed"], "--method", method,
-            "--speeds", ":".join(str(v) for v in speeds), "--out", str(out), "--force", "--quiet"]
+            "--speeds", ":".join(str(v) for v in speeds), "--deterministic", "--out", str(out), "--force", "--quiet"]
 
 
 def peer_argv(out: Path) -> list[str]:
