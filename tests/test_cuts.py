@@ -238,3 +238,50 @@ def test_cut_checks_name_depth_in_mm_speed_outside_band_and_unsupported_speed(tm
     check_supported(cuts, inv)  # a limit in the band: accepted
     with pytest.raises(DataError, match="no draw has a chatter frequency inside the band"):
         check_supported(cuts, np.zeros_like(inv))
+
+
+# --------------------------------------------------------------------------- identify --cuts: the extra term
+def test_extra_likelihood_terms_enter_every_log_posterior_built_inside_the_block():
+    from bayes_rcsa.inference.posterior import LogPosterior, active_likelihood_terms, extra_likelihood_terms
+    from bayes_rcsa.params import PriorSet, Uniform
+
+    priors = PriorSet({"a": Uniform(0.0, 1.0)})
+    frf = lambda th: -th[:, 0]  # noqa: E731  (stands in for the FRF likelihood)
+    term = type("T", (), {"name": "t", "__call__": lambda self, th: 10 * th[:, 0]})()
+    x = np.array([[0.5], [2.0]])  # the second row is outside the prior: never evaluated
+    assert LogPosterior(priors, frf)(x)[0] == pytest.approx(-0.5)
+    with extra_likelihood_terms(term):
+        assert active_likelihood_terms() == (term,)
+        lp = LogPosterior(priors, frf)
+        assert lp(x)[0] == pytest.approx(-0.5 + 5.0) and lp(x)[1] == -np.inf
+        assert lp.with_likelihood(lambda th: 0 * th[:, 0])(x)[0] == pytest.approx(5.0)  # tempering keeps the term
+    assert active_likelihood_terms() == () and LogPosterior(priors, frf)(x)[0] == pytest.approx(-0.5)
+
+
+def test_cut_term_integrates_the_coefficients_out_and_draws_them_from_their_conditional():
+    from bayes_rcsa.cuts.joint import CutTerm
+
+    inv = np.array([[[1 / 1.0, 1 / 2.0], [1 / 1.3, 1 / 2.4]]])  # rows = the theta rows given below
+
+    class Fixed(CutTerm):  # the stability part replaced by fixed limits: only the integral is under test
+        def _likelihood(self, theta):
+            rows = np.asarray(theta[:, 0], dtype=int)
+            return CutLikelihood(inv[:, rows], [1.1, 1.9], [True, False], label_error=0.0)
+
+    prior = CoefficientPrior(600e6, 180e6, level_sd=0.2)
+    term = Fixed(None, None, None, F, None, prior, BoundaryWidth(), 0.0)
+    u = np.linspace(-1.5, 1.5, 30001)
+    for row in (0, 1):
+        lik = CutLikelihood(inv[:, [row]], [1.1, 1.9], [True, False], label_error=0.0)
+        ll = lik(np.zeros(u.size, int), u, np.zeros(u.size, int), np.full(u.size, 0.1))
+        dens = np.exp(ll - 0.5 * (u / 0.2) ** 2) / (0.2 * math.sqrt(2 * math.pi))
+        exact = math.log(np.trapezoid(dens, u))
+        # 161 grid points over ±5 sd resolve a likelihood ~0.1 wide in u to well below 1e-3 in log
+        assert term(np.array([[row]]))[0] == pytest.approx(exact, abs=1e-3)
+    kt, kr, w = term.coefficient_draws(np.zeros((3000, 1)), np.random.default_rng(8))
+    lik = CutLikelihood(inv[:, [0]], [1.1, 1.9], [True, False], label_error=0.0)
+    post = np.exp(lik(np.zeros(u.size, int), u, np.zeros(u.size, int), np.full(u.size, 0.1)) - 0.5 * (u / 0.2) ** 2)
+    mean_u = float(np.sum(post * u) / np.sum(post))
+    # 3000 conditional draws of sd ~0.05: the mean is known to ~0.002; 64 candidates per draw add a small bias
+    assert float(np.mean(np.log(kt / 600e6))) == pytest.approx(mean_u, abs=0.01)
+    assert np.allclose(kr / kt, 0.3) and np.all(w == 0.1)

@@ -143,3 +143,18 @@ def test_collapsed_reweighting_falls_back_to_mcmc_or_is_refused(world, tmp_path,
     assert _update(world, tmp_path / "r", "--min-ess", "200", "--no-mcmc") == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "effective sample size" in err[0] and not (tmp_path / "r").exists()
+
+
+def test_identify_cuts_options_are_checked_before_sampling(world, tmp_path, capsys):
+    base = ["identify", str(world / "data" / "setup.toml"), "--lengths", "0.03", "--quiet", "--no-plots"]
+    cases = [(["--cut-kt", "600e6", "--out", str(tmp_path / "a")], "--cut-kt need(s) --cuts CSV"),
+             (["--cuts", str(world / "cuts.csv"), "--method", "deterministic", "--out", str(tmp_path / "b")],
+              "--cuts needs a Bayesian method"),
+             (["--cuts", str(world / "cuts.csv"), "--cut-flutes", "4", "--out", str(tmp_path / "c")],
+              "--cuts needs --cut-kt, --cut-kr")]
+    for extra, message in cases:
+        capsys.readouterr()
+        assert main([*base, *extra]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and message in err[0], err
+    assert not any((tmp_path / n).exists() for n in "abc")

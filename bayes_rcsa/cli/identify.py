@@ -98,6 +98,9 @@ def register(subparsers) -> None:
     lib.add_argument("--no-taps", action="store_true",
                      help="with --library: use no measurement; write a posterior.nc of population-predictive draws "
                           "(predict and lobes read it like any posterior)")
+    from .update import add_cut_arguments
+
+    add_cut_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -203,6 +206,10 @@ def run(args) -> Summary:
                                                **library_kw)
     problem = build_problem_from_setup(setup, options)
     _check_resonances(problem, args.allow_no_resonance)
+    from ..inference.posterior import extra_likelihood_terms
+    from .update import cut_coefficients, cut_term_from_arguments, write_cut_coefficients
+
+    cut_term = cut_term_from_arguments(args, problem, setup)  # None without --cuts
     sampler_extra = dict(setup.extra.get("sampler", {}) or {})
     pick = lambda cli, key, default: cli if cli is not None else sampler_int(sampler_extra, key, default, setup.path)  # noqa: E731
     settings = SamplerSettings(
@@ -239,14 +246,19 @@ def run(args) -> Summary:
         # a failure removes what this run wrote (a checkpoint too: a rerun must not be blocked by it), except the
         # checkpoint after Ctrl-C, which --resume continues
         with new_output_directory(args.out, keep_on_interrupt=("chain.h5", "chain.mirror.h5")):
-            result = identify(problem, seed=args.seed, settings=settings,
-                              checkpoint_path=ckpt if bayesian else None, resume=args.resume,
-                              spindle_samples=spindle_samples)
+            with extra_likelihood_terms(*(() if cut_term is None else (cut_term,))):  # --cuts: a joint fit
+                result = identify(problem, seed=args.seed, settings=settings,
+                                  checkpoint_path=ckpt if bayesian else None, resume=args.resume,
+                                  spindle_samples=spindle_samples)
+            if cut_term is not None:
+                cut_draws, result.summary["cuts"] = cut_coefficients(result, cut_term, args.seed)
             # the data-plausibility warnings printed on stderr travel with the results too
             result.summary["warnings"] = merge_warnings(command_warnings(), result.summary.get("warnings", []))
             # what predict and lobes compare their setup with (a changed tool length, diameter or modulus)
             result.summary[GEOMETRY_KEY] = setup_geometry(setup)
             write_outputs(result, args.out, plots=not args.no_plots)
+            if cut_term is not None:
+                write_cut_coefficients(args.out, cut_draws, result.summary["cuts"])
     s = result.summary
     status = "converged" if s["converged"] else "NOT converged"
     return Summary(

@@ -9,6 +9,7 @@ Parsing and printing only; the work is :func:`bayes_rcsa.cuts.workflow.run_updat
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 
@@ -155,3 +156,106 @@ def run(args: argparse.Namespace) -> Summary:
                          "ess_draws": ess, "kt_pa": kt, "kr_pa": doc["kr_pa"]["after"],
                          "recommended": None if lobes is None else lobes["with_cuts"]["recommended"]},
                    warnings=tuple(doc["warnings"]))
+
+
+# ------------------------------------------------------------------------------------------
+# identify --cuts: the cut outcomes as an extra likelihood term of the identification
+_CUT_FLAGS = ("cut_clamping_length", "cut_tool", "cut_flutes", "cut_kt", "cut_kr", "cut_immersion", "cut_angles",
+              "cut_pitch", "cut_boundary_width", "cut_label_error")
+
+
+def add_cut_arguments(p) -> None:
+    """The ``--cuts`` group of ``identify`` (joint fit of hammer FRFs and cut outcomes)."""
+    from ..cuts import DEFAULT_BOUNDARY_WIDTH, DEFAULT_LABEL_ERROR
+
+    g = p.add_argument_group("cutting tests (joint fit with the hammer data; docs/stability.md)")
+    g.add_argument("--cuts", metavar="CSV", help="cut outcomes sampled together with the FRFs: "
+                   "spindle_speed_rpm,depth_m,outcome[,clamping_length_m,radial_immersion,feed_direction,tool]")
+    g.add_argument("--cut-clamping-length", metavar="M", help="clamping length of cuts without their own")
+    g.add_argument("--cut-tool", metavar="NAME", help="tool of cuts without their own")
+    g.add_argument("--cut-flutes", type=positive_int, metavar="N", help="number of teeth (required with --cuts)")
+    g.add_argument("--cut-kt", metavar="PA[±TOL]", help="K_t and the prior spread of the force level, e.g. 560e6±30%%")
+    g.add_argument("--cut-kr", metavar="PA[±TOL]", help="K_r and the prior spread of K_r/K_t, e.g. 170e6")
+    g.add_argument("--cut-immersion", metavar="R", help="radial immersion of cuts without their own, in (0, 1]")
+    g.add_argument("--cut-angles", metavar="ENTRY,EXIT", help="entry and exit angles in degrees instead")
+    g.add_argument("--cut-milling", choices=("down", "up"), default="down", help="down or up milling (default down)")
+    g.add_argument("--cut-feed", choices=("x", "y"), default="x", help="feed direction of cuts without their own")
+    g.add_argument("--cut-pitch", metavar="DEG,...", help="variable pitch (deg)")
+    g.add_argument("--cut-boundary-width", metavar="W|LO:HI", help=f"probit width (default {DEFAULT_BOUNDARY_WIDTH:g})")
+    g.add_argument("--cut-label-error", metavar="P", help=f"label error (default {DEFAULT_LABEL_ERROR:g})")
+
+
+def cut_term_from_arguments(args, problem, setup):
+    """The :class:`~bayes_rcsa.cuts.joint.CutTerm` of ``identify --cuts`` (None without --cuts); checks everything."""
+    if args.cuts is None:
+        given = [f"--{n.replace('_', '-')}" for n in _CUT_FLAGS if getattr(args, n, None) is not None]
+        if given:
+            raise SetupError(f"{', '.join(given)} need(s) --cuts CSV")
+        return None
+    if args.method == "deterministic":
+        raise SetupError("--cuts needs a Bayesian method (multi or single): the outcomes enter the posterior")
+    if args.resume:
+        raise SetupError("--cuts cannot be combined with --resume (the checkpoint does not record the cuts)")
+    missing = [o for o, v in (("--cut-flutes", args.cut_flutes), ("--cut-kt", args.cut_kt), ("--cut-kr", args.cut_kr))
+               if v is None]
+    if missing:
+        raise SetupError(f"--cuts needs {', '.join(missing)}")
+    from ..cuts import CoefficientPrior, DEFAULT_LABEL_ERROR
+    from ..cuts.data import cut_groups, prepare_cuts
+    from ..cuts.frf import configuration_caches
+    from ..cuts.joint import CutTerm
+    from ..io.checks import warn_all
+    from ..stability.posterior_frf import flute_length
+    from ..stability.tests_io import read_cut_table
+
+    ns = argparse.Namespace(kt=args.cut_kt, kr=args.cut_kr, flutes=args.cut_flutes, immersion=args.cut_immersion,
+                            angles=args.cut_angles, milling=args.cut_milling, feed=args.cut_feed, pitch=args.cut_pitch,
+                            allow_unusual=False)
+    cutting, kt_tol, kr_tol, warnings = cutting_from_arguments(ns, kr_tolerance=True)
+    warn_all(warnings)
+    prior = CoefficientPrior.from_tolerances(cutting.kt, kt_tol, cutting.kr, kr_tol)
+    width = _width(args.cut_boundary_width or "0.1")
+    label_error = DEFAULT_LABEL_ERROR if args.cut_label_error is None else parse_float(args.cut_label_error,
+                                                                                       "--cut-label-error")
+    if not (0 <= label_error < 0.5):
+        raise SetupError(f"--cut-label-error {args.cut_label_error}: expected a probability in [0, 0.5)")
+    length = None if args.cut_clamping_length is None else parse_float(args.cut_clamping_length,
+                                                                       "--cut-clamping-length", positive=True)
+    cuts = prepare_cuts(read_cut_table(args.cuts), cutting, length, setup.tools, args.cut_tool,
+                        lambda name: flute_length(setup.tools[name]))
+    pm = problem.parameters
+    lengths = sorted({float(l) for l in cuts.clamping_length_m})
+    fitted = sorted({float(o.configuration.clamping_length) for o in problem.observations})
+    if pm.growth.has_growth:
+        pm.growth.check_lengths(lengths, "cut clamping length")
+    elif any(all(abs(l - f) > 1e-9 for f in fitted) for l in lengths):
+        raise SetupError(f"--cuts: cuts at clamping length(s) {lengths} m, but this fit (one length, no growth law) "
+                         f"predicts only {fitted} m; fit several lengths or cut at a fitted length")
+    for d in ("x", "y"):
+        if d not in setup.spindle:
+            raise SetupError(f"{setup.path}: [spindle] {d} is needed for --cuts (both directions are coupled)")
+    sx, sy = setup.spindle["x"].frequency_hz, setup.spindle["y"].frequency_hz
+    f = sx[(sx >= max(sx[0], sy[0])) & (sx <= min(sx[-1], sy[-1]))]
+    dummy = {k: (np.zeros((1, f.size), complex),) * 2 for k in cuts.setups()}
+    cut_groups(cuts, dummy, f)  # refuses speeds outside the band before any sampling
+    model = setup.model()
+    return CutTerm(pm, model, configuration_caches(model, cuts.setups(), f), f, cuts, prior, width, label_error)
+
+
+def cut_coefficients(result, term, seed: int):
+    """(K_t, K_r, w) for every posterior draw of ``result`` (its conditional given the cuts) and their summary
+    (quantiles) for summary.json's ``cuts``."""
+    kt, kr, w = term.coefficient_draws(result.flat_theta, np.random.default_rng([seed, 23]))
+    q = lambda v: [float(x) for x in np.quantile(v, [0.05, 0.5, 0.95])]  # noqa: E731
+    info = {"file": str(term.cuts.table.path), "n_cuts": term.cuts.n_cuts, "kt_pa_q05_q50_q95": q(kt),
+            "kr_pa_q05_q50_q95": q(kr), "coefficient_prior": term.prior.describe(),
+            "boundary_width": term.width.describe(), "label_error": term.label_error}
+    return (kt, kr, w), info
+
+
+def write_cut_coefficients(out_dir, draws, info) -> None:
+    """Add the per-draw coefficients of :func:`cut_coefficients` to ``out_dir``/posterior.nc."""
+    from ..cuts.joint import add_coefficients_to_posterior
+
+    add_coefficients_to_posterior(Path(out_dir) / "posterior.nc", *draws,
+                                  {"cuts_file": info["file"], "n_cuts": info["n_cuts"]})

@@ -1,13 +1,63 @@
-"""Log posterior = log prior + (tempered) log likelihood, vectorised over walkers."""
+"""Log posterior = log prior + (tempered) log likelihood + extra likelihood terms, vectorised over walkers.
+
+Extra likelihood terms
+----------------------
+Data other than the hammer-test FRFs (e.g. cutting-test outcomes,
+:mod:`bayes_rcsa.cuts.joint`) enter the identification as *extra terms*:
+objects with a ``name`` and ``__call__(theta) -> (n,)`` giving their log
+likelihood at sampling coordinates ``theta`` (n, ndim) of the problem's
+parameter vector (:class:`LikelihoodTerm`).  A caller registers them for the
+duration of a fit with :func:`extra_likelihood_terms`; every
+:class:`LogPosterior` built inside that block adds them, so the start-up
+optimum, the walkers' initialisation and the sampler all see the same
+posterior without the workflow knowing about the terms.  Tempering
+(``with_likelihood``) scales the FRF likelihood only; extra terms enter
+untempered.
+"""
 
 from __future__ import annotations
+
+import contextlib
+import contextvars
+from typing import Iterator, Protocol
 
 import numpy as np
 
 from .likelihood import FRFLikelihood
 from ..params.priors import PriorSet
 
-__all__ = ["LogPosterior"]
+__all__ = ["LogPosterior", "LikelihoodTerm", "extra_likelihood_terms", "active_likelihood_terms"]
+
+_EXTRA_TERMS: contextvars.ContextVar[tuple] = contextvars.ContextVar("bayes_rcsa_extra_likelihood_terms", default=())
+
+
+class LikelihoodTerm(Protocol):
+    """An extra log-likelihood term of the identification.
+
+    Attributes
+    ----------
+    name : str, named in messages and outputs
+    """
+
+    name: str
+
+    def __call__(self, theta: np.ndarray) -> np.ndarray:
+        """(n,) log likelihood at sampling coordinates ``theta`` (n, ndim); -inf where impossible."""
+
+
+@contextlib.contextmanager
+def extra_likelihood_terms(*terms: LikelihoodTerm) -> Iterator[tuple]:
+    """Add ``terms`` to every :class:`LogPosterior` created inside the ``with`` block (context-local)."""
+    token = _EXTRA_TERMS.set(_EXTRA_TERMS.get() + tuple(terms))
+    try:
+        yield _EXTRA_TERMS.get()
+    finally:
+        _EXTRA_TERMS.reset(token)
+
+
+def active_likelihood_terms() -> tuple:
+    """The extra terms registered by the enclosing :func:`extra_likelihood_terms` blocks."""
+    return _EXTRA_TERMS.get()
 
 
 class LogPosterior:
@@ -17,6 +67,9 @@ class LogPosterior:
     ----------
     priors : PriorSet
     likelihood : FRFLikelihood
+    extra_terms : sequence of LikelihoodTerm or None
+        Added to the log likelihood; None takes the terms of the enclosing
+        :func:`extra_likelihood_terms` blocks (none outside them).
 
     Notes
     -----
@@ -25,9 +78,10 @@ class LogPosterior:
     model with meaningless parameters.
     """
 
-    def __init__(self, priors: PriorSet, likelihood: FRFLikelihood):
+    def __init__(self, priors: PriorSet, likelihood: FRFLikelihood, extra_terms=None):
         self.priors = priors
         self.likelihood = likelihood
+        self.extra_terms = active_likelihood_terms() if extra_terms is None else tuple(extra_terms)
         self.n_evaluations = 0
 
     @property
@@ -46,7 +100,10 @@ class LogPosterior:
         if np.any(ok):
             sub = theta if ok.all() else theta[ok]
             self.n_evaluations += sub.shape[0]
-            lp[ok] += self.likelihood(sub)
+            ll = self.likelihood(sub)
+            for term in self.extra_terms:
+                ll = ll + term(sub)
+            lp[ok] += ll
         return lp
 
     def negative(self, theta: np.ndarray) -> np.ndarray:
@@ -57,4 +114,4 @@ class LogPosterior:
         return -self(theta.T)
 
     def with_likelihood(self, likelihood: FRFLikelihood) -> "LogPosterior":
-        return LogPosterior(self.priors, likelihood)
+        return LogPosterior(self.priors, likelihood, self.extra_terms)
