@@ -113,19 +113,39 @@ def p_map(limits, weights, depths):
     return np.einsum("n,nsa->sa", weights, (depths[None, None, :] < limits[:, :, None]).astype(float))
 
 
-class Campaign:
-    """One bench, its hammer-test posterior draws at the cut length, and its truth."""
+class Truth:
+    """Campaign i's bench, cut plan and truth (the true limits on the fine speed grid and the 50 x 50 map)."""
 
-    def __init__(self, i: int, tmp: Path, n_draws: int, pairs: int):
+    def __init__(self, i: int):
         self.i = i
         self.seed = SEED0 + i
-        rng = np.random.default_rng(self.seed)
-        u = rng.uniform(0.8, 1.2, 2)
+        self.rng = np.random.default_rng(self.seed)
+        u = self.rng.uniform(0.8, 1.2, 2)
         self.cfg = default_bench_config(k_xf=1.8e6 * u[0], k_thetaM=4.5e5 * u[1], seed=self.seed)
         self.length = LENGTHS[i % 2]
         self.factor = 1.2 if (i // 2) % 2 == 0 else 0.8
         self.plan = CutPlan(n_cuts=10, clamping_length=self.length, speed_range=SPEEDS, depth_range=DEPTHS,
                             kt_assumed=KT, kr_assumed=KR, kt_error=self.factor - 1, kr_error=self.factor - 1, **CUT)
+        f = np.arange(self.cfg.frequency_start, self.cfg.frequency_stop + 1e-9, 1.0)
+        self.true_frfs = (f, *true_cut_frfs(self.cfg, self.length, f))
+        self.map_speed = np.linspace(SPEEDS[0], SPEEDS[1], 50)
+        self.map_depth = np.linspace(DEPTHS[1] / 50, DEPTHS[1], 50)
+        self.map_truth = self.map_depth[None, :] < self.true_limit(self.map_speed)[:, None]
+        self.fine_truth = self.true_limit(FINE)
+
+    def true_limit(self, speeds):
+        return true_depth_limit(self.cfg, self.plan, speeds, self.true_frfs)
+
+    def map_error(self, p):
+        return float(np.mean(np.abs(p - self.map_truth)))
+
+
+class Campaign(Truth):
+    """One bench, its hammer-test posterior draws at the cut length, and its truth."""
+
+    def __init__(self, i: int, tmp: Path, n_draws: int, pairs: int):
+        super().__init__(i)
+        rng = self.rng
         t0 = time.perf_counter()
         out = tmp / f"c{i}"
         setup = write_campaign(generate_campaign(self.cfg, rng), out)
@@ -141,14 +161,6 @@ class Campaign:
 
         frf = posterior_frf_draws(setup, self.posterior, self.length, n_draws, rng)
         self.frf = frf
-        # truth on the fine speed grid and the 50 x 50 map
-        f = np.arange(self.cfg.frequency_start, self.cfg.frequency_stop + 1e-9, 1.0)
-        self.true_frfs = (f, *true_cut_frfs(self.cfg, self.length, f))
-        self.true_limit = lambda s: true_depth_limit(self.cfg, self.plan, s, self.true_frfs)
-        self.map_speed = np.linspace(SPEEDS[0], SPEEDS[1], 50)
-        self.map_depth = np.linspace(DEPTHS[1] / 50, DEPTHS[1], 50)
-        self.map_truth = self.map_depth[None, :] < self.true_limit(self.map_speed)[:, None]
-        self.fine_truth = self.true_limit(FINE)
         # unit-K_t limits of the hammer draws on the map and fine speeds
         speeds = np.unique(np.concatenate([self.map_speed, FINE]))
         lim = zoa_lobes(frf.frf_x, frf.frf_y, frf.frequency_hz, unit_cutting(), speeds).depth_limit_m
@@ -157,7 +169,6 @@ class Campaign:
         # pool: every theta draw with `pairs` prior draws of the coefficient scale
         self.theta = np.repeat(np.arange(n_draws), pairs)
         self.scale = np.exp(rng.normal(0.0, KT_SIGMA, self.theta.size))
-        self.rng = rng
 
     def unit_at(self, speeds):
         return zoa_lobes(self.frf.frf_x, self.frf.frf_y, self.frf.frequency_hz, unit_cutting(),
@@ -166,9 +177,6 @@ class Campaign:
     def pool_limits(self, unit):
         """Limits (N, k) of the pool from unit-K_t limits (n_draws, k) of the theta draws."""
         return unit[self.theta] / (KT * self.scale[:, None])
-
-    def map_error(self, p):
-        return float(np.mean(np.abs(p - self.map_truth)))
 
 
 def window_stable(c: Campaign, rec) -> bool:
@@ -313,6 +321,89 @@ def design(c: Campaign, pairs: int, anchor_draws: int) -> dict:
     return out
 
 
+# ------------------------------------------------------------- anchor by MCMC --
+ANCHOR_ZETAS = np.exp(np.linspace(np.log(0.002), np.log(0.2), 25))
+ANCHOR_R = np.exp(np.linspace(np.log(2.0), np.log(100.0), 4000))  # n / f_n, rpm per Hz
+ANCHOR_SD = np.array([0.2, 0.5, 0.5, KT_SIGMA])  # prior sd of ln f_n, ln k, ln zeta, u
+ANCHOR_MEAN = np.array([np.log(ANCHOR_FN), np.log(ANCHOR_K), np.log(ANCHOR_ZETA), 0.0])
+
+
+class OneModeLimits:
+    """ZOA limit of one mode (the same in X and Y) for any (f_n, k, zeta, u), case B.
+
+    For G = G1(f / f_n; zeta) / k the ZOA boundary scales exactly: a_lim(n) = k / (K_t) A(n / f_n; zeta), so
+    one table A(r, zeta) (``zoa_lobes`` on one-mode FRFs at f_n = 1000 Hz, k = 1, 24001 log-spaced lines from
+    50 to 8000 Hz, 25 log-spaced damping ratios 0.002-0.2, 4000 log-spaced r = 2-100 rpm/Hz) interpolated
+    bilinearly in (ln zeta, ln r) of ln A gives the limit of any draw; where the table finds no limit (the
+    chatter frequency outside its band) ln A is set to ln 1 m (no chatter in the map).
+    """
+
+    def __init__(self):
+        from scipy.interpolate import RegularGridInterpolator
+
+        fn = 1000.0
+        f = fn * np.exp(np.linspace(np.log(0.05), np.log(8.0), 24001))
+        r = f[None, :] / fn
+        g = 1.0 / (1 - r**2 + 2j * ANCHOR_ZETAS[:, None] * r)
+        lim = zoa_lobes(g, g, f, unit_cutting(), fn * ANCHOR_R).depth_limit_m  # (Z, R) m at K_t = 1, k = 1
+        table = np.log(np.where(np.isfinite(lim), lim, 1.0 * 1e3 * KT))  # no limit: 1 m at the assumed K_t
+        self.interp = RegularGridInterpolator((np.log(ANCHOR_ZETAS), np.log(ANCHOR_R)), table,
+                                              bounds_error=False, fill_value=None)
+
+    def __call__(self, x, speeds):
+        """Limits (n, k) m of draws x (n, 4) = (ln f_n, ln k, ln zeta, u) at speeds (k,) rpm."""
+        lr = np.log(np.asarray(speeds, dtype=float))[None, :] - x[:, 0:1]
+        lz = np.broadcast_to(x[:, 2:3], lr.shape)
+        a = self.interp(np.stack([lz, lr], axis=-1))
+        return np.exp(a + x[:, 1:2] - x[:, 3:4]) / KT
+
+
+def anchor_mcmc_race(t: Truth, table: OneModeLimits, strategy: str, target_err: float, max_cuts=20, n_prior=4000,
+                     walkers=32, steps=600) -> dict:
+    """The anchor's race with a proper posterior: emcee over (ln f_n, ln k, ln zeta, u) after every cut."""
+    import emcee
+
+    rng = np.random.default_rng([t.seed, 7])
+    x = ANCHOR_MEAN + ANCHOR_SD * rng.standard_normal((n_prior, 4))
+    lo, hi = np.log(ANCHOR_ZETAS[0]), np.log(ANCHOR_ZETAS[-1])
+    x[:, 2] = np.clip(x[:, 2], lo, hi)  # the table's damping range (the prior's +-4.6 sd)
+    cs, ca = candidate_grid(SPEEDS, DEPTHS, 25, 15)
+    ci = np.searchsorted(FINE, cs)
+    cs = FINE[ci]
+    speeds, depths, stable = [], [], []
+    errors, acc = [], []
+    target = parse_next_cut_target("map")
+
+    def log_post(z):
+        lp = -0.5 * np.sum(((z - ANCHOR_MEAN) / ANCHOR_SD) ** 2, axis=1)
+        lp = np.where((z[:, 2] >= lo) & (z[:, 2] <= hi), lp, -np.inf)
+        lim = table(z, np.array(speeds))
+        return lp + log_lik(np.array(depths), np.array(stable), lim)
+
+    for n in range(max_cuts):
+        if strategy == "next":
+            r = rank_next_cuts(target, cs, ca, table(x, cs), t.map_speed, t.map_depth, table(x, t.map_speed), None,
+                               BOUNDARY_WIDTH, label_error=LABEL_ERROR)
+            best = r.best or r.candidates[0]
+            k, a = int(np.searchsorted(FINE, best.speed_rpm)), best.depth_m
+        else:
+            k, a = int(rng.integers(FINE.size)), float(rng.uniform(*DEPTHS))
+        ok, _ = label_cuts(np.array([a]), t.fine_truth[k:k + 1], 0.0, rng)
+        speeds.append(FINE[k])
+        depths.append(a)
+        stable.append(bool(ok[0]))
+        sampler = emcee.EnsembleSampler(walkers, 4, log_post, vectorize=True)
+        start = x[rng.choice(x.shape[0], walkers, replace=False)]
+        sampler.run_mcmc(start, steps, progress=False)
+        x = sampler.get_chain(discard=steps // 2, thin=3, flat=True)
+        acc.append(float(np.mean(sampler.acceptance_fraction)))
+        w = np.full(x.shape[0], 1.0 / x.shape[0])
+        errors.append(t.map_error(p_map(table(x, t.map_speed), w, t.map_depth)))
+        if errors[-1] <= target_err:
+            return {"count": n + 1, "errors": errors, "acceptance": acc}
+    return {"count": None, "errors": errors, "acceptance": acc}
+
+
 # ------------------------------------------------------------------------- cost --
 def cost(c: Campaign, runs: int) -> dict:
     """``bayes-rcsa update`` with 20 cuts on 1000 draws, ZOA: in-process (median of ``runs``) and one subprocess."""
@@ -357,7 +448,38 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=5, help="timing runs of the cost row")
     ap.add_argument("--json", default=None, help="write all rows to this JSON file")
     ap.add_argument("--cost-only", action="store_true", help="only the cost row (campaign 0)")
+    ap.add_argument("--anchor-mcmc", default=None, metavar="JSON",
+                    help="only the MCMC anchor races of the design campaigns, with the targets of JSON (the --json "
+                         "file of a full run); prints their table")
     args = ap.parse_args()
+    if args.anchor_mcmc:
+        races = json.loads(Path(args.anchor_mcmc).read_text())["design"]
+        table = OneModeLimits()
+        out = []
+        for r in races:
+            t = Truth(r["campaign"])
+            row = {"campaign": t.i, "target": r["target"], "hammer_next": r["next"]}
+            for strategy in ("next", "random"):
+                t0 = time.perf_counter()
+                res = anchor_mcmc_race(t, table, strategy, r["target"])
+                row[strategy] = res
+                print(f"anchor MCMC campaign {t.i} {strategy}: {res['count']} cuts (hammer next-cut {r['next']}); errors "
+                      + " ".join(f"{e:.3f}" for e in res["errors"]) + f"; acceptance {np.median(res['acceptance']):.2f}"
+                      f" ({time.perf_counter() - t0:.0f} s)", flush=True)
+            out.append(row)
+
+        def val(x):
+            return 21 if x is None else x
+
+        for key in ("next", "random"):
+            print(f"median anchor-MCMC {key}: {statistics.median(val(r[key]['count']) for r in out)}; error after "
+                  f"5/10/20 cuts (median): " + " ".join(
+                      f"{statistics.median(r[key]['errors'][min(n, len(r[key]['errors'])) - 1] for r in out):.4f}"
+                      for n in (5, 10, 20)))
+        print(f"hammer next-cut fewer than anchor-MCMC next-cut: "
+              f"{sum(val(r['hammer_next']) < val(r['next']['count']) for r in out)}/{len(out)}")
+        Path(args.anchor_mcmc).with_suffix(".anchor.json").write_text(json.dumps(out, indent=1))
+        return
     if args.cost_only:
         with tempfile.TemporaryDirectory() as tmpdir:
             print(cost(Campaign(0, Path(tmpdir), args.draws, args.pairs), args.runs))
