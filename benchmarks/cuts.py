@@ -438,6 +438,36 @@ def cost(c: Campaign, runs: int) -> dict:
     return out
 
 
+def combine(full_json, anchor_json) -> None:
+    """Cuts to the design target (half the hammer-only error): hammer next-cut vs the MCMC anchor."""
+    races = {r["campaign"]: r for r in json.loads(Path(full_json).read_text())["design"]}
+    anchor = json.loads(Path(anchor_json).read_text())
+
+    def first(errors, target):
+        return next((n + 1 for n, e in enumerate(errors) if e <= target), None)
+
+    def val(x):
+        return 21 if x is None else x
+
+    rows = []
+    for a in anchor:
+        r = races.get(a["campaign"])
+        if r is None:
+            continue
+        rows.append((a["campaign"], r["target"], r["next"], first(a["next"]["errors"], r["target"]),
+                     first(a["random"]["errors"], r["target"]), a))
+        print(f"campaign {a['campaign']}: target {r['target']:.4f}; hammer next-cut {r['next']}; anchor (MCMC) "
+              f"next-cut {rows[-1][3]}, random {rows[-1][4]}; anchor error after 20 cuts next "
+              f"{a['next']['errors'][-1]:.4f}, random {a['random']['errors'][-1]:.4f}; acceptance "
+              f"{np.median(a['next']['acceptance']):.2f}")
+    print(f"hammer fewer cuts than the anchor (next-cut both): {sum(val(x[2]) < val(x[3]) for x in rows)}/{len(rows)}; "
+          f"median hammer {statistics.median(val(x[2]) for x in rows)}, anchor next {statistics.median(val(x[3]) for x in rows)}, "
+          f"anchor random {statistics.median(val(x[4]) for x in rows)} (21 = not within 20)")
+    for key in ("next", "random"):
+        print(f"anchor {key} map error after 1, 3, 5, 10, 20 cuts (median): " + " ".join(
+            f"{statistics.median(x[5][key]['errors'][n - 1] for x in rows):.4f}" for n in (1, 3, 5, 10, 20)))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--campaigns", type=int, default=20)
@@ -449,36 +479,27 @@ def main() -> None:
     ap.add_argument("--json", default=None, help="write all rows to this JSON file")
     ap.add_argument("--cost-only", action="store_true", help="only the cost row (campaign 0)")
     ap.add_argument("--anchor-mcmc", default=None, metavar="JSON",
-                    help="only the MCMC anchor races of the design campaigns, with the targets of JSON (the --json "
-                         "file of a full run); prints their table")
+                    help="only the MCMC anchor races (20 cuts each) of the --design-campaigns, written to JSON")
+    ap.add_argument("--combine", nargs=2, default=None, metavar=("FULL_JSON", "ANCHOR_JSON"),
+                    help="the anchor table from a full run's --json and an --anchor-mcmc file")
     args = ap.parse_args()
-    if args.anchor_mcmc:
-        races = json.loads(Path(args.anchor_mcmc).read_text())["design"]
+    if args.anchor_mcmc:  # 20 cuts per race, no early stop: counts for any target follow from the errors
         table = OneModeLimits()
         out = []
-        for r in races:
-            t = Truth(r["campaign"])
-            row = {"campaign": t.i, "target": r["target"], "hammer_next": r["next"]}
+        for i in range(args.design_campaigns):
+            t = Truth(i)
+            row = {"campaign": i}
             for strategy in ("next", "random"):
                 t0 = time.perf_counter()
-                res = anchor_mcmc_race(t, table, strategy, r["target"])
-                row[strategy] = res
-                print(f"anchor MCMC campaign {t.i} {strategy}: {res['count']} cuts (hammer next-cut {r['next']}); errors "
-                      + " ".join(f"{e:.3f}" for e in res["errors"]) + f"; acceptance {np.median(res['acceptance']):.2f}"
-                      f" ({time.perf_counter() - t0:.0f} s)", flush=True)
+                row[strategy] = anchor_mcmc_race(t, table, strategy, -1.0)
+                print(f"anchor MCMC campaign {i} {strategy}: errors " + " ".join(
+                    f"{e:.3f}" for e in row[strategy]["errors"]) + f"; acceptance "
+                    f"{np.median(row[strategy]['acceptance']):.2f} ({time.perf_counter() - t0:.0f} s)", flush=True)
             out.append(row)
-
-        def val(x):
-            return 21 if x is None else x
-
-        for key in ("next", "random"):
-            print(f"median anchor-MCMC {key}: {statistics.median(val(r[key]['count']) for r in out)}; error after "
-                  f"5/10/20 cuts (median): " + " ".join(
-                      f"{statistics.median(r[key]['errors'][min(n, len(r[key]['errors'])) - 1] for r in out):.4f}"
-                      for n in (5, 10, 20)))
-        print(f"hammer next-cut fewer than anchor-MCMC next-cut: "
-              f"{sum(val(r['hammer_next']) < val(r['next']['count']) for r in out)}/{len(out)}")
-        Path(args.anchor_mcmc).with_suffix(".anchor.json").write_text(json.dumps(out, indent=1))
+            Path(args.anchor_mcmc).write_text(json.dumps(out, indent=1))
+        return
+    if args.combine:
+        combine(*args.combine)
         return
     if args.cost_only:
         with tempfile.TemporaryDirectory() as tmpdir:
