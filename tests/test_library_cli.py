@@ -1,0 +1,133 @@
+"""``bayes-rcsa library`` and ``identify --library`` end to end, and their bad input (#20).
+
+A hand-made population (no stage 1) stands in for a fitted library where the population's numbers do
+not matter; stage 1 itself runs on two tiny bench combinations (single sampler chunks, coarse lines)
+under the process pool and a Dask LocalCluster.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from bayes_rcsa.cli.main import main
+from bayes_rcsa.library.outputs import read_population, write_population
+from bayes_rcsa.library.population import Hyperprior
+from bayes_rcsa.library.predictive import Population
+
+NAMES = ("k_xf", "k_thetaM", "g_xf", "g_thetaM")
+BOX = np.array([[5.0, 9.0], [3.0, 8.0], [0.0, 0.5], [0.0, 0.5]])
+
+
+def _population(tmp_path, version=None, growth=(0.025, 0.040, 0.5)):
+    """A population of holder types ER32 and HSK near the bundled example's contact (k_xf ~ 2.5e6 N/m at 25 mm)."""
+    rng = np.random.default_rng(1)
+    n = 400
+    draws = {}
+    for t, shift in (("ER32", 0.0), ("HSK", 0.3)):
+        a = np.array([6.4 + shift, 5.3, 0.25, 0.25]) + 0.02 * rng.standard_normal((n, 4))
+        b = np.array([1.0, 1.5, 0.0, 0.0]) + 0.05 * rng.standard_normal((n, 4))
+        s = np.abs(np.array([0.05, 0.08, 0.05, 0.05]) + 0.01 * rng.standard_normal((n, 4)))
+        draws[t] = np.concatenate([a, b, s], axis=1)
+    pop = Population(NAMES, draws, BOX, growth, {"ER32": (0.006, 0.012), "HSK": (0.006, 0.012)})
+    rows = [{"name": "c0", "holder_type": "ER32", "diameter_m": 0.008, "ess": 500.0, "p_value": 0.5, "outlier": False,
+             **{f"{c}_own": [0.0, 0.1, 0.2] for c in NAMES}}]
+    path = tmp_path / "population.nc"
+    attrs = {} if version is None else {"model_version": version}
+    write_population(path, pop, rows, Hyperprior.from_box(NAMES, BOX, 0.5).describe(), attrs)
+    return path
+
+
+def _typed(example, holder_type='"ER32"', extra=""):
+    text = example.read_text(encoding="utf-8")
+    text = text.replace("\n[holder]\n", f"\n[holder]\ntype = {holder_type}\n", 1) if holder_type else text
+    example.write_text(text + extra, encoding="utf-8")
+    return example
+
+
+def test_population_file_round_trips_and_is_arviz_readable(tmp_path):
+    import arviz as az
+
+    path = _population(tmp_path)
+    pop = read_population(path)
+    assert pop.names == NAMES and pop.holder_types == ("ER32", "HSK") and pop.growth == (0.025, 0.040, 0.5)
+    idata = az.from_netcdf(str(path))
+    assert idata.posterior["a"].dims == ("chain", "draw", "holder_type", "coordinate")
+    assert json.loads(idata.attrs["coordinate_units"])["k_xf"] == "log10(N/m)"
+
+
+def test_identify_with_the_library_one_tap_and_zero_taps_feed_predict_and_lobes(example, tmp_path, capsys):
+    setup = _typed(example)
+    pop = _population(tmp_path)
+    one, zero = tmp_path / "one", tmp_path / "zero"
+    assert main(["identify", str(setup), "--library", str(pop), "--lengths", "0.025", "--out", str(one),
+                 "--max-steps", "60", "--walkers", "16", "--check-every", "30", "--no-plots", "--quiet"]) == 0
+    post = json.loads((one / "summary.json").read_text())
+    # the population is the prior: the growth factors are sampled from it even with a single length
+    assert {"k_xf", "k_thetaM", "g_xf", "g_thetaM"} <= set(post["parameters"])
+    assert post["priors"]["g_xf"]["distribution"] == "joint-normal"
+    assert main(["identify", str(setup), "--library", str(pop), "--no-taps", "--out", str(zero)]) == 0
+    zsum = json.loads((zero / "summary.json").read_text())
+    assert zsum["method"] == "library-predictive" and any("zero taps" in w for w in zsum["warnings"])
+    from bayes_rcsa.posterior.draws import load_posterior
+
+    # zero taps: the population predictive at the example's 7.94 mm shank, 10^(6.4 + 1.0 ln(7.94 / 10)) N/m
+    zdraws = load_posterior(zero / "posterior.nc")
+    assert np.median(np.log10(zdraws.values["k_xf"])) == pytest.approx(6.4 + math.log(0.794), abs=0.03)
+    # one tap: the joint prior travels in posterior.nc; the growth factors are sampled inside the library's box
+    odraws = load_posterior(one / "posterior.nc")
+    assert odraws.parameters["g_xf"].prior.kind == "joint-normal" and odraws.growth.l_b == 0.040
+    g = odraws.values["g_xf"]
+    assert np.ptp(g) > 0 and np.all((g >= 0) & (g <= 0.5))
+    for name, d in (("one", one), ("zero", zero)):
+        assert main(["predict", str(setup), "--posterior", str(d / "posterior.nc"), "--lengths", "0.030,0.040",
+                     "--directions", "x", "--max-draws", "40", "--out", str(d / "pred"), "--no-plots", "--quiet"]) == 0
+        preds = json.loads((d / "pred" / "frequencies.json").read_text())["predictions"]
+        dom = [p for p in preds if p["dominant"] and p["clamping_length"] == pytest.approx(0.040)]
+        assert dom and all(math.isfinite(p["q50_hz"]) for p in dom)
+        assert main(["lobes", str(setup), "--posterior", str(d / "posterior.nc"), "--clamping-length", "0.030",
+                     "--draws", "4", "--flutes", "4", "--kt", "790e6", "--kr", "230e6", "--immersion", "0.95",
+                     "--speeds", "5000:30000:12", "--depth-points", "12", "--out", str(d / "lobes")]) == 0
+        assert json.loads((d / "lobes" / "lobes.json").read_text())["depth_limits_m"]
+
+
+@pytest.mark.parametrize("case, expected", [
+    ("unknown type", "holder type 'BT40' is not in the library's population (known: ['ER32', 'HSK'])"),
+    ("no type", "no [holder] type; the library knows ['ER32', 'HSK']"),
+    ("mixed units", "(mixed units?)"),
+    ("other version", "model_version 'bayes_rcsa.library/0', expected 'bayes_rcsa.library/1'"),
+    ("no library", "--no-taps needs --library"),
+])
+def test_identify_library_bad_input_is_one_line_and_exit_2(example, tmp_path, capsys, case, expected):
+    # mixed units: a library whose lengths were given in mm (the setup parser refuses such a setup itself,
+    # so the population file is made by hand)
+    pop = _population(tmp_path, version="bayes_rcsa.library/0" if case == "other version" else None,
+                      growth=(25.0, 40.0, 0.5) if case == "mixed units" else (0.025, 0.040, 0.5))
+    if case == "unknown type":
+        setup = _typed(example, '"BT40"')
+    elif case == "no type":
+        setup = _typed(example, None)
+    else:
+        setup = _typed(example)
+    argv = ["identify", str(setup), "--out", str(tmp_path / "fit"), "--no-taps"]
+    if case != "no library":
+        argv += ["--library", str(pop)]
+    capsys.readouterr()
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err and expected in err, err
+    assert not (tmp_path / "fit").exists()
+
+
+def test_library_with_one_combination_is_refused(example, tmp_path, capsys):
+    setup = _typed(example)
+    manifest = tmp_path / "lib.toml"
+    manifest.write_text(f'[[setup]]\nname = "only"\nfile = "{setup}"\n', encoding="utf-8")
+    capsys.readouterr()
+    assert main(["library", str(manifest), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "at least two combinations" in err
+    assert not (tmp_path / "out").exists()
