@@ -20,6 +20,7 @@ from bayes_rcsa.model.timoshenko import free_free_receptances
 from bayes_rcsa.params.terms import Contact, Substructures, TermContext, known_terms, make_term
 from bayes_rcsa.params.terms.fluted_section import batched_free_free
 from bayes_rcsa.params.terms.nonlinear_stiffness_law import saturating_shape
+from bayes_rcsa.params.terms.stiffness_step import step_shape
 from bayes_rcsa.synthetic import default_bench_config, generate_campaign, true_tool_point_frf, write_campaign
 
 SIX = ("contact_damping", "extra_mode", "fluted_section", "nonlinear_stiffness_law", "spindle_error",
@@ -174,6 +175,25 @@ def test_saturating_shape_is_smooth_through_zero():
     assert np.allclose(sh[3], x[0] - 1e-6 * x[0] * (1 - x[0]) / 2, atol=1e-11)
     assert sh[4, np.argmin(abs(x[0] - 0.0))] == pytest.approx(0, abs=1e-15)
     assert sh[4, np.argmin(abs(x[0] - 1.0))] == pytest.approx(1, abs=1e-12)
+
+
+def test_step_shape_keeps_the_ends_and_tends_to_linear_and_to_a_hard_step():
+    x = np.linspace(0.0, 1.0, 101)[None, :]
+    c = np.array([[0.5], [0.5], [0.5], [0.2], [0.5]])
+    r = np.array([[0.0], [1e-4], [5.0], [20.0], [1e4]])
+    t = step_shape(c, r, x)
+    assert np.array_equal(t[0], x[0])  # r = 0: exactly the linear law (the baseline adds zero)
+    # a logistic is odd about c to third order: T = x + O(r^2) for a step centred in the range
+    assert np.allclose(t[1], x[0], rtol=0, atol=1e-8)
+    assert np.allclose(t[:, 0], 0, atol=1e-12) and np.allclose(t[:, -1], 1, atol=1e-12)  # the ends are kept
+    assert np.all(np.diff(t, axis=1) >= -1e-15)  # monotone: engagement only adds stiffness
+    # r -> infinity: the hard step at c (away from the jump itself)
+    hard = (x[0] > 0.5).astype(float)
+    far = abs(x[0] - 0.5) > 0.01
+    assert np.allclose(t[4, far], hard[far], atol=1e-12)
+    # the step sits at c: half the rise is reached at x = c (to within the logistic's asymmetry in [0, 1])
+    i = np.argmin(abs(t[3] - 0.5))
+    assert abs(x[0, i] - 0.2) < 0.03
 
 
 def test_fluted_section_matches_the_bench_and_batches(tmp_path_factory):

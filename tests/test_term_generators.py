@@ -29,9 +29,9 @@ def _rotor():
     return pytest.importorskip("bayes_rcsa.synthetic.rotor")
 
 
-def write(generator: str, effects: dict, tmp_path, solid_flute: bool = False, **overrides):
+def write(generator: str, effects: dict, tmp_path, solid_flute: bool = False, lengths=LENGTHS, **overrides):
     """A noise-free campaign of ``generator`` ("bench" or "rotor") written and loaded as a user would."""
-    common = dict(frequency_step=STEP, noise_relative=0.0, noise_floor=1e-30, clamping_lengths=LENGTHS,
+    common = dict(frequency_step=STEP, noise_relative=0.0, noise_floor=1e-30, clamping_lengths=lengths,
                   directions=("x",))
     if generator == "bench":
         from bayes_rcsa.synthetic import default_bench_config, generate_campaign, write_campaign
@@ -53,10 +53,11 @@ def write(generator: str, effects: dict, tmp_path, solid_flute: bool = False, **
     return load_setup(path)
 
 
-def gaps(setup, term: str | None, starts: list[dict] | None = None, max_nfev: int = 100) -> tuple[float, dict]:
+def gaps(setup, term: str | None, starts: list[dict] | None = None, max_nfev: int = 100,
+         lengths=LENGTHS) -> tuple[float, dict]:
     """Relative RMS tool-point residual after a least-squares fit of contact (+ ``term``), and the fitted values."""
     model = setup.model()
-    meas = [m for m in setup.measurements if m.clamping_length in LENGTHS and m.direction == "x"]
+    meas = [m for m in setup.measurements if m.clamping_length in lengths and m.direction == "x"]
     f = meas[0].frf.frequency_hz
     sel = (f >= BAND[0]) & (f <= BAND[1])
     stack = ConfigurationStack([model.precompute(m.configuration, f[sel]) for m in meas])
@@ -65,7 +66,7 @@ def gaps(setup, term: str | None, starts: list[dict] | None = None, max_nfev: in
     priors = {"k_xf": LogUniform(*spec.translational_stiffness), "k_thetaM": LogUniform(*spec.rotational_stiffness),
               "g_xf": Uniform(-0.5, 1.0), "g_thetaM": Uniform(-0.5, 1.0)}
     terms = [make_term(term)] if term else []
-    pm = ParameterModel.from_priors(GrowthLaw(*LENGTHS, 1.0), priors,
+    pm = ParameterModel.from_priors(GrowthLaw(min(lengths), max(lengths), 1.0), priors,
                                     {"c_xf": spec.translational_damping, "c_thetaM": spec.rotational_damping},
                                     terms=terms, model=model)
     fwd = ForwardModel(pm, stack, model)
@@ -162,3 +163,26 @@ def test_term_halves_the_systematic_gap_of_its_effect(case, tmp_path, clean_fits
     assert clean < 0.1 * before
     assert fitted["k_xf"] == pytest.approx(clean_contact["k_xf"], rel=0.1)
     assert fitted["k_thetaM"] == pytest.approx(clean_contact["k_thetaM"], rel=0.25)
+
+
+#: Four lengths: a law's shape between the outer lengths is invisible with two.
+LAW_LENGTHS = (0.025, 0.030, 0.035, 0.040)
+
+
+@pytest.mark.parametrize("generator,kind", [("rotor", "step"), ("bench", "ramp")])
+def test_stiffness_step_explains_a_further_contact_zone_on_both_generators(generator, kind, tmp_path):
+    """A +25 % stiffness step between 30 and 35 mm (rotor: hard and multiplicative; the project's bench: an
+    additive 3-mm ramp from 31.5 mm) on a linear growth of 15 %: ``stiffness_step`` halves the gap, puts the
+    step between the two lengths that straddle it, and recovers the total growth."""
+    setup = write(generator, {"nonlinear_stiffness_law": 0.25}, tmp_path, lengths=LAW_LENGTHS,
+                  stiffness_law_kind=kind, growth=0.15)
+    before, _ = gaps(setup, None, lengths=LAW_LENGTHS)
+    after, fitted = gaps(setup, "stiffness_step", [{"stiffness_step_position": c, "stiffness_step_sharpness": 20.0}
+                                                   for c in (0.3, 0.7)], lengths=LAW_LENGTHS)
+    assert before > 0.05, before  # far beyond the 2 % noise of a real campaign
+    assert after <= 0.5 * before, (before, after, fitted)
+    # the measured lengths only say that the step lies between 30 and 35 mm (x = 1/3 and 2/3)
+    assert 1 / 3 < fitted["stiffness_step_position"] < 2 / 3, fitted
+    # total growth 25 -> 40 mm: rotor (1.15)(1.25) - 1 = 0.44, bench 0.15 + 0.25 = 0.40; the fitted k_xf's growth
+    # is the model's (RCSA contact, not the bench's springs), so only within 0.1
+    assert fitted["g_xf"] == pytest.approx(0.44 if kind == "step" else 0.40, abs=0.1), fitted

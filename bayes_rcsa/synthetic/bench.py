@@ -69,8 +69,9 @@ def true_contact(config: BenchConfig, clamping_length: float) -> dict[str, float
     """
     s = config.hidden_effects.get("nonlinear_stiffness_law", 0.0)
     g_theta = config.growth if config.growth_thetaM is None else config.growth_thetaM
-    fx = float(stiffness_factor(clamping_length, config.clamping_range, config.growth, s))
-    ft = float(stiffness_factor(clamping_length, config.clamping_range, g_theta, s))
+    law = {"kind": config.stiffness_law_kind, "ramp": (config.ramp_start, config.ramp_width)}
+    fx = float(stiffness_factor(clamping_length, config.clamping_range, config.growth, s, **law))
+    ft = float(stiffness_factor(clamping_length, config.clamping_range, g_theta, s, **law))
     if fx <= 0 or ft <= 0:
         raise SetupError(
             f"clamping length {clamping_length!r} m: the contact law gives a non-positive stiffness factor "

@@ -233,7 +233,11 @@ def truth_record(config: BenchConfig, peaks: list[dict]) -> dict:
             "true_diameter_ratio": [s.diameter_ratio for s in true_tool(config).segments],
         }
     if "nonlinear_stiffness_law" in effects:
-        details["nonlinear_stiffness_law"] = {"saturation": effects["nonlinear_stiffness_law"]}
+        details["nonlinear_stiffness_law"] = {"kind": config.stiffness_law_kind,
+                                              "saturation" if config.stiffness_law_kind == "saturating" else "ramp_jump":
+                                                  effects["nonlinear_stiffness_law"]}
+        if config.stiffness_law_kind == "ramp":
+            details["nonlinear_stiffness_law"].update(ramp_start=config.ramp_start, ramp_width=config.ramp_width)
     if "contact_damping" in effects:
         details["contact_damping"] = {"factor": effects["contact_damping"]}
     if "spindle_error" in effects:
@@ -247,7 +251,7 @@ def truth_record(config: BenchConfig, peaks: list[dict]) -> dict:
         "name": config.name,
         "contact_model": config.contact_model,
         "law": {
-            "kind": "saturating" if saturation else "linear",
+            "kind": config.stiffness_law_kind if saturation else "linear",
             "k_xf_at_la": config.k_xf,
             "k_thetaM_at_la": config.k_thetaM,
             "growth": config.growth,

@@ -38,6 +38,8 @@ from .spindle import Bearing, ShaftSegment, SpindleModel
 __all__ = ["BenchConfig", "default_bench_config", "load_bench_config", "CONTACT_MODELS", "EXTRA_MODE_LOCATIONS"]
 
 CONTACT_MODELS = ("lumped", "distributed")
+#: Forms of the ``nonlinear_stiffness_law`` effect (BenchConfig.stiffness_law_kind).
+STIFFNESS_LAW_KINDS = ("saturating", "ramp")
 EXTRA_MODE_LOCATIONS = ("flange", "holder_tip")
 _DIRECTIONS = ("x", "y")
 
@@ -103,6 +105,13 @@ class BenchConfig:
         Contact damping the user assumes (and the truth, unless the
         ``contact_damping`` effect is on).
     clamping_range : (l_a, l_b) m, feasible clamping lengths
+    stiffness_law_kind : {"saturating", "ramp"}
+        Form of the ``nonlinear_stiffness_law`` effect: the saturating law,
+        or the linear law plus a ramp ``magnitude * clip((l - ramp_start) /
+        ramp_width, 0, 1)`` (relative to k(l_a)): a further contact zone
+        (past a collet slot or relief groove) comes into contact over
+        ``ramp_width`` from ``ramp_start`` on.
+    ramp_start, ramp_width : m
     contact_model : {"lumped", "distributed"}
         Lumped springs at the holder tip (the RCSA model's assumption) or
         springs spread over the clamping length nodes with the same sums.
@@ -165,6 +174,9 @@ class BenchConfig:
     c_thetaM: float = 5e-4
     clamping_range: tuple[float, float] = (0.025, 0.040)
     contact_model: str = "lumped"
+    stiffness_law_kind: str = "saturating"
+    ramp_start: float = 0.0315
+    ramp_width: float = 0.003
     clamping_lengths: tuple[float, ...] = (0.025, 0.030, 0.035, 0.040)
     directions: tuple[str, ...] = ("x", "y")
     frequency_start: float = 500.0
@@ -225,6 +237,12 @@ class BenchConfig:
                 f"frequency_stop = {self.frequency_stop!r} Hz: expected more than frequency_start "
                 f"{self.frequency_start!r} Hz"
             )
+        if self.stiffness_law_kind not in STIFFNESS_LAW_KINDS:
+            raise SetupError(f"stiffness_law_kind = {self.stiffness_law_kind!r}: expected one of {STIFFNESS_LAW_KINDS}")
+        _positive(self.ramp_width, "ramp_width")
+        if not self.clamping_range[0] <= self.ramp_start <= self.clamping_range[1]:
+            raise SetupError(f"ramp_start = {self.ramp_start!r} m: expected within clamping_range "
+                             f"{list(self.clamping_range)!r}")
         if self.contact_model not in CONTACT_MODELS:
             raise SetupError(f"contact_model = {self.contact_model!r}: expected one of {CONTACT_MODELS}")
         if self.extra_mode_location not in EXTRA_MODE_LOCATIONS:
@@ -316,7 +334,8 @@ def default_bench_config(**overrides) -> BenchConfig:
 _SCALARS = {
     "": {"name": "name", "contact_model": "contact_model", "mesh_size": "mesh_size"},
     "contact": {"k_xf": "k_xf", "k_thetaM": "k_thetaM", "growth": "growth", "growth_thetaM": "growth_thetaM", "c_xf": "c_xf",
-                "c_thetaM": "c_thetaM", "clamping_range": "clamping_range"},
+                "c_thetaM": "c_thetaM", "clamping_range": "clamping_range", "law_kind": "stiffness_law_kind",
+                "ramp_start": "ramp_start", "ramp_width": "ramp_width"},
     "prior": {"translational_stiffness": "prior_k_xf", "rotational_stiffness": "prior_k_thetaM",
               "growth_bound": "growth_bound"},
     "campaign": {"clamping_lengths": "clamping_lengths", "directions": "directions", "repeats": "repeats"},
@@ -331,7 +350,7 @@ _SCALARS = {
 _TABLES = set(_SCALARS) - {""} | {"materials", "holder", "tool", "spindle", "hidden_effects"}
 _PAIRS = {"clamping_range", "prior_k_xf", "prior_k_thetaM"}
 _LISTS = {"clamping_lengths", "directions"}
-_STRINGS = {"name", "contact_model", "extra_mode_location"}
+_STRINGS = {"name", "contact_model", "extra_mode_location", "stiffness_law_kind"}
 _INTS = {"n_averages", "seed", "repeats"}
 
 

@@ -73,7 +73,8 @@ HIDDEN_EFFECTS: dict[str, EffectInfo] = {
         EffectInfo(
             "nonlinear_stiffness_law", 4.0, "1",
             "contact stiffness saturates with clamping length, k = k_a (1 + g (1 - exp(-s x)) / (1 - exp(-s))), "
-            "x = (l - l_a) / (l_b - l_a), s = magnitude; the user assumes the linear law",
+            "x = (l - l_a) / (l_b - l_a), s = magnitude (or, with stiffness_law_kind = 'ramp', a further contact "
+            "zone adds magnitude x k_a over ramp_width from ramp_start on); the user assumes the linear law",
         ),
         EffectInfo(
             "spindle_error", 0.15, "1",
@@ -123,7 +124,8 @@ def normalise_effects(effects: Mapping | None, where: str = "hidden_effects") ->
     return dict(sorted(out.items()))
 
 
-def stiffness_factor(clamping_length, clamping_range: tuple[float, float], growth: float, saturation: float = 0.0):
+def stiffness_factor(clamping_length, clamping_range: tuple[float, float], growth: float, saturation: float = 0.0,
+                     kind: str = "saturating", ramp: tuple[float, float] | None = None):
     """k(l) / k(l_a) of the true contact law.
 
     Parameters
@@ -131,20 +133,26 @@ def stiffness_factor(clamping_length, clamping_range: tuple[float, float], growt
     clamping_length : float or array, m
     clamping_range : (l_a, l_b) m
     growth : float
-        g: the relative stiffness increase from l_a to l_b.
+        g: the relative stiffness increase from l_a to l_b of the linear law.
     saturation : float
-        s >= 0; 0 gives the linear law ``1 + g x`` assumed by the user,
-        s > 0 the saturating law ``1 + g (1 - exp(-s x)) / (1 - exp(-s))``
-        with the same end values at l_a and l_b.
+        The ``nonlinear_stiffness_law`` magnitude, >= 0; 0 gives the linear
+        law ``1 + g x`` assumed by the user.  ``kind="saturating"``: the rate
+        s of ``1 + g (1 - exp(-s x)) / (1 - exp(-s))`` (same end values at l_a
+        and l_b).  ``kind="ramp"``: the relative stiffness a further contact
+        zone adds, ``1 + g x + saturation clip((l - start) / width, 0, 1)``.
+    kind : {"saturating", "ramp"}
+    ramp : (start, width) m, for ``kind="ramp"``
 
     Returns
     -------
     float or array, dimensionless
     """
     la, lb = clamping_range
-    x = (np.asarray(clamping_length, dtype=float) - la) / (lb - la)
+    l = np.asarray(clamping_length, dtype=float)
+    x = (l - la) / (lb - la)
     if saturation == 0:
-        shape = x
-    else:
-        shape = -np.expm1(-saturation * x) / -math.expm1(-saturation)
-    return 1.0 + growth * shape
+        return 1.0 + growth * x
+    if kind == "ramp":
+        start, width = ramp
+        return 1.0 + growth * x + saturation * np.clip((l - start) / width, 0.0, 1.0)
+    return 1.0 + growth * (-np.expm1(-saturation * x) / -math.expm1(-saturation))

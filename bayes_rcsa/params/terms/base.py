@@ -38,7 +38,7 @@ from ..parameter import Parameter
 if TYPE_CHECKING:  # pragma: no cover
     from ...model.assembly import Configuration, ToolPointModel
 
-__all__ = ["KINDS", "Contact", "Substructures", "TermContext", "ModelTerm"]
+__all__ = ["KINDS", "Contact", "Substructures", "TermContext", "ModelTerm", "bend_growth_law"]
 
 KINDS = ("spindle", "substructure", "joint", "frf")
 
@@ -185,3 +185,39 @@ class ModelTerm:
 
 def parameter_names(params: Sequence[Parameter]) -> tuple[str, ...]:
     return tuple(p.name for p in params)
+
+
+def bend_growth_law(term: str, values, contact: Contact, lengths, l_a: float, l_b: float, shape) -> Contact:
+    """Replace the linear growth law's ``x`` by ``shape(x)`` between the fitted lengths.
+
+    Adds ``k_a g (shape(x) - x)`` to the incoming stiffnesses (so joint
+    terms applied before are kept); ``shape(0) = 0`` and ``shape(1) = 1``
+    keep the law's ends.  Shared by the law-shape terms
+    (``nonlinear_stiffness_law``, ``stiffness_step``).
+
+    Parameters
+    ----------
+    term : str, the calling term's name (for the error message)
+    values : mapping with ``k_xf``, ``k_thetaM``, ``g_xf``, ``g_thetaM``, each (n_sets,)
+    contact : Contact, fields (n_sets, n_cfg)
+    lengths : (n_cfg,) m
+    l_a, l_b : m, the growth law's range
+    shape : callable, (1, n_cfg) normalised lengths -> (n_sets, n_cfg)
+
+    Raises
+    ------
+    ModelError
+        If the growth parameters are not in ``values``.
+    """
+    from ...errors import ModelError
+
+    if not l_b > l_a:
+        return contact  # one clamping length: no law between lengths to bend
+    missing = [n for n in ("k_xf", "k_thetaM", "g_xf", "g_thetaM") if n not in values]
+    if missing:
+        raise ModelError(f"model term {term}: needs the growth-law parameters {missing} in its values")
+    x = ((np.asarray(lengths, dtype=float) - l_a) / (l_b - l_a))[None, :]
+    delta = shape(x) - x
+    kx = np.asarray(contact.k_xf) + (np.asarray(values["k_xf"]) * np.asarray(values["g_xf"]))[:, None] * delta
+    kt = np.asarray(contact.k_thetaM) + (np.asarray(values["k_thetaM"]) * np.asarray(values["g_thetaM"]))[:, None] * delta
+    return Contact(kx, kt, contact.c_xf, contact.c_thetaM)

@@ -38,11 +38,10 @@ from typing import Mapping
 
 import numpy as np
 
-from ...errors import ModelError
 from ..parameter import Parameter
 from ..priors import Uniform
 from . import register_term
-from .base import Contact, ModelTerm
+from .base import Contact, ModelTerm, bend_growth_law
 
 __all__ = ["NonlinearStiffnessLaw", "saturating_shape"]
 
@@ -102,14 +101,5 @@ class NonlinearStiffnessLaw(ModelTerm):
         ModelError
             If the growth parameters are not in ``values``.
         """
-        if not l_b > l_a:
-            return contact  # one clamping length: no growth law to bend
-        missing = [n for n in ("k_xf", "k_thetaM", "g_xf", "g_thetaM") if n not in values]
-        if missing:
-            raise ModelError(f"model term {self.name}: needs the growth-law parameters {missing} in its values")
         s = np.asarray(values["stiffness_saturation"], dtype=float)[:, None]
-        x = ((np.asarray(lengths, dtype=float) - l_a) / (l_b - l_a))[None, :]
-        delta = saturating_shape(s, x) - x  # exactly 0 where s == 0
-        kx = np.asarray(contact.k_xf) + (np.asarray(values["k_xf"]) * np.asarray(values["g_xf"]))[:, None] * delta
-        kt = np.asarray(contact.k_thetaM) + (np.asarray(values["k_thetaM"]) * np.asarray(values["g_thetaM"]))[:, None] * delta
-        return Contact(kx, kt, contact.c_xf, contact.c_thetaM)
+        return bend_growth_law(self.name, values, contact, lengths, l_a, l_b, lambda x: saturating_shape(s, x))
