@@ -129,7 +129,7 @@ def run_update(setup_path, posterior_path, cuts_path, cutting, clamping_length, 
             warnings.append(f"the MCMC fallback kept {mcmc_info['steps'] - mcmc_info['burn']} steps after burn-in, "
                             "fewer than 20 autocorrelation times (" + ("unknown" if tau is None else f"{tau:.1f}")
                             + " steps); give more --mcmc-steps")
-    elif result.ess_draws < 4 * settings.min_ess:
+    elif result.ess_draws < min(4 * settings.min_ess, 0.5 * result.n_draws):
         warnings.append(f"the cuts leave {result.ess_draws:.0f} effective hammer draws of {result.n_draws}; the "
                         "updated posterior repeats few draws (use more --draws for smoother results)")
     contact = {}
