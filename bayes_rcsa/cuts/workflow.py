@@ -116,6 +116,12 @@ def run_update(setup_path, posterior_path, cuts_path, cutting, clamping_length, 
     result = importance_update(likelihood, prior, width, rng, settings, refuse=mcmc is None)
     start, draws_out, mcmc_info = result, dyn.draws, None
     warnings: list[str] = []
+    from ..stability.coefficients import read_coefficient_draws
+
+    if read_coefficient_draws(posterior_path) is not None:
+        warnings.append(f"{posterior_path} already carries cutting-coefficient draws (an earlier update): its cuts "
+                        "shaped the contact draws but its K_t/K_r draws are replaced by the --kt/--kr prior; to combine "
+                        "campaigns, update the hammer posterior once with all cuts in one file")
     if result.ess_draws < settings.min_ess:  # only reachable with the MCMC fallback
         from .mcmc import mcmc_update
 
