@@ -305,6 +305,8 @@ def design(c: Campaign, pairs: int, anchor_draws: int) -> dict:
         out[name] = n
         out[name + "_errors"] = errs
         print(f"    design {c.i} {name}: {n} cuts ({time.perf_counter() - t0:.0f} s)", flush=True)
+    if not anchor_draws:
+        return out
     rng = np.random.default_rng([c.seed, 4])
     um, uf = generic_modal_draws(c, anchor_draws, rng)
     a_theta = np.arange(anchor_draws)
@@ -474,7 +476,9 @@ def main() -> None:
     ap.add_argument("--design-campaigns", type=int, default=5)
     ap.add_argument("--draws", type=int, default=1000)
     ap.add_argument("--pairs", type=int, default=2, help="coefficient-scale draws per theta draw")
-    ap.add_argument("--anchor-draws", type=int, default=20000, help="draws of the generic modal prior")
+    ap.add_argument("--anchor-draws", type=int, default=0,
+                    help="draws of the generic modal prior for the importance-sampled anchor (0: skipped; it collapses, "
+                         "see --anchor-mcmc)")
     ap.add_argument("--runs", type=int, default=5, help="timing runs of the cost row")
     ap.add_argument("--json", default=None, help="write all rows to this JSON file")
     ap.add_argument("--cost-only", action="store_true", help="only the cost row (campaign 0)")
@@ -561,23 +565,28 @@ def report(rows, races, timing) -> None:
         print("\n## Design (cuts to reach half the hammer-only map error; None = not within 20)")
         for r in races:
             print(f"campaign {r['campaign']}: target {r['target']:.4f}; next {r['next']}, next (budget 0.3) "
-                  f"{r['next_budget']}, random {r['random']}, grid {r['grid']}; anchor next {r['anchor_next']}, "
-                  f"anchor random {r['anchor_random']} (anchor prior error {r['anchor_prior_err']:.3f})")
+                  f"{r['next_budget']}, random {r['random']}, grid {r['grid']}" + (
+                      f"; importance anchor next {r['anchor_next']}, random {r['anchor_random']} (prior error "
+                      f"{r['anchor_prior_err']:.3f})" if "anchor_next" in r else ""))
 
         def val(x):
             return 21 if x is None else x
 
         wins = sum(val(r["next"]) < min(val(r["random"]), val(r["grid"])) for r in races)
         print(f"next-cut fewer than both random and grid: {wins}/{len(races)}")
-        for key in ("next", "next_budget", "random", "grid", "anchor_next", "anchor_random"):
+        keys = ("next", "next_budget", "random", "grid") + (("anchor_next", "anchor_random") if "anchor_next" in races[0]
+                                                             else ())
+        for key in keys:
             print(f"median {key}: {statistics.median(val(r[key]) for r in races)}")
         print("map error after 1, 3, 5, 10, 20 cuts (median over campaigns; a race stops at the target):")
-        for key in ("next", "random", "grid", "anchor_next", "anchor_random"):
+        for key in [k for k in keys if k != "next_budget"]:
             e = [r[key + "_errors"] for r in races]
             at = [statistics.median(x[min(n, len(x)) - 1] for x in e) for n in (1, 3, 5, 10, 20)]
             print(f"  {key:14s} " + " ".join(f"{v:.4f}" for v in at))
-        print(f"anchor ESS after the race: next median {statistics.median(r['anchor_next_ess'] for r in races):.0f}, "
-              f"random median {statistics.median(r['anchor_random_ess'] for r in races):.0f}")
+        if "anchor_next" in races[0]:
+            print(f"importance anchor ESS after the race: next median "
+                  f"{statistics.median(r['anchor_next_ess'] for r in races):.0f}, random median "
+                  f"{statistics.median(r['anchor_random_ess'] for r in races):.0f}")
     print(f"\n## Cost\n{timing}")
 
 
