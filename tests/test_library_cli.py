@@ -131,3 +131,49 @@ def test_library_with_one_combination_is_refused(example, tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "at least two combinations" in err
     assert not (tmp_path / "out").exists()
+
+
+@pytest.fixture(scope="module")
+def tiny_library(tmp_path_factory):
+    """Two ER32 combinations of the synthetic library bench, each with short (unconverged) stage-1 chains."""
+    from bayes_rcsa.synthetic.library import LibrarySpec, generate_library, library_base_config, write_library
+
+    spec = LibrarySpec(holder_types=("ER32",), per_type=2, clamping_lengths=(0.025, 0.045),
+                       identify={"max_steps": 30, "walkers": 14, "check_every": 15, "plots": False})
+    lib = generate_library(spec, library_base_config(frequency_step=32.0, directions=("x",)), seed=3)
+    return write_library(lib, tmp_path_factory.mktemp("lib") / "library")
+
+
+@pytest.mark.slow
+def test_stage1_on_a_dask_local_cluster_equals_the_process_pool_and_the_library_reuses_it(tiny_library, tmp_path,
+                                                                                         capsys):
+    distributed = pytest.importorskip("distributed")
+    from bayes_rcsa.batch import load_manifest
+    from bayes_rcsa.library.stage1 import collect, run_stage1
+
+    jobs = load_manifest(tiny_library)
+    pool_dir = tmp_path / "pool"
+    capsys.readouterr()
+    assert main(["library", str(tiny_library), "--out", str(pool_dir), "--workers", "2", "--quiet", "--json",
+                 "--no-plots"]) == 0
+    first = json.loads(capsys.readouterr().out)
+    assert sorted(first["ran"]) == sorted(j.name for j in jobs) and first["holder_types"] == ["ER32"]
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                                  silence_logs=40) as cluster, distributed.Client(cluster) as client:
+        dask = run_stage1(jobs, tmp_path / "dask", main, executor=client.get_executor())
+    assert [r["status"] for r in dask.rows] == ["done", "done"]
+    a, b = collect(jobs, pool_dir), collect(jobs, tmp_path / "dask", dask.rows)
+    assert a.names == b.names == ("k_xf", "k_thetaM", "g_xf", "g_thetaM") and a.growth == b.growth
+    for sa, sb in zip(a.setups, b.setups):
+        # the same commands, seeds and single-threaded numbers: bit-identical stage-1 draws
+        np.testing.assert_array_equal(sa.z, sb.z)
+        assert (sa.holder_type, sa.diameter) == (sb.holder_type, sb.diameter)
+    # a second library run reuses both setups (cached per setup) and writes its outputs again
+    assert main(["library", str(tiny_library), "--out", str(pool_dir), "--workers", "2", "--quiet", "--json",
+                 "--no-plots"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["ran"] == [] and len(doc["reused"]) == 2
+    lib = json.loads((pool_dir / "library.json").read_text())
+    assert [s["name"] for s in lib["setups"]] == [j.name for j in jobs] and all(s["ess"] > 0 for s in lib["setups"])
+    assert any("a weak fit" in w for w in lib["warnings"])  # two combinations of one type
+    assert read_population(pool_dir / "population.nc").holder_types == ("ER32",)
