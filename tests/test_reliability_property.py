@@ -398,6 +398,33 @@ def _base_identifiability(t):
               "--no-plots": None, "--no-posteriors": None, "--out": str(t.root / "out")}
 
 
+LIBRARY_MANIFEST = """\
+[defaults]
+method = "multi"
+max_steps = 20
+walkers = 14
+check_every = 10
+plots = false
+
+[[setup]]
+name = "a"
+file = "data/setup.toml"
+
+[[setup]]
+name = "b"
+file = "data/setup.toml"
+seed = 1
+"""
+
+
+def _base_library(t):
+    _copy_data(t)
+    _text_replace("\n[holder]\n", '\n[holder]\ntype = "ER32"\n')(_setup(t))
+    (t.root / "library.toml").write_text(LIBRARY_MANIFEST)
+    t.pos = [str(t.root / "library.toml")]
+    t.opts = {"--workers": "1", "--quiet": None, "--no-plots": None, "--out": str(t.root / "out")}
+
+
 def _base_demo(t):
     t.pos = []
     t.opts = {"--max-steps": "20", "--out": str(t.root / "out")}
@@ -581,6 +608,21 @@ SPECS: dict[str, Spec] = {
         "tip_x:few-lines", "out-is-file", "out-nonempty", "out-under-file", "seed-negative", "seed-2**70",
         "seed-text", "lengths-nan", "lengths-unmeasured", "walkers-odd", "walkers-1", "check-every-0",
         "max-steps-text"}),
+    "library": Spec(_base_library, {
+        **{f"manifest:{k}": v for k, v in _file(TOML_EDITS, lambda t: t.root / "library.toml").items()},
+        "manifest-one-setup": lambda t: (t.root / "library.toml").write_text(LIBRARY_MANIFEST.split("\n\n[[setup]]\nname = \"b\"")[0]),
+        "manifest-deterministic": lambda t: _text_replace('method = "multi"', 'method = "deterministic"')(
+            t.root / "library.toml"),
+        "holder-type-missing": lambda t: _text_replace('type = "ER32"\n', "")(_setup(t)),
+        "holder-type-number": lambda t: _text_replace('type = "ER32"', "type = 32")(_setup(t)),
+        "setup:unclosed-table": lambda t: SETUP_EDITS["unclosed-table"](_setup(t)),
+        "setup:nan-modulus": lambda t: SETUP_EDITS["nan-modulus"](_setup(t)),
+        "out-is-file": OUT_TAKEN["out-is-file"], "out-nonempty": OUT_TAKEN["out-nonempty"],
+        "out-under-file": OUT_TAKEN["out-under-file"], **SEED_C,
+        "workers-0": _opt("--workers", "0"), "scheduler-nowhere": _opt("--scheduler", "tcp://127.0.0.1:1"),
+    }, ["population.nc", "library.json", "laws.json", "laws.csv"], examples=10, min_size=1,
+        # a valid library run is two identify runs and stage 2: every example carries one refused input
+        fast=None),
     "demo": Spec(_base_demo, {
         **OUT_TAKEN, **SEED_C,
         "max-steps-0": _opt("--max-steps", "0"), "max-steps-text": _opt("--max-steps", "many"),

@@ -55,15 +55,16 @@ def run(args: argparse.Namespace) -> Summary:
 
     from ..batch import load_manifest
     from ..io.atomic import atomic_write_text, directory_is_empty, directory_lock, new_output_directory
-    from ..library.stage1 import collect, run_stage1
+    from ..library.stage1 import check_setups, collect, run_stage1
     from ..library.workflow import fit_library, write_library
     from .batch import _dask_executor
     from .main import main as run_command
 
     jobs = load_manifest(args.manifest)
-    if len(jobs) < 2:
-        raise SetupError(f"{args.manifest}: {len(jobs)} setup(s); a library population needs at least two "
-                         "combinations")
+    try:
+        check_setups(jobs)  # everything a setup can be refused for, before stage 1 runs
+    except SetupError as exc:
+        raise SetupError(f"{args.manifest}: {exc}") from None
     out = Path(args.out)
     if not directory_is_empty(out) and not (out / "library_run.json").is_file() and not args.force:
         raise SetupError(f"--out {out}: exists, is not empty and holds no earlier library run; use --force to "

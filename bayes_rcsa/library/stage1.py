@@ -21,7 +21,7 @@ from ..errors import DataError, SetupError
 from .population import COORDINATES, SCALES, covariate, to_coordinates
 from .stage2 import SetupDraws
 
-__all__ = ["identify_only", "run_stage1", "collect", "holder_type_of", "shank_diameter", "stage1_prior",
+__all__ = ["identify_only", "check_setups", "run_stage1", "collect", "holder_type_of", "shank_diameter", "stage1_prior",
            "Stage1"]
 
 _LN10 = math.log(10.0)
@@ -56,6 +56,56 @@ def identify_only(jobs) -> tuple:
         cmds = tuple((s, a) for s, a in job.commands if s == "identify")
         out.append(dataclasses.replace(job, commands=cmds))
     return tuple(out)
+
+
+def check_setups(jobs) -> list[tuple[str, str, float]]:
+    """Check every setup of a library before stage 1 runs (cheap: no data loaded).
+
+    Returns
+    -------
+    list of (name, holder type, shank diameter m)
+
+    Raises
+    ------
+    SetupError
+        Fewer than two setups, a deterministic identification (stage 1 needs
+        posterior draws), a setup without ``[holder] type``, with several
+        tools or an implausible shank diameter, or clamping ranges and growth
+        bounds that differ between setups (the stiffness must refer to one
+        reference length; "mixed units?" when they differ by 100x).
+    """
+    from ..io.setup import load_setup
+
+    jobs = list(jobs)
+    if len(jobs) < 2:
+        raise SetupError(f"{len(jobs)} setup(s) in the manifest; a library population needs at least two "
+                         "combinations")
+    out = []
+    ref = None
+    for job in jobs:
+        argv = dict(job.commands).get("identify", ())
+        if "deterministic" in argv:
+            raise SetupError(f"setup {job.name}: method 'deterministic' gives no posterior draws; a library's stage 1 "
+                             "needs method 'multi'")
+        setup = load_setup(job.setup_file, load_data=False, load_spindle=False)
+        htype = holder_type_of(setup)
+        if htype is None:
+            raise SetupError(f"{job.setup_file}: no [holder] type; every setup of a library needs one (e.g. "
+                             'type = "ER32")')
+        diameter = shank_diameter(setup)
+        covariate(diameter, f"{job.setup_file}: shank diameter")
+        law = (tuple(float(v) for v in setup.feasible_range), float(setup.contact.growth_bound))
+        if ref is None:
+            ref = (job.name, law)
+        elif law != ref[1]:
+            (a, b), q = law
+            (a0, b0), q0 = ref[1]
+            hint = " (mixed units?)" if max(b, b0) > 100 * min(b, b0) else ""
+            raise SetupError(f"setup {job.name}: clamping range [{a:g}, {b:g}] m, growth bound {q:g}; setup {ref[0]} "
+                             f"has [{a0:g}, {b0:g}] m, {q0:g}{hint}; a library's stiffness refers to one reference "
+                             "length: give every setup the same contact.clamping_range and growth_bound")
+        out.append((job.name, htype, diameter))
+    return out
 
 
 def run_stage1(jobs, out_dir, run_command: Callable[[list[str]], int], executor=None, workers: int = 1,
