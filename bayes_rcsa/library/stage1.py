@@ -58,6 +58,20 @@ def identify_only(jobs) -> tuple:
     return tuple(out)
 
 
+def _combination(job):
+    """The setup of a job (no data), its holder type and shank diameter; refused without a type."""
+    from ..io.setup import load_setup
+
+    setup = load_setup(job.setup_file, load_data=False, load_spindle=False)
+    htype = holder_type_of(setup)
+    if htype is None:
+        raise SetupError(f"{job.setup_file}: no [holder] type; every setup of a library needs one (e.g. "
+                         'type = "ER32")')
+    diameter = shank_diameter(setup)
+    covariate(diameter, f"{job.setup_file}: shank diameter")
+    return setup, htype, diameter
+
+
 def check_setups(jobs) -> list[tuple[str, str, float]]:
     """Check every setup of a library before stage 1 runs (cheap: no data loaded).
 
@@ -74,8 +88,6 @@ def check_setups(jobs) -> list[tuple[str, str, float]]:
         bounds that differ between setups (the stiffness must refer to one
         reference length; "mixed units?" when they differ by 100x).
     """
-    from ..io.setup import load_setup
-
     jobs = list(jobs)
     if len(jobs) < 2:
         raise SetupError(f"{len(jobs)} setup(s) in the manifest; a library population needs at least two "
@@ -87,13 +99,7 @@ def check_setups(jobs) -> list[tuple[str, str, float]]:
         if "deterministic" in argv:
             raise SetupError(f"setup {job.name}: method 'deterministic' gives no posterior draws; a library's stage 1 "
                              "needs method 'multi'")
-        setup = load_setup(job.setup_file, load_data=False, load_spindle=False)
-        htype = holder_type_of(setup)
-        if htype is None:
-            raise SetupError(f"{job.setup_file}: no [holder] type; every setup of a library needs one (e.g. "
-                             'type = "ER32")')
-        diameter = shank_diameter(setup)
-        covariate(diameter, f"{job.setup_file}: shank diameter")
+        setup, htype, diameter = _combination(job)
         law = (tuple(float(v) for v in setup.feasible_range), float(setup.contact.growth_bound))
         if ref is None:
             ref = (job.name, law)
@@ -207,7 +213,6 @@ def collect(jobs, out_dir, rows: Sequence[dict] | None = None) -> Stage1:
         parameters that differs from the others, or fewer than two usable
         setups.
     """
-    from ..io.setup import load_setup
     from ..posterior.draws import load_posterior
 
     status = {r["name"]: r for r in rows or ()}
@@ -219,13 +224,7 @@ def collect(jobs, out_dir, rows: Sequence[dict] | None = None) -> Stage1:
             warns.append(f"setup {job.name}: stage 1 {row.get('status')} ({row.get('error')}); left out of the "
                          "population")
             continue
-        setup = load_setup(job.setup_file, load_data=False, load_spindle=False)
-        htype = holder_type_of(setup)
-        if htype is None:
-            raise SetupError(f"{job.setup_file}: no [holder] type; every setup of a library needs one (e.g. "
-                             'type = "ER32")')
-        diameter = shank_diameter(setup)
-        covariate(diameter, f"{job.setup_file}: shank diameter")
+        setup, htype, diameter = _combination(job)
         path = Path(out_dir) / "setups" / job.name / "identify" / "posterior.nc"
         try:
             draws = load_posterior(path)
