@@ -112,6 +112,7 @@ def truth_frequencies(setup: Path) -> dict:
 def predicted(setup: Path, posterior: Path, out: Path, lengths, truth: dict) -> dict:
     """90 % interval and median of the mode that holds the true dominant frequency, per length."""
     rc = cli(["predict", str(setup), "--posterior", str(posterior), "--out", str(out), "--quiet", "--no-plots",
+              "--max-draws", "500",
               "--force", "--lengths", ",".join(repr(x) for x in lengths), "--directions", "x", "--seed", "0"])
     if rc != 0:
         return {}
@@ -151,7 +152,8 @@ def _quiet(argv: list[str]) -> int:
     return cli(argv + ["--quiet"])
 
 
-def _case(job_setup: str, name: str, stage1_dir: str, manifest: str, work: str, seed: int) -> dict:
+def _case(job_setup: str, name: str, stage1_dir: str, manifest: str, work: str, seed: int,
+          baseline: bool = True) -> dict:
     """One held-out combination: population without it, one tap with/without the library, zero taps."""
     import dataclasses
 
@@ -174,7 +176,7 @@ def _case(job_setup: str, name: str, stage1_dir: str, manifest: str, work: str, 
     if _quiet(["identify", str(setup), "--library", pop, "--lengths", repr(TAP), "--out", str(work / "tap"),
                *common]) in (0, 1):
         out["library"] = predicted(setup, work / "tap" / "posterior.nc", work / "tap_pred", SCORED, truth)
-    if _quiet(["identify", str(setup), "--method", "single", "--lengths", repr(TAP), "--out", str(work / "single"),
+    if baseline and _quiet(["identify", str(setup), "--method", "single", "--lengths", repr(TAP), "--out", str(work / "single"),
                *common]) in (0, 1):
         out["single"] = predicted(setup, work / "single" / "posterior.nc", work / "single_pred", SCORED, truth)
     if _quiet(["identify", str(setup), "--library", pop, "--no-taps", "--out", str(work / "zero"), "--no-plots",
@@ -187,16 +189,16 @@ def _case(job_setup: str, name: str, stage1_dir: str, manifest: str, work: str, 
     return out
 
 
-def loo_cases(root: Path, tag: str, manifest: Path) -> list[dict]:
-    """Every combination of a library held out in turn (2 processes)."""
+def loo_cases(root: Path, tag: str, manifest: Path, baseline: bool = True) -> list[dict]:
+    """Every combination of a library held out in turn (2 processes); the baseline fit only if ``baseline``."""
     from concurrent.futures import ProcessPoolExecutor
 
     from bayes_rcsa.batch.manifest import load_manifest
 
     jobs = load_manifest(manifest)
     stage1_dir = root / f"{tag}.stage1"
-    args = [(str(j.setup_file), j.name, str(stage1_dir), str(manifest), str(root / f"{tag}.loo" / j.name), SEED0 + i)
-            for i, j in enumerate(jobs)]
+    args = [(str(j.setup_file), j.name, str(stage1_dir), str(manifest), str(root / f"{tag}.loo" / j.name), SEED0 + i,
+             baseline) for i, j in enumerate(jobs)]
     cached, todo = [], []
     for a in args:
         f = Path(a[4]) / "case.json"
@@ -317,7 +319,7 @@ def render(s1: dict, transfer: dict, flags: dict, n_cases: int, seconds: float) 
         "median 90 % width |",
         "|---|---|---|---|---|---|",
     ]
-    names = {"library": "one tap + population prior", "single": "one tap alone (`--method single`, baseline)",
+    names = {"library": "one tap + population prior", "single": "one tap alone (`--method single`, baseline; the first library's cases)",
              "zero": "zero taps (population predictive)"}
     for key in ("library", "single", "zero"):
         t = transfer.get(key)
@@ -378,8 +380,9 @@ def main(argv=None) -> None:
             stage1(manifest, root / f"{tag}.stage1")  # resumable: reuses the finished fits
         t0 = time.perf_counter()
         rows = {"library": [], "single": [], "zero": []}
-        for tag, manifest in libs[:args.loo]:
-            for case in loo_cases(root, tag, manifest):
+        for i, (tag, manifest) in enumerate(libs[:args.loo]):
+            # the single-length baseline is a reference number: the first library's cases give it
+            for case in loo_cases(root, tag, manifest, baseline=i == 0):
                 for key, res in case.items():
                     rows[key].append(res)
         transfer = {k: score(v) for k, v in rows.items()}
