@@ -1,0 +1,77 @@
+"""Stage 2 of a tool library at scale: 1,000 combinations in three holder types (issue #20, acceptance "Scale").
+
+Stage-1 posteriors are synthetic (Gaussian draws around each combination's law, 1,000 draws of the six pooled
+coordinates, as narrow as the bench's identify posteriors): the point is the time of stage 2 (surrogates, one
+emcee fit per holder type, per-setup importance ESS and pooled estimates) and of the leave-one-out outlier check,
+not the physics.  Seeds 5000+ (the development seeds were 0-99).
+
+    python3 benchmarks/library_scale.py [N_COMBINATIONS] [REPEATS]
+
+Prints one line per repeat and the median; the table goes to docs/library.md ("Scale").
+"""
+
+from __future__ import annotations
+
+import os
+import statistics
+import sys
+import time
+
+import numpy as np
+
+from bayes_rcsa.library.outliers import flag_outliers, loo_p_values
+from bayes_rcsa.library.population import COORDINATES, Hyperprior
+from bayes_rcsa.library.stage2 import SetupDraws, fit_population
+
+BOX = np.array([[5.0, 9.0], [3.0, 8.0], [0.0, 1.5], [0.0, 1.5], [0.0, 4.0], [-6.0, 0.0]])
+MEAN = np.array([6.6, 5.8, 0.45, 0.35, 1.1, -3.2])  # at 10 mm, per type offset below
+SLOPE = np.array([0.9, 1.3, 0.0, 0.0, 0.4, 1.3])
+SPREAD = np.array([0.05, 0.05, 0.08, 0.08, 0.09, 0.09])
+
+
+def synthetic_library(n: int, rng: np.random.Generator, n_types: int = 3, n_draws: int = 1000) -> list[SetupDraws]:
+    """``n`` combinations cycling through ``n_types`` holder types, diameters 6-20 mm."""
+    out = []
+    for i in range(n):
+        t = i % n_types
+        dia = rng.uniform(0.006, 0.020)
+        x = np.log(dia / 0.010)
+        z = MEAN + 0.15 * t + SLOPE * x + SPREAD * rng.standard_normal(6)
+        A = 0.004 * rng.standard_normal((6, 6))
+        C = A @ A.T + np.diag(rng.uniform(0.002, 0.01, 6) ** 2)
+        L = np.linalg.cholesky(C)
+        m = z + L @ rng.standard_normal(6)
+        draws = m + rng.standard_normal((n_draws, 6)) @ L.T
+        out.append(SetupDraws(f"c{i}", f"type{t}", dia, np.clip(draws, BOX[:, 0], BOX[:, 1]), np.zeros(6),
+                              np.zeros((6, 6)), BOX))
+    return out
+
+
+def main(n: int = 1000, repeats: int = 3) -> None:
+    hyper = Hyperprior.from_box(COORDINATES, BOX, 1.5)
+    times, loo_times = [], []
+    print(f"stage 2 for {n} combinations, 3 holder types, 6 coordinates, 1000 stage-1 draws each; "
+          f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at start")
+    for r in range(repeats):
+        rng = np.random.default_rng(5000 + r)
+        setups = synthetic_library(n, rng)
+        t0 = time.perf_counter()
+        res = fit_population(setups, hyper, rng)
+        t1 = time.perf_counter()
+        rows = []
+        for fit in res.types.values():
+            rows += loo_p_values(fit, hyper, rng)
+        flagged, _ = flag_outliers(rows, n)
+        t2 = time.perf_counter()
+        times.append(t1 - t0)
+        loo_times.append(t2 - t1)
+        ess = [f.ess for f in res.types.values()]
+        refused = sum(1 for s in res.setups if s["refused"])
+        n_flag = sum(1 for f in flagged if f["outlier"])
+        print(f"repeat {r}: stage 2 {t1 - t0:.1f} s (type ESS {min(ess):.0f}-{max(ess):.0f}, {refused} setups "
+              f"refused), outlier check {t2 - t1:.1f} s ({n_flag} flagged), load {os.getloadavg()[0]:.1f}")
+    print(f"median: stage 2 {statistics.median(times):.1f} s, outlier check {statistics.median(loo_times):.1f} s")
+
+
+if __name__ == "__main__":
+    main(*(int(v) for v in sys.argv[1:3]))
