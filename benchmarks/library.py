@@ -152,18 +152,17 @@ def _quiet(argv: list[str]) -> int:
     return cli(argv + ["--quiet"])
 
 
-def _case(job_setup: str, name: str, stage1_dir: str, manifest: str, work: str, seed: int,
-          baseline: bool = True) -> dict:
-    """One held-out combination: population without it, one tap with/without the library, zero taps."""
+def _case(job_setup: str, name: str, st1, work: str, seed: int, baseline: bool = True) -> dict:
+    """One held-out combination: population without it, one tap with/without the library, zero taps.
+
+    ``st1`` is the library's :class:`bayes_rcsa.library.stage1.Stage1` (read once per library).
+    """
     import dataclasses
 
-    from bayes_rcsa.batch.manifest import load_manifest
-    from bayes_rcsa.library.stage1 import collect
     from bayes_rcsa.library.workflow import fit_library, write_library as write_population_dir
 
     setup, work = Path(job_setup), Path(work)
     truth = truth_frequencies(setup)
-    st1 = collect(load_manifest(manifest), stage1_dir)
     rest = dataclasses.replace(st1, setups=[s for s in st1.setups if s.name != name])
     t0 = time.perf_counter()
     fit = fit_library(rest, np.random.default_rng(seed), outliers=False)
@@ -195,13 +194,15 @@ def loo_cases(root: Path, tag: str, manifest: Path, baseline: bool = True) -> li
 
     from bayes_rcsa.batch.manifest import load_manifest
 
+    from bayes_rcsa.library.stage1 import collect
+
     jobs = load_manifest(manifest)
-    stage1_dir = root / f"{tag}.stage1"
-    args = [(str(j.setup_file), j.name, str(stage1_dir), str(manifest), str(root / f"{tag}.loo" / j.name), SEED0 + i,
-             baseline) for i, j in enumerate(jobs)]
+    st1 = collect(jobs, root / f"{tag}.stage1")
+    args = [(str(j.setup_file), j.name, st1, str(root / f"{tag}.loo" / j.name), SEED0 + i, baseline)
+            for i, j in enumerate(jobs)]
     cached, todo = [], []
     for a in args:
-        f = Path(a[4]) / "case.json"
+        f = Path(a[3]) / "case.json"
         if f.exists():
             doc = json.loads(f.read_text())
             cached.append({k: {float(x): tuple(y) for x, y in v.items()} for k, v in doc.items()})
