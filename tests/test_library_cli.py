@@ -177,3 +177,31 @@ def test_stage1_on_a_dask_local_cluster_equals_the_process_pool_and_the_library_
     assert [s["name"] for s in lib["setups"]] == [j.name for j in jobs] and all(s["ess"] > 0 for s in lib["setups"])
     assert any("a weak fit" in w for w in lib["warnings"])  # two combinations of one type
     assert read_population(pool_dir / "population.nc").holder_types == ("ER32",)
+
+
+def test_library_outputs_and_the_report_section(tmp_path):
+    """write_library's files from a small stand-in fit, and the HTML report's library section built from them."""
+    from bayes_rcsa.library.stage1 import Stage1
+    from bayes_rcsa.library.stage2 import SetupDraws, Stage2Settings
+    from bayes_rcsa.library.workflow import fit_library, write_library
+    from bayes_rcsa.report import write_report_html
+
+    rng = np.random.default_rng(4)
+    names, box = ("k_xf", "g_xf"), np.array([[4.0, 10.0], [0.0, 0.5]])
+    setups = []
+    for i, dia in enumerate((0.006, 0.008, 0.010, 0.012, 0.016, 0.020)):
+        z = np.array([7.0 + 1.5 * math.log(dia / 0.01), 0.25]) + 0.05 * rng.standard_normal(2)
+        setups.append(SetupDraws(f"c{i}", ("ER32", "HSK")[i % 2], dia, z + 0.01 * rng.standard_normal((300, 2)),
+                                 np.zeros(2), np.zeros((2, 2)), box))
+    fit = fit_library(Stage1(names, setups, (0.025, 0.040, 0.5), box, []), rng,
+                      Stage2Settings(n_burn=150, ess_target=150, chunk=150), outliers=False)
+    paths = write_library(tmp_path / "lib", fit)
+    assert {p.name for p in paths.values()} == {"population.nc", "laws.json", "laws.csv", "library.json",
+                                               "shrinkage.png"}
+    laws = json.loads((tmp_path / "lib" / "laws.json").read_text())["laws"]
+    er32 = next(r for r in laws if r["holder_type"] == "ER32" and r["parameter"] == "k_xf")
+    # the population median at 10 mm is 10^7 N/m (the stand-in's law), its interval around it
+    assert er32["median_at_10mm_q05"] < 1e7 < er32["median_at_10mm_q95"] and er32["unit"] == "N/m"
+    html = write_report_html([tmp_path / "lib"], tmp_path / "report.html").read_text()
+    assert "Tool library: the contact population" in html and html.count("<td>ER32</td><td>k_xf</td>") == 1
+    assert "shrinkage: own vs pooled estimates" in html

@@ -24,6 +24,7 @@ from ..io.atomic import atomic_write_text
 from . import figures as F
 from .answer import answer_markdown, build_answer, num, template_environment, yes_no
 from .cuts_section import cuts_section
+from .library_section import library_section
 from .runs import KINDS, RunDir, collect_runs
 
 __all__ = ["build_report", "write_report_html", "answer_of_runs", "num", "yes_no", "FRF_DRAWS"]
@@ -308,6 +309,7 @@ def build_report(paths: Sequence, seed: int = 0, title: str | None = None) -> st
             "lobes": [_lobes_section(r) for r in by_kind.get("lobes", [])],
             "design": [_design_section(r) for r in by_kind.get("design", [])],
             "cuts": [cuts_section(r) for r in by_kind.get("update", [])],
+            "library": [library_section(r) for r in by_kind.get("library", [])],
             "answer": answer_of_runs(runs),
             "href": "",
         }

@@ -13,6 +13,7 @@ identifiability    ``identifiability.json``
 discrepancy        ``discrepancy.json``
 design             ``design.json``
 update             ``update.json`` (+ ``posterior.nc``; ``bayes-rcsa update``)
+library            ``library.json`` (+ ``population.nc``; ``bayes-rcsa library``)
 =================  ===========================================
 
 A directory holding none of them but sub-directories that do (the output of
@@ -40,6 +41,7 @@ KINDS = {
     "discrepancy": "discrepancy.json",
     "design": "design.json",
     "update": "update.json",
+    "library": "library.json",
 }
 
 
@@ -83,6 +85,7 @@ REQUIRED_KEYS = {
     "predict": ("predictions", "posterior", "setup"),
     "lobes": ("method", "recommended", "warnings"),
     "update": ("inputs", "ess", "kt_pa", "kr_pa", "cuts", "warnings"),
+    "library": ("laws", "setups", "stage2", "outliers", "warnings"),
 }
 
 
