@@ -69,6 +69,7 @@ def test_identify_with_the_library_one_tap_and_zero_taps_feed_predict_and_lobes(
     # the population is the prior: the growth factors are sampled from it even with a single length
     assert {"k_xf", "k_thetaM", "g_xf", "g_thetaM"} <= set(post["parameters"])
     assert post["priors"]["g_xf"]["distribution"] == "joint-normal"
+    assert post["library"]["holder_type"] == "ER32" and post["library"]["population"] == str(pop)
     assert main(["identify", str(setup), "--library", str(pop), "--no-taps", "--out", str(zero)]) == 0
     zsum = json.loads((zero / "summary.json").read_text())
     assert zsum["method"] == "library-predictive" and any("zero taps" in w for w in zsum["warnings"])

@@ -256,6 +256,10 @@ def run(args) -> Summary:
             result.summary["warnings"] = merge_warnings(command_warnings(), result.summary.get("warnings", []))
             # what predict and lobes compare their setup with (a changed tool length, diameter or modulus)
             result.summary[GEOMETRY_KEY] = setup_geometry(setup)
+            if population is not None:  # which population was the prior
+                result.summary["library"] = {"population": str(args.library), "model_version": population.version,
+                                             "holder_type": setup.holder_type,
+                                             "pooled_parameters": list(population.names)}
             write_outputs(result, args.out, plots=not args.no_plots)
             if cut_term is not None:
                 write_cut_coefficients(args.out, cut_draws, result.summary["cuts"])
