@@ -147,6 +147,40 @@ def test_repeats_coverage_of_the_truth_near_nominal():
     assert 0.80 <= rate <= 0.96, rate
 
 
+def test_coherence_band_covers_the_truths_lobe_and_the_robust_point_holds():
+    """Reduced form of issue 22's bench acceptance (benchmarks/lobes_measured.py, 20 campaigns in docs/stability.md).
+
+    8 measurements of the stand-in tool (one mode per direction, the bench's noise, 5 averages), 100 realisations
+    each, ZOA at 80 speeds: the truth's depth limit (noise-free FRFs) inside the 90 % band, pooled; the
+    deterministic limit of the same measurement; the recommended point at P(stable) >= 0.95 against the truth.
+    """
+    rng = np.random.default_rng(13)
+    speeds = np.linspace(6000, 20000, 80)
+    gx, gy = MX.frf(F), MY.frf(F)
+    truth = zoa_lobes(gx, gy, F, CUT, speeds).depth_limit_m
+    ok = np.isfinite(truth)
+    inside, det_inside, held = [], [], []
+    for _ in range(8):
+        (mx, cx), (my, cy) = noisy(gx, rng), noisy(gy, rng)
+        dx = MeasuredDirection(F, mx, "coherence", ["x"], epsilon=bendat_piersol_error(cx, N_AVG))
+        dy = MeasuredDirection(F, my, "coherence", ["y"], epsilon=bendat_piersol_error(cy, N_AVG))
+        res = lobes_from_frf_draws(draw_measured_frf(dx, 100, rng), draw_measured_frf(dy, 100, rng), F, CUT, speeds,
+                                   level=0.95)
+        inside.append((res.quantiles[0.05] <= truth) & (truth <= res.quantiles[0.95]))
+        det = zoa_lobes(mx, my, F, CUT, speeds).depth_limit_m
+        det_inside.append(det == truth)  # the deterministic "band" is one limit
+        rec = res.recommended
+        held.append(rec.depth_m < zoa_lobes(gx, gy, F, CUT, np.array([rec.spindle_speed_rpm])).depth_limit_m[0])
+    rate = np.mean(np.array(inside)[:, ok])
+    # nominal 0.90.  Speeds of one measurement share its noise (strongly dependent), so the pooled rate of 8
+    # measurements scatters by ~0.03 between seeds: 0.86-0.91 on three other seeds, 0.94 on this one.  An error
+    # sqrt(2) too small gives 0.75-0.77 and fails; sqrt(2) too large gives 0.96-0.98, too close to tell here (the
+    # exact factor is pinned by test_coherence_draws_match_bendat_piersol_variance); 0.97 catches 2x and more
+    assert 0.80 <= rate <= 0.97, rate
+    assert np.mean(np.array(det_inside)[:, ok]) < 0.01
+    assert all(held)  # the robust point is stable in the truth (its limit lies 33-48 % above it on other seeds)
+
+
 # ------------------------------------------------------------------------------------- files and CLI
 @pytest.fixture()
 def measured(tmp_path):
