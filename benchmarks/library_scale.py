@@ -6,8 +6,12 @@ emcee fit per holder type, per-setup importance ESS and pooled estimates) and of
 not the physics.  Seeds 5000+ (the development seeds were 0-99).
 
     python3 benchmarks/library_scale.py [N_COMBINATIONS] [REPEATS]
+    python3 benchmarks/library_scale.py joint [REPLICATES]
 
-Prints one line per repeat and the median; the table goes to docs/library.md ("Scale").
+Prints one line per repeat and the median; the table goes to docs/library.md ("Scale").  ``joint`` checks
+stage 2 against joint emcee on 4-combination stand-ins (two pooled coordinates, exactly Gaussian stage-1
+likelihoods): per replicate the largest |median difference| / posterior sd and the largest difference of a 90 %
+interval end / the joint interval's width over the six hyperparameters (docs/library.md, "Stage 2").
 """
 
 from __future__ import annotations
@@ -19,9 +23,10 @@ import time
 
 import numpy as np
 
+from bayes_rcsa.library.joint import gaussian_log_likelihood, sample_joint
 from bayes_rcsa.library.outliers import flag_outliers, loo_p_values
-from bayes_rcsa.library.population import COORDINATES, Hyperprior
-from bayes_rcsa.library.stage2 import SetupDraws, fit_population
+from bayes_rcsa.library.population import COORDINATES, Hyperprior, covariate
+from bayes_rcsa.library.stage2 import SetupDraws, Stage2Settings, fit_population, fit_type, surrogate
 
 BOX = np.array([[5.0, 9.0], [3.0, 8.0], [0.0, 1.5], [0.0, 1.5], [0.0, 4.0], [-6.0, 0.0]])
 MEAN = np.array([6.6, 5.8, 0.45, 0.35, 1.1, -3.2])  # at 10 mm, per type offset below
@@ -73,5 +78,44 @@ def main(n: int = 1000, repeats: int = 3) -> None:
     print(f"median: stage 2 {statistics.median(times):.1f} s, outlier check {statistics.median(loo_times):.1f} s")
 
 
+def joint_check(replicates: int = 5) -> None:
+    names = ("k_xf", "g_xf")
+    box = np.array([[4.0, 10.0], [0.0, 1.5]])
+    hyper = Hyperprior.from_box(names, box, 1.5)
+    dia = np.array([0.006, 0.009, 0.013, 0.018])
+    x = covariate(dia)
+    worst = []
+    print("replicate  max |d median| / sd  max |d end| / width  (over a, b, sigma of both coordinates)")
+    for r in range(replicates):
+        rng = np.random.default_rng(5100 + r)
+        exact, setups = [], []
+        for i in range(4):
+            z = np.array([7.0 + 1.5 * x[i], 0.6]) + np.array([0.15, 0.1]) * rng.standard_normal(2)
+            C = np.array([[0.04, 0.015], [0.015, 0.02]]) * rng.uniform(0.5, 2.0)
+            m = z + np.linalg.cholesky(C) @ rng.standard_normal(2)
+            exact.append((m, C))
+            draws = m + rng.standard_normal((4000, 2)) @ np.linalg.cholesky(C).T
+            setups.append(SetupDraws(f"s{i}", "T", dia[i], draws, np.zeros(2), np.zeros((2, 2)),
+                                     np.array([[-50.0, 50.0], [-50.0, 50.0]])))
+        sur = [surrogate(s) for s in setups]
+        fit = fit_type("T", [s.name for s in setups], x, np.array([v[0] for v in sur]), np.array([v[1] for v in sur]),
+                       hyper, rng, Stage2Settings(ess_target=3000))
+        joint = sample_joint([gaussian_log_likelihood(m, C) for m, C in exact], x, hyper, rng, n_steps=8000,
+                             n_burn=4000)
+        dm, de = 0.0, 0.0
+        for j in range(6):
+            qj = np.quantile(joint[:, j], [0.05, 0.5, 0.95])
+            q2 = np.quantile(fit.flat[:, j], [0.05, 0.5, 0.95])
+            dm = max(dm, abs(q2[1] - qj[1]) / np.std(joint[:, j]))
+            de = max(de, float(np.max(np.abs(q2[[0, 2]] - qj[[0, 2]]))) / (qj[2] - qj[0]))
+        worst.append((dm, de))
+        print(f"{r:9d}  {dm:20.3f}  {de:19.3f}")
+    print(f"largest: {max(w[0] for w in worst):.3f} sd, {max(w[1] for w in worst):.3f} of the width "
+          "(acceptance: 0.2 sd, 0.10)")
+
+
 if __name__ == "__main__":
-    main(*(int(v) for v in sys.argv[1:3]))
+    if sys.argv[1:2] == ["joint"]:
+        joint_check(*(int(v) for v in sys.argv[2:3]))
+    else:
+        main(*(int(v) for v in sys.argv[1:3]))
