@@ -1,8 +1,11 @@
 """Cutting tests update the hammer-test posterior: the acceptance tables of issue #23.
 
-Run: ``OMP_NUM_THREADS=1 nice python benchmarks/cuts.py [--campaigns 20] [--design-campaigns 5] [--draws 1000]``
-(about 30 min on the 2 shared cores; progress on stdout; tables go into docs/stability.md, "Cutting tests:
-benchmark").
+Run (2 shared cores, progress on stdout; tables in docs/stability.md, "Cutting tests: benchmark")::
+
+    OMP_NUM_THREADS=1 nice python benchmarks/cuts.py --json full.json          # 1-3: ~25-40 min, cost row
+    OMP_NUM_THREADS=1 nice python benchmarks/cuts.py --anchor-mcmc anchor.json  # the MCMC anchor, ~15 min
+    python benchmarks/cuts.py --combine full.json anchor.json                   # the anchor table
+    python benchmarks/cuts.py --cost-only --runs 5                              # the cost row again
 
 Campaigns (seeds 5000, 5001, ...)
 ---------------------------------
@@ -18,18 +21,15 @@ Cuts lie in 5000-30000 rpm x 5-80 um (the bench's slender end mill chatters at 1
 
 The update (what the benchmark measures)
 ----------------------------------------
-Posterior draws theta_d (1000 FRF draws at the cut's clamping length) are paired with prior draws of a
-coefficient scale s (K_t = 790 MPa s, K_r = 230 MPa s; s log-normal, sigma 0.3, median 1: "790e6 +- 30 %")
--- ``--pairs`` scales per theta draw -- and re-weighted by the cut likelihood P(chatter | theta, s) =
-Phi(ln(a / a_lim) / w), w = ``BOUNDARY_WIDTH``, a_lim the ZOA limit of the draw's FRFs
-(:func:`bayes_rcsa.stability.zoa_lobes`, computed once at K_t = 1 and divided by K_t: the ZOA limit is
-exactly inversely proportional to a common scale of K_t and K_r).  This is the importance re-weighting of
-``bayes-rcsa update`` on the same draws; the cost row times ``bayes_rcsa.cuts`` itself when it provides
-an update function (see ``cost``).
+Recovery: :func:`bayes_rcsa.cuts.update.importance_update` itself (1000 hammer draws x 32 particles, the
+``--kt 790e6±30%`` level prior, w = 0.1, label error 0.01, refusal below an ESS of 50).  The design races
+re-weight a pool of the same draws x ``--pairs`` level draws with the same likelihood after every cut
+(limits computed once at K_t = 1 and divided by the level: the ZOA limit is exactly inversely
+proportional to a common scale of K_t and K_r).
 
 Tables
 ------
-1. Recovery (``--campaigns``, 10 random cuts each): coverage of the true K_t by the 90 % interval
+1. Recovery (``--campaigns``, 10 random cuts, and 10 cuts chosen one by one by ``--next-cut``): coverage of the true K_t by the 90 % interval
    (Clopper-Pearson), mean absolute P(stable) error on the truth's 50 x 50 map for hammer only (assumed
    K_t), hammer + K_t prior, hammer + 10 cuts, and whether the robust recommended point (P(stable) >= 0.95,
    +-2 % speed, 10 % depth margin; :func:`bayes_rcsa.stability.recommend`) is stable in the truth over its
@@ -42,8 +42,9 @@ Tables
    setting with one mode, the same in X and Y as on this symmetric bench: f_n log-normal (median 1000 Hz,
    sigma 0.2), k log-normal (median 1e6 N/m, sigma 0.5), zeta log-normal (median 0.02, sigma 0.5); medians
    near the bench's true dominant mode (963 Hz, 8.4e5 N/m, 0.011 at 30 mm), i.e. a favourable anchor),
-   ``--anchor-draws`` prior draws each with its own coefficient scale, next-cut and random choice, the same
-   error target; large pools are ranked on 2000 draws resampled by weight.
+   sampled by emcee after every cut (``--anchor-mcmc``; :class:`OneModeLimits`), next-cut and random
+   choice, 20 cuts; ``--combine`` counts the cuts to the race's target.  ``--anchor-draws N`` adds the
+   importance-sampled anchor (N prior draws re-weighted; it collapses, ESS 2-15 after 20 designed cuts).
 4. Cost: the update from 20 cuts on a 1000-draw posterior with ZOA.
 """
 
