@@ -58,17 +58,46 @@ SCORED = (0.020, 0.030, 0.035, 0.040, 0.045)
 WORKERS = 2
 
 
-def library_spec(per_type: int, specials=()) -> LibrarySpec:
-    return LibrarySpec(per_type=per_type, specials=tuple(specials), identify={**IDENTIFY, "seed": 0})
+def library_spec(per_type: int, specials=(), types=None) -> LibrarySpec:
+    kw = {} if types is None else {"holder_types": tuple(types)}
+    return LibrarySpec(per_type=per_type, specials=tuple(specials), identify={**IDENTIFY, "seed": 0}, **kw)
 
 
-def make_library(root: Path, tag: str, seed: int, per_type: int, specials=()) -> Path:
+def make_library(root: Path, tag: str, seed: int, per_type: int, specials=(), types=None) -> Path:
     """Write (once) a library under ``root/tag``; returns its manifest."""
     folder = root / tag
     manifest = folder / "manifest.toml"
     if not manifest.exists():
-        write_library(generate_library(library_spec(per_type, specials), seed=seed), folder)
+        write_library(generate_library(library_spec(per_type, specials, types), seed=seed), folder)
     return manifest
+
+
+def big_type(root: Path, n: int) -> dict:
+    """The outlier check in one holder type (ER32) of ``n`` combinations: clean, 3x softer, tip mass."""
+    from bayes_rcsa.batch.manifest import load_manifest
+
+    seed = SEED0 + 100
+    tag = f"big{seed}"
+    manifest = make_library(root, tag, seed, n, types=("ER32",))
+    stage1(manifest, root / f"{tag}.stage1")
+    res = {}
+    rows = _flags(root / f"{tag}.stage1", manifest, seed)
+    bad = [r["name"] for r in rows if r.get("outlier")]
+    res[f"false flag, one ER32 library of {n}"] = (int(bool(bad)), 1, ", ".join(bad) or "none")
+    print(f"big clean: flagged {bad or 'none'}", flush=True)
+    for label, special in (("3x softer", {"softer": 3.0}), ("tip mass 2 g", {"hidden_effects": {"tip_mass": True}})):
+        stag = f"{tag}.{'soft' if 'softer' in special else 'mass'}1"
+        sman = make_library(root, stag, seed, n, [Special(1, **special)], types=("ER32",))
+        name = load_manifest(sman)[1].name
+        rows = _flags(special_stage1(root, stag, tag, sman, name), sman, seed + 1)
+        row = next(r for r in rows if r["name"] == name)
+        others = [r["name"] for r in rows if r.get("outlier") and r["name"] != name]
+        res[f"{label}, one ER32 library of {n}"] = (int(bool(row.get("outlier"))), 1,
+                                                    f"{name} p = {row.get('p_value', float('nan')):.1e}"
+                                                    + (f" (+{others})" if others else ""))
+        print(f"big {label}: {name} flagged {row.get('outlier')} (p = {row.get('p_value')}); others {others}",
+              flush=True)
+    return res
 
 
 def stage1(manifest: Path, out: Path) -> dict:
@@ -328,12 +357,14 @@ def render(s1: dict, transfer: dict, flags: dict, n_cases: int, seconds: float) 
             continue
         lines.append(f"| {names[key]} | {t['median_abs_error_pct']:.2f} % | {t['p90_abs_error_pct']:.2f} % | "
                      f"{_cov(t['coverage'])} | {_cov(t['coverage_45mm'])} | {t['median_width_pct']:.2f} % |")
-    lines += ["", "**Outliers** (flag of the special combination per campaign; false flags in clean libraries):", "",
+    lines += ["", "**Outliers** (`bayes_rcsa.library.workflow.fit_library` with its leave-one-out check: flagged when "
+              "the predictive p-value < 0.05 / number of combinations, Bonferroni; the special combination's flag per "
+              "campaign, any flag in a clean library):", "",
               "| case | flagged | 95 % interval | detail |", "|---|---|---|---|"]
     for key, (k, n, detail) in flags.items():
         lo, hi = clopper_pearson(k, n) if n else (float("nan"), float("nan"))
         lines.append(f"| {key} | {k}/{n} | [{lo:.2f}, {hi:.2f}] | {detail} |")
-    lines += ["", f"Wall time of the held-out cases (stage 2, three identify and three predict runs each, two at a "
+    lines += ["", f"Wall time of the held-out cases (stage 2, two or three identify and predict runs each, two at a "
                   f"time): {seconds / 60:.0f} min on the shared 2-core machine."]
     return "\n".join(lines)
 
@@ -364,15 +395,17 @@ def main(argv=None) -> None:
     ap.add_argument("--loo", type=int, default=3, help="12-combination libraries for the transfer tables")
     ap.add_argument("--clean", type=int, default=10, help="clean libraries in all (false flags)")
     ap.add_argument("--outliers", type=int, default=5, help="campaigns per outlier kind")
-    ap.add_argument("--part", choices=("stage1", "loo", "outliers", "all"), default="all",
+    ap.add_argument("--part", choices=("stage1", "loo", "outliers", "all", "none"), default="all",
                     help="stage1: libraries and stage 1 only; loo: the transfer cases; outliers: the flag counts; "
                          "all: everything (each part reuses what an earlier run left in --workdir)")
+    ap.add_argument("--big-type", type=int, default=0, metavar="N",
+                    help="also the outlier check in one ER32 library of N combinations (power against type size)")
     ap.add_argument("--write-docs", action="store_true")
     args = ap.parse_args(argv)
     root = args.workdir
     root.mkdir(parents=True, exist_ok=True)
     libs = libraries(root, args.loo, args.clean)
-    parts = {"stage1", "loo", "outliers"} if args.part == "all" else {args.part}
+    parts = {"stage1", "loo", "outliers"} if args.part == "all" else {args.part} - {"none"}
     if "stage1" in parts:
         for tag, manifest in libs:
             stage1(manifest, root / f"{tag}.stage1")
@@ -387,13 +420,19 @@ def main(argv=None) -> None:
                 for key, res in case.items():
                     rows[key].append(res)
         transfer = {k: score(v) for k, v in rows.items()}
+        # wall time accumulates over resumed runs (cached cases cost nothing the second time)
+        before = json.loads((root / "transfer.json").read_text())["seconds"] if (root / "transfer.json").exists() else 0
         (root / "transfer.json").write_text(json.dumps({"transfer": transfer, "n_cases": len(rows["library"]),
-                                                        "seconds": time.perf_counter() - t0}))
+                                                        "seconds": before + time.perf_counter() - t0}))
         print(json.dumps(transfer, indent=1), flush=True)
     if "outliers" in parts:
         for tag, manifest in libs:
             stage1(manifest, root / f"{tag}.stage1")
         flags = outliers(root, libs, args.outliers)
+        (root / "outliers.json").write_text(json.dumps(flags))
+    if args.big_type:
+        flags = json.loads((root / "outliers.json").read_text()) if (root / "outliers.json").exists() else {}
+        flags.update(big_type(root, args.big_type))
         (root / "outliers.json").write_text(json.dumps(flags))
     diags = [s for tag, _ in libs for s in _summaries(root / f"{tag}.stage1")]
     s1 = stage1_diagnostics(diags)
