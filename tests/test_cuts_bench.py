@@ -105,6 +105,8 @@ def test_synthesize_cuts_cli(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "millimetres" in err[0]
     assert not (tmp_path / "bad").exists()  # no partial output
+    assert cli(["synthesize", str(cfg), "--out", str(tmp_path / "bad"), "--cuts", "3", "--artifact"]) == 2
+    assert "--artifact" in capsys.readouterr().err and not (tmp_path / "bad").exists()
     assert cli(["synthesize", str(cfg), "--out", str(out), "--cuts", "4", "--cut-depths", "5e-6:8e-5"]) == 0
     speed, depth, stable = read_cutting_tests(out / "cuts.csv")
     assert speed.size == 4 and (out / "cuts_truth.json").is_file() and (out / "setup.toml").is_file()

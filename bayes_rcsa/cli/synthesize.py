@@ -55,6 +55,8 @@ def run(args: argparse.Namespace) -> Summary:
     seed = config.seed if args.seed is None else args.seed
     if seed < 0:
         raise SetupError(f"--seed {seed}: expected an integer >= 0")
+    if args.artifact and args.cuts:
+        raise SetupError("--cuts writes cutting tests of a tool-point campaign; it cannot be combined with --artifact")
     if args.artifact:
         from ..synthetic.artifact import default_bench_artifact, generate_artifact_tests, write_artifact_tests
 
@@ -134,8 +136,6 @@ def _generate_cuts(args, config, seed: int):
     from ..synthetic.cuts import CutPlan, generate_cuts
     from ._common import parse_float
 
-    if args.artifact:
-        raise SetupError("--cuts writes cutting tests of a tool-point campaign; it cannot be combined with --artifact")
     length = config.clamping_lengths[0] if args.cut_length is None else parse_float(args.cut_length, "--cut-length",
                                                                                      positive=True)
     plan = CutPlan(
