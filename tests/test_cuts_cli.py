@@ -158,3 +158,30 @@ def test_identify_cuts_options_are_checked_before_sampling(world, tmp_path, caps
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and message in err[0], err
     assert not any((tmp_path / n).exists() for n in "abc")
+
+
+def test_identify_with_cuts_samples_the_coefficients_with_the_contact_end_to_end(world, tmp_path, capsys):
+    """``identify --cuts``: hammer FRF at 30 mm and the six cuts (made with K_t 20 % above the assumed 600e6)
+    sampled together; a short run (16 walkers, at most 200 steps: ~8 s CPU) is enough for the coefficient,
+    which the cuts alone inform.  Its K_t moves up from the assumed value and covers the truth, the draws are in
+    posterior.nc, and lobes uses them."""
+    from bayes_rcsa.stability.coefficients import read_coefficient_draws
+
+    out = tmp_path / "fit"
+    argv = ["identify", str(world / "data" / "setup.toml"), "--lengths", "0.03", "--cuts", str(world / "cuts.csv"),
+            "--cut-clamping-length", "0.03", "--cut-kt", "600e6±30%", "--cut-kr", "180e6", *[f"--cut-{a[2:]}" if
+            a.startswith("--") else a for a in CUT], "--max-steps", "200", "--walkers", "16", "--quiet", "--no-plots",
+            "--seed", "5", "--out", str(out)]
+    assert main(argv) == 0
+    cuts = json.loads((out / "summary.json").read_text())["cuts"]
+    q05, q50, q95 = cuts["kt_pa_q05_q50_q95"]
+    # prior median 600e6 (log-sd 0.26); the truth is 720e6: the cuts pull the median up and the interval covers it
+    assert q50 > 1.05 * 600e6 and q05 < 720e6 < q95, cuts
+    kt, kr = read_coefficient_draws(out / "posterior.nc")
+    assert np.median(kt) == pytest.approx(q50, rel=0.05) and np.allclose(kr / kt, 0.3)
+    lob = ["lobes", str(world / "data" / "setup.toml"), "--posterior", str(out / "posterior.nc"), "--clamping-length",
+           "0.03", *CUT, "--speeds", "6000:18000:40", "--draws", "60", "--quiet", "--depth-points", "20",
+           "--out", str(tmp_path / "l")]
+    assert main(lob) == 0
+    doc = json.loads((tmp_path / "l" / "lobes.json").read_text())
+    assert doc["cutting_coefficients"]["kt_pa_q05_q50_q95"][1] == pytest.approx(np.median(kt), rel=0.05)

@@ -222,7 +222,7 @@ def cut_term_from_arguments(args, problem, setup):
     length = None if args.cut_clamping_length is None else parse_float(args.cut_clamping_length,
                                                                        "--cut-clamping-length", positive=True)
     cuts = prepare_cuts(read_cut_table(args.cuts), cutting, length, setup.tools, args.cut_tool,
-                        lambda name: flute_length(setup.tools[name]))
+                        lambda name: flute_length(setup.tools[name]), option_prefix="--cut-")
     pm = problem.parameters
     lengths = sorted({float(l) for l in cuts.clamping_length_m})
     fitted = sorted({float(o.configuration.clamping_length) for o in problem.observations})

@@ -80,7 +80,7 @@ class CutSet:
 
 
 def prepare_cuts(table, cutting, clamping_length: float | None, tools, default_tool: str | None = None,
-                 flute_length=None) -> CutSet:
+                 flute_length=None, option_prefix: str = "--") -> CutSet:
     """Complete every cut with the command's values and check it.
 
     Parameters
@@ -91,6 +91,9 @@ def prepare_cuts(table, cutting, clamping_length: float | None, tools, default_t
     tools : iterable of str, the setup's tool names
     default_tool : str or None, for cuts without a tool value (None: the setup's only tool)
     flute_length : callable(tool name) -> float or None, m (depth check), or None
+    option_prefix : str
+        Prefix of the command's options that the messages name (``"--cut-"`` for ``identify --cuts``,
+        whose options are ``--cut-clamping-length`` and ``--cut-tool``).
 
     Raises
     ------
@@ -107,12 +110,13 @@ def prepare_cuts(table, cutting, clamping_length: float | None, tools, default_t
     if np.any(np.isnan(length)):
         if clamping_length is None:
             i = int(np.nonzero(np.isnan(length))[0][0])
-            raise SetupError(f"{table.where(i)}: no clamping_length_m for this cut; give --clamping-length M or the "
+            raise SetupError(f"{table.where(i)}: no clamping_length_m for this cut; give {option_prefix}clamping-length M or the "
                              "clamping_length_m column")
         length = np.where(np.isnan(length), float(clamping_length), length)
     if default_tool is None and any(t is None for t in table.tool):
         if len(tools) != 1:
-            raise SetupError(f"the setup has several tools {sorted(tools)}; give --tool NAME or the cut file's tool column")
+            raise SetupError(f"the setup has several tools {sorted(tools)}; give {option_prefix}tool NAME or the cut file's "
+                           "tool column")
         default_tool = tools[0]
     tool = tuple(t if t is not None else default_tool for t in table.tool)
     for i, t in enumerate(tool):
