@@ -201,3 +201,97 @@ def test_design_next_cut_cli(world, tmp_path, capsys):  # noqa: F811
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and word in err[0], err
         assert not (tmp_path / "bad").exists()
+
+
+# ------------------------------------- cut sequences: map error and designed vs random (reduced acceptance) --
+# A stand-in for benchmarks/cuts.py's races (docs/stability.md, "Cutting tests: benchmark"): the "posterior" is
+# 400 draws of a lobed limit curve, uncertain in the mode (2 %, what the hammer test leaves) and in K_t (the ±30 %
+# prior); the truth's K_t is 20 % off the assumed value.  Unlike _toy() (K_t only, a flat limit per speed), the
+# boundary has pockets the cuts must find in speed as well as depth.  Weights come from the package's probit
+# (outcome_log_likelihood, default width and label error) and normalise_log_weights; the designed cuts from
+# rank_next_cuts (map target) on the current weights; outcomes from the truth (label_cuts, no noise).
+RACE_SEEDS = (0, 1, 2)  # even seeds: truth cuts 20 % harder (K_t x 1.2); odd: 20 % softer (x 0.8)
+
+
+def _lobes(speed, mode, kt):
+    """(D, S) limits: floor 0.5 / K_t with pockets up to 2 / K_t where speed / mode is near an integer."""
+    return (0.5 + 1.5 * np.clip(np.cos(2 * np.pi * speed[None, :] / mode[:, None]), 0, None) ** 4) / kt[:, None]
+
+
+def _race_world(seed, n_draws=400):
+    rng = np.random.default_rng(seed)
+    mode = np.exp(rng.normal(0.0, 0.02, n_draws))
+    kt = np.exp(rng.normal(0.0, 0.3, n_draws))
+    truth = (np.exp(rng.normal(0.0, 0.02, 1)), np.array([1.2 if seed % 2 == 0 else 0.8]))
+    ms, md = np.linspace(1.0, 3.0, 40), np.linspace(0.05, 2.5, 40)
+    cs, ca = candidate_grid((1.0, 3.0), (0.05, 2.5), 15, 10)
+    return {"cs": cs, "ca": ca, "ms": ms, "md": md, "cand_lim": _lobes(cs, mode, kt), "map_lim": _lobes(ms, mode, kt),
+            "true_cand": _lobes(cs, *truth)[0], "truth_map": md[None, :] < _lobes(ms, *truth)[0][:, None],
+            "hammer_lim": _lobes(ms, mode, np.ones(n_draws))}  # hammer only: the assumed K_t
+
+
+def _map_error(limits, weights, world):
+    p = np.einsum("n,nsa->sa", weights, world["md"][None, None, :] < limits[:, :, None])
+    return float(np.mean(np.abs(p - world["truth_map"])))
+
+
+def _cut_sequence(world, strategy, rng, n_cuts):
+    """Map error after each of ``n_cuts`` cuts made one at a time (``next``: rank_next_cuts; else uniform)."""
+    from bayes_rcsa.cuts.likelihood import outcome_log_likelihood
+    from bayes_rcsa.cuts.update import normalise_log_weights
+
+    ll = np.zeros(world["cand_lim"].shape[0])
+    errors = []
+    for _ in range(n_cuts):
+        if strategy == "next":
+            r = rank_next_cuts(parse_next_cut_target("map"), world["cs"], world["ca"], world["cand_lim"],
+                               world["ms"], world["md"], world["map_lim"], normalise_log_weights(ll))
+            b = r.best or r.candidates[0]  # no positive gain left: the top-ranked cut, as benchmarks/cuts.py
+            i = int(np.flatnonzero((world["cs"] == b.speed_rpm) & (world["ca"] == b.depth_m))[0])
+        else:
+            i = int(rng.integers(world["cs"].size))
+        stable, _ = label_cuts(world["ca"][i:i + 1], world["true_cand"][i:i + 1], 0.0, rng)
+        ll = ll + outcome_log_likelihood(world["ca"][i], world["cand_lim"][:, i], ~stable[0])
+        errors.append(_map_error(world["map_lim"], normalise_log_weights(ll), world))
+    return np.array(errors)
+
+
+@pytest.fixture(scope="module")
+def races():
+    out = {}
+    for seed in RACE_SEEDS:
+        w = _race_world(seed)
+        n = w["hammer_lim"].shape[0]
+        out[seed] = {"hammer": _map_error(w["hammer_lim"], np.full(n, 1 / n), w),
+                     "prior": _map_error(w["map_lim"], np.full(n, 1 / n), w),
+                     "next": _cut_sequence(w, "next", np.random.default_rng([seed, 1]), 10),
+                     "random": _cut_sequence(w, "random", np.random.default_rng([seed, 1]), 20)}
+    return out
+
+
+def _cuts_to(errors, target):
+    """Cuts until the map error is <= target; len + 1 when never reached."""
+    hit = np.flatnonzero(errors <= target)
+    return int(hit[0]) + 1 if hit.size else errors.size + 1
+
+
+def test_ten_designed_cuts_halve_the_map_error(races):
+    for seed, r in races.items():
+        # the ±30 % K_t prior alone widens the boundary: worse than the hammer test at the assumed K_t, so
+        # the halving below is the cuts' work (without the re-weighting the error stays at r["prior"])
+        assert r["prior"] > r["hammer"] > 0.05, (seed, r["hammer"], r["prior"])
+        # measured ratios 0.17-0.34 over dev seeds 0-9 (0.25, 0.27, 0.17 here): 0.5 is the acceptance item
+        # and leaves a wide margin; asserted for every seed
+        assert r["next"][-1] <= 0.5 * r["hammer"], (seed, r["next"][-1], r["hammer"])
+
+
+def test_designed_cuts_reach_the_map_error_sooner_than_random(races):
+    designed = [_cuts_to(r["next"], 0.5 * r["hammer"]) for r in races.values()]
+    random = [_cuts_to(r["random"], 0.5 * r["hammer"]) for r in races.values()]
+    # dev seeds 0-9: designed cuts reach half the hammer-only error in 4-6 cuts, random cuts from the same
+    # candidate grid in 15-20 or not within 20 (most land deep in the chatter region).  Designed <= 8 in every
+    # seed fails if rank_next_cuts proposed a random candidate (random reached it within 8 in none of 10; with
+    # the ranking swapped for a random candidate this test failed in 100 of 100 replicates);
+    # "fewer in >= 2 of 3" is the reduced acceptance item (4 of 5 campaigns in the benchmark)
+    assert max(designed) <= 8, designed
+    assert sum(d < r for d, r in zip(designed, random)) >= 2, (designed, random)
