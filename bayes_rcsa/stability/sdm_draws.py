@@ -1,11 +1,13 @@
 """The "sdm" stability method: semi-discretisation on modal fits of every FRF draw, batched.
 
-Each draw's X and Y receptances get a modal fit
-(:func:`~bayes_rcsa.stability.modal_fit.fit_modal_model` for the first draw,
-then :func:`~bayes_rcsa.stability.modal_fit.refit_modal_model` from the
-previous draw's fit, with the full mode-count search again whenever the refit
-is clearly worse: posterior draws differ far less than their modes' spacing,
-and the refit reaches the same optimum at a quarter of the cost); then the limit
+Each direction's receptances get one full modal fit
+(:func:`~bayes_rcsa.stability.modal_fit.fit_modal_model`, BIC mode count) of
+the draws' mean FRF; every draw is then refined from it at once by
+:func:`~bayes_rcsa.stability.modal_fit.refit_modal_models` (batched
+Levenberg-Marquardt, same mode count; draws differ far less than their modes'
+spacing), and only a draw whose refit is clearly worse than the typical
+draw's gets the full mode-count search (counted in ``info["modal_refits"]``).
+Then the limit
 depth of every (draw, speed) pair is found at once by
 :func:`~bayes_rcsa.stability.sdm.sdm_depth_limits_batch`: one batched
 spectral-radius evaluation per bracketing or secant step over all pairs
@@ -66,12 +68,12 @@ class SDMMethod:
             if progress is not None:
                 progress(x)
 
-        fits = []
-        for d in range(n_draws):  # each draw needs its own modal fit
-            fits.append(tuple(_fit(f, g[d], options.max_modes, fits[-1][k] if fits else None,
-                                   fits[0][k] if fits else None, f"draw {d} {c}")
-                              for k, (g, c) in enumerate(((gx, "X"), (gy, "Y")))))
-            report(fit_share * (d + 1) / n_draws)
+        fits_xy, notes = [], {}
+        for k, (g, c) in enumerate(((gx, "X"), (gy, "Y"))):
+            fit_list, notes[c.lower()] = _fit_draws(f, g, options.max_modes, c)
+            fits_xy.append(fit_list)
+            report(fit_share * (k + 1) / 2)
+        fits = list(zip(*fits_xy))
         pairs = [(fx.model, fy.model) for fx, fy in fits]
         guess = _guesses(pairs, gx, gy, f, cutting, speeds)
         lim = _limits(pairs, gx, gy, f, cutting, speeds, guess, options,
@@ -82,21 +84,52 @@ class SDMMethod:
             g = _guesses(pairs, gx, gy, f, cutting, s)
             return _limits(pairs, gx, gy, f, cutting, s, g, options, None)
 
-        info = {"modal_fit_rms_relative_max": float(max(max(a.rms_relative, b.rms_relative) for a, b in fits))}
+        info = {"modal_fit_rms_relative_max": float(max(max(a.rms_relative, b.rms_relative) for a, b in fits)),
+                "modal_refits": notes}
         return MethodResult(lim, fits, info, limits_at)
 
 
-def _fit(f, g, max_modes, previous, first, source):
-    """Modal fit of one draw: refined from the previous draw's fit (posterior draws differ little), with the
-    full BIC search when there is no previous fit or the refit is clearly worse than the first draw's full
-    fit (compared with the first, not the previous one, so that a slow drift cannot accumulate)."""
-    from .modal_fit import fit_modal_model, refit_modal_model
+def _fit_draws(f, g, max_modes, label):
+    """Modal fits of all draws of one direction: the full BIC fit of the draws' mean FRF once, then a batched
+    refinement of every draw from it (same mode count), and the full fit again only for draws whose refit is
+    clearly worse than the others' (median-based, so one odd draw cannot hide among them).
 
-    if previous is not None:
-        fit = refit_modal_model(f, g, previous, source=source)
-        if fit.rms_relative <= 1.5 * first.rms_relative + 1e-3:
-            return fit
-    return fit_modal_model(f, g, max_modes=max_modes, source=source)
+    Parameters
+    ----------
+    f : (n_freq,) Hz
+    g : (n_draws, n_freq) complex m/N
+    max_modes : int
+    label : str, "X" or "Y"
+
+    Returns
+    -------
+    fits : list of ModalFit, one per draw
+    note : dict, how many draws were refined from the nominal fit and how many needed the full fit
+    """
+    from ..errors import ConvergenceError
+    from .modal_fit import fit_modal_model, refit_modal_models
+
+    nominal = fit_modal_model(f, g.mean(axis=0), max_modes=max_modes, source=f"mean of the FRF draws {label}")
+    if g.shape[0] == 1:
+        return [nominal], {"nominal_modes": nominal.model.n_modes, "refined": 0, "full_fit": 1, "kept_refit": 0}
+    fits = refit_modal_models(f, g, nominal, source=f"FRF draws {label}")
+    rms = np.array([x.rms_relative for x in fits])
+    # a refit can only lower a draw's misfit from the nominal modes'; one well above the typical draw's means
+    # the draw needs another mode count (posterior draws far from the mean), as in the per-draw fit before
+    worse = np.nonzero(rms > 1.5 * np.median(rms) + 1e-3)[0]
+    full = kept = 0
+    for d in worse:  # rare: only draws the batched refit could not serve
+        try:
+            alt = fit_modal_model(f, g[d], max_modes=max_modes, source=f"FRF draw {d} {label}")
+        except ConvergenceError:
+            kept += 1
+            continue
+        if alt.rms_relative < fits[d].rms_relative:
+            fits[d], full = alt, full + 1
+        else:
+            kept += 1
+    return fits, {"nominal_modes": nominal.model.n_modes, "refined": int(g.shape[0] - full), "full_fit": full,
+                  "kept_refit": kept}
 
 
 def _limits(pairs, gx, gy, f, cutting, speeds, guess, options, progress):
