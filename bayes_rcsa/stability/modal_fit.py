@@ -24,7 +24,9 @@ equations; ln k is bounded so that no mode's stiffness can run off).  The mode c
     BIC = n ln(RSS/n) + p ln n,   n = 2 n_freq,  p = 3 r + 1
 
 is returned; the search stops at the first mode count whose BIC is worse
-than the previous one.  The residual compliance is reported but not part of the modal
+than the previous one, or whose fit holds a mode inside the band with a
+half-power bandwidth 2 ζ f_n below the line spacing (it fits a noise line,
+not a resonance the lines resolve; that mode count is not used).  The residual compliance is reported but not part of the modal
 model (a massless spring has no place in the modal equations of motion).
 """
 
@@ -170,6 +172,20 @@ def _inside(p: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> np.ndarray:
     return np.clip(p, lb + 1e-9, ub - 1e-9)
 
 
+def _unresolved(f: np.ndarray, p: np.ndarray) -> bool:
+    """True when a mode inside the band has a half-power bandwidth 2 ζ f_n below the local line spacing.
+
+    Such a mode changes one or two lines only: the FRF cannot tell it from noise on those lines (with
+    noise proportional to |G|, as in a hammer test, the lines at a peak are the noisiest), and an unweighted
+    BIC would otherwise keep adding ζ ~ 1e-4 spikes at the peaks of measured FRFs."""
+    r = (p.size - 1) // 3
+    fn = np.exp(p[0 : 3 * r : 3])
+    ze = np.exp(p[1 : 3 * r : 3])
+    inside = (fn >= f[0]) & (fn <= f[-1])
+    spacing = np.interp(fn, f[1:], np.diff(f))
+    return bool(np.any(inside & (2.0 * ze * fn < spacing)))
+
+
 def _half_power_zeta(f: np.ndarray, mag: np.ndarray, i: int) -> float:
     """ζ from the half-power bandwidth around line i of |residual| (fallback 0.02)."""
     half = mag[i] / np.sqrt(2.0)
@@ -237,6 +253,8 @@ def fit_modal_model(
         x, rss_b = _levenberg_marquardt(f, gs[None], p0[None], lb, ub, max_iter=200)
         x, rss = x[0], float(rss_b[0])
         bic = n_obs * np.log(max(rss, _RSS_FLOOR * n_obs) / n_obs) + (3 * r + 1) * np.log(n_obs)
+        if r > 1 and _unresolved(f, x):
+            break  # a mode narrower than the line spacing fits a noise line, not the structure: r - 1 modes
         fits.append((x, rss))
         bics.append(bic)
         params = x
