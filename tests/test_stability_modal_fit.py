@@ -156,3 +156,16 @@ def test_sdm_draw_fits_fall_back_to_the_full_fit_for_an_odd_draw():
     assert fits[-1].rms_relative < 1e-6  # the full fit found it (noise-free draw)
     np.testing.assert_allclose(fits[-1].model.natural_frequency_hz, [1650.0, 2450.0], rtol=1e-6)
     assert all(abs(x.model.natural_frequency_hz[0] - 1290.0) < 2.0 for x in fits[:-1])
+
+
+def test_noise_spikes_at_a_peak_are_not_taken_for_modes():
+    # hammer-test noise grows with |G| (2 % here, as the bench's), so the lines at a peak are the noisiest; an
+    # unweighted BIC used to add zeta ~ 1e-4 "modes" there that change one line each (seed checked to do so)
+    rng = np.random.default_rng(7)
+    f = np.arange(500.0, 3000.0, 2.5)
+    g = ModalModel([1287.0], [0.02], [1.0e6]).frf(f)
+    g = g + 0.02 * np.abs(g) * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size)) / np.sqrt(2)
+    fit = fit_modal_model(f, g, max_modes=4)
+    assert np.all(2 * fit.model.damping_ratio * fit.model.natural_frequency_hz >= 2.5)  # resolved by the lines
+    assert fit.model.n_modes == 1
+    assert fit.model.natural_frequency_hz[0] == pytest.approx(1287.0, abs=0.5)
