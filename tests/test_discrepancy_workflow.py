@@ -431,3 +431,20 @@ def test_leave_one_length_out_transfer_check(tmp_path, effects, inadequate):
         assert worst > 3.0 and reasons and r["adequate"] is False
     else:
         assert worst < 0.5 and not reasons and r["adequate"] is True
+
+
+def test_law_shape_terms_are_default_candidates_only_with_three_or_more_fitted_lengths():
+    """With two fitted lengths a law-shape term keeps both ends and changes nothing the fit sees: refitting it
+    is wasted work and its criterion says nothing; with four it is a candidate (the example has 25-40 mm)."""
+    from bayes_rcsa.data import example_dir
+    from bayes_rcsa.discrepancy.workflow import validate
+
+    setup = load_setup(example_dir() / "setup.toml")
+    law = {"nonlinear_stiffness_law", "stiffness_step"}
+    two, _, _ = validate(setup, DiscrepancyOptions(lengths=(0.025, 0.040)))
+    four, _, _ = validate(setup, DiscrepancyOptions(lengths=None))
+    assert not law & set(two) and {"tip_mass", "contact_damping"} <= set(two)
+    assert law <= set(four) and set(two) < set(four)
+    # named explicitly they stay (the user's choice)
+    named, _, _ = validate(setup, DiscrepancyOptions(lengths=(0.025, 0.040), candidates=("stiffness_step",)))
+    assert named == ("stiffness_step",)

@@ -173,6 +173,12 @@ def validate(setup, options: DiscrepancyOptions) -> tuple[tuple[str, ...], Ident
         raise SetupError("no candidate terms left to test (all registered terms are in the setup's [model] already)")
     base_opts = _options(setup, options.lengths)
     problem = _problem(setup, base_opts, [])
+    if options.candidates is None:  # a term that cannot act on the fitted lengths is no candidate (its score is 0)
+        n_lengths = len({float(o.configuration.clamping_length) for o in problem.observations})
+        cands = tuple(c for c in cands if get_term(c).min_clamping_lengths <= n_lengths)
+        if not cands:
+            raise SetupError(f"no candidate terms left to test: the remaining ones need more than the {n_lengths} "
+                             "fitted clamping length(s)")
     n_phys = len(problem.parameters.physical_names)
     largest = max(len([p for p in get_term(c)().parameters(problem.model) if p.role == "term"]) for c in cands)
     need = MIN_LINES_PER_PARAMETER * (n_phys + largest)

@@ -143,6 +143,10 @@ class ModelTerm:
     kind: ClassVar[str] = ""
     description: ClassVar[str] = ""
     role: ClassVar[str] = "term"
+    #: Distinct fitted clamping lengths the term needs to have any effect on them (a law-shape term keeps the
+    #: law's ends, so with two lengths it changes nothing the fit sees); the discrepancy workflow does not
+    #: offer a term as a default candidate below this.
+    min_clamping_lengths: ClassVar[int] = 1
 
     def parameters(self, model: "ToolPointModel") -> tuple[Parameter, ...]:
         """The term's parameters with default priors and baselines for this model."""

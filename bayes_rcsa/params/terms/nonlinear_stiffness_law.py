@@ -73,6 +73,7 @@ class NonlinearStiffnessLaw(ModelTerm):
 
     name = "nonlinear_stiffness_law"
     kind = "joint"
+    min_clamping_lengths = 3  # the law keeps its ends: invisible with two lengths
     description = ("the contact stiffness does not grow linearly with clamping length: it gains most of its "
                    "stiffness early (saturating) or late (progressive)")
 

@@ -101,6 +101,7 @@ class StiffnessStep(ModelTerm):
 
     name = "stiffness_step"
     kind = "joint"
+    min_clamping_lengths = 3  # the law keeps its ends: invisible with two lengths
     description = ("the contact stiffness rises in a step at some clamping length, where the shank reaches a "
                    "further contact zone of the holder (past a collet slot, a relief groove)")
 
