@@ -36,6 +36,16 @@ from .zoa import zoa_lobes
 
 __all__ = ["SDMMethod"]
 
+# run-time model of estimate_seconds (s; see there)
+_FIXED_S = 1.5
+_NEIGHBOUR_S = 0.01
+_PAIR_S = 0.0025
+
+
+def _fit_seconds(n_freq: int) -> float:
+    """Batched modal refits of one draw, both directions (s); linear in the lines."""
+    return 0.02 * n_freq / 1500
+
 
 class SDMMethod:
     """First-order semi-discretisation of modal fits of the FRF draws."""
@@ -50,10 +60,12 @@ class SDMMethod:
             raise SetupError(f"intervals={options.intervals!r}: expected >= 2 per tooth period")
 
     def estimate_seconds(self, n_draws: int, n_speeds: int, n_freq: int) -> float:
-        # measured on the bundled example (4 modes per direction, 5000-30000 rpm, 2 shared cores):
-        # about 0.15 s for the first draw's modal fits, 0.05 s for each further draw, and 2.5 ms per
-        # (draw, speed) pair for the batched limits
-        return 1.0 + 0.1 + n_draws * (0.05 * n_freq / 1500 + 0.0025 * n_speeds)
+        # measured on the bundled example (tip_x/tip_y_30mm.csv, 1501 lines, 3-4 modes per direction, 500 coherence
+        # realisations, 2 shared and loaded cores): about 1.5 s fixed (imports, the full fits of the mean FRFs and
+        # of the measured FRFs), 0.02 s per draw for the batched refits of both directions, 0.01 s per draw for the
+        # limits next to the recommendation and 2.5 ms per (draw, speed) pair (5 speeds: 20 s CPU, 23 s wall,
+        # estimate 23 s; 50 speeds: 48 s CPU, 72 s wall, estimate 79 s)
+        return _FIXED_S + n_draws * (_fit_seconds(n_freq) + _NEIGHBOUR_S + _PAIR_S * n_speeds)
 
     def depth_limits(self, frf_x, frf_y, frequency_hz, cutting, speeds_rpm, options, progress=None):
         self.check(options)
@@ -62,7 +74,7 @@ class SDMMethod:
         f = np.asarray(frequency_hz, dtype=float)
         speeds = np.asarray(speeds_rpm, dtype=float)
         n_draws = gx.shape[0]
-        fit_share = 0.05 * f.size / 1500 / (0.05 * f.size / 1500 + 0.0025 * speeds.size)
+        fit_share = _fit_seconds(f.size) / (_fit_seconds(f.size) + _PAIR_S * speeds.size)
 
         def report(x):
             if progress is not None:
