@@ -153,6 +153,7 @@ def test_sdm_draw_fits_fall_back_to_the_full_fit_for_an_odd_draw():
     fits, note = _fit_draws(f, odd, 2, "X")
     assert len(fits) == 16 and note["nominal_modes"] == 2
     assert note["full_fit"] == 1 and note["refined"] == 15
+    assert note["kept_refit"] == 0 and note["at_bound"] == 0  # every mode here is well determined
     assert fits[-1].rms_relative < 1e-6  # the full fit found it (noise-free draw)
     np.testing.assert_allclose(fits[-1].model.natural_frequency_hz, [1650.0, 2450.0], rtol=1e-6)
     assert all(abs(x.model.natural_frequency_hz[0] - 1290.0) < 2.0 for x in fits[:-1])

@@ -116,7 +116,9 @@ def _fit_draws(f, g, max_modes, label):
     Returns
     -------
     fits : list of ModalFit, one per draw
-    note : dict, how many draws were refined from the nominal fit and how many needed the full fit
+    note : dict, the nominal mode count, how many draws were refined from the nominal fit, how many needed the
+        full fit (``full_fit``) or kept their refit because the full fit was no better or failed
+        (``kept_refit``), and how many have a mode on the edge of the fit's bounds (``at_bound``)
     """
     from ..errors import ConvergenceError
     from .modal_fit import fit_modal_model, refit_modal_models
@@ -141,7 +143,21 @@ def _fit_draws(f, g, max_modes, label):
         else:
             kept += 1
     return fits, {"nominal_modes": nominal.model.n_modes, "refined": int(g.shape[0] - full), "full_fit": full,
-                  "kept_refit": kept}
+                  "kept_refit": kept, "at_bound": _at_bound(g, fits)}
+
+
+def _at_bound(g, fits) -> int:
+    """Draws whose fit has a mode with ζ or k (scaled units) on the edge of the fit's box: a mode the FRF does
+    not determine (reported, not hidden; the lobes use it as fitted)."""
+    from .modal_fit import _LN_K_BOUNDS, _LN_ZETA_BOUNDS
+
+    scale = np.sqrt(np.mean(np.abs(g) ** 2, axis=1))
+    n = 0
+    for x, s in zip(fits, scale):  # per draw: a few comparisons on (n_modes,) arrays
+        lk, lz = np.log(x.model.stiffness * s), np.log(x.model.damping_ratio)
+        n += bool(np.any(np.minimum(lk - _LN_K_BOUNDS[0], _LN_K_BOUNDS[1] - lk) < 1e-6)
+                  or np.any(np.minimum(lz - _LN_ZETA_BOUNDS[0], _LN_ZETA_BOUNDS[1] - lz) < 1e-6))
+    return n
 
 
 def _limits(pairs, gx, gy, f, cutting, speeds, guess, options, progress):
