@@ -84,6 +84,8 @@ KT_SIGMA = math.log(1.3)  # "--kt 790e6±30%": log-normal level, sd ln(1.3), as 
 LEVEL = 0.95
 ANCHOR_FN, ANCHOR_K, ANCHOR_ZETA = 1000.0, 1e6, 0.02  # generic one-mode priors (medians), near the truth
 RANK_DRAWS = 2000
+#: Stability method of the truth ("sdm": the project's SDM on the true FRFs, set by --truth; "zoa": the bench's own).
+TRUTH = {"method": "sdm"}
 FINE = np.linspace(SPEEDS[0], SPEEDS[1], 501)  # speeds of cuts in the design race and of the recommendation
 
 
@@ -129,13 +131,28 @@ class Truth:
                             kt_assumed=KT, kr_assumed=KR, kt_error=self.factor - 1, kr_error=self.factor - 1, **CUT)
         f = np.arange(self.cfg.frequency_start, self.cfg.frequency_stop + 1e-9, 1.0)
         self.true_frfs = (f, *true_cut_frfs(self.cfg, self.length, f))
+        self.sdm = None
+        if TRUTH["method"] == "sdm":
+            from bayes_rcsa.cuts.truth import sdm_true_limit
+
+            self.sdm = sdm_true_limit(self.plan)
         self.map_speed = np.linspace(SPEEDS[0], SPEEDS[1], 50)
         self.map_depth = np.linspace(DEPTHS[1] / 50, DEPTHS[1], 50)
         self.map_truth = self.map_depth[None, :] < self.true_limit(self.map_speed)[:, None]
         self.fine_truth = self.true_limit(FINE)
 
     def true_limit(self, speeds):
+        if self.sdm is not None:
+            return self.sdm(*self.true_frfs, np.atleast_1d(np.asarray(speeds, dtype=float)))
         return true_depth_limit(self.cfg, self.plan, speeds, self.true_frfs)
+
+    def cut_truth(self) -> dict:
+        """``generate_cuts`` keywords: the same truth for its random cuts."""
+        if self.sdm is None:
+            return {}
+        from bayes_rcsa.cuts.truth import SDM_TRUTH
+
+        return {"true_limit": lambda f, gx, gy, speeds: self.true_limit(speeds), "truth_method": SDM_TRUTH}
 
     def map_error(self, p):
         return float(np.mean(np.abs(p - self.map_truth)))
@@ -220,7 +237,7 @@ def recovery(c: Campaign) -> dict:
     """10 random cuts, and 10 cuts chosen one by one with --next-cut (map target), each updated by bayes_rcsa.cuts."""
     from bayes_rcsa.synthetic.cuts import generate_cuts
 
-    cuts = generate_cuts(c.cfg, c.plan, np.random.default_rng([c.seed, 1]))
+    cuts = generate_cuts(c.cfg, c.plan, np.random.default_rng([c.seed, 1]), **c.cut_truth())
     _, _, _, made = sequence(c, c.unit_map, c.unit_fine, c.theta, c.scale, "next", np.random.default_rng([c.seed, 6]),
                              max_cuts=c.plan.n_cuts)
     n_draws, n_pool = c.unit_map.shape[0], c.theta.size
@@ -416,7 +433,7 @@ def cost(c: Campaign, runs: int) -> dict:
     from bayes_rcsa.synthetic.cuts import generate_cuts, write_cuts
 
     plan = CutPlan(**{**c.plan.__dict__, "n_cuts": 20})
-    cuts = generate_cuts(c.cfg, plan, np.random.default_rng([c.seed, 5]))
+    cuts = generate_cuts(c.cfg, plan, np.random.default_rng([c.seed, 5]), **c.cut_truth())
     out = {"n_cuts": 20, "n_stable": int(cuts.stable.sum())}
     with tempfile.TemporaryDirectory() as d:
         write_cuts(cuts, d)
@@ -483,11 +500,14 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=5, help="timing runs of the cost row")
     ap.add_argument("--json", default=None, help="write all rows to this JSON file")
     ap.add_argument("--cost-only", action="store_true", help="only the cost row (campaign 0)")
+    ap.add_argument("--truth", choices=("sdm", "zoa"), default="sdm",
+                    help="stability method of the true limit (default sdm: not the ZOA the update uses)")
     ap.add_argument("--anchor-mcmc", default=None, metavar="JSON",
                     help="only the MCMC anchor races (20 cuts each) of the --design-campaigns, written to JSON")
     ap.add_argument("--combine", nargs=2, default=None, metavar=("FULL_JSON", "ANCHOR_JSON"),
                     help="the anchor table from a full run's --json and an --anchor-mcmc file")
     args = ap.parse_args()
+    TRUTH["method"] = args.truth
     if args.anchor_mcmc:  # 20 cuts per race, no early stop: counts for any target follow from the errors
         table = OneModeLimits()
         out = []

@@ -110,6 +110,24 @@ def test_synthesize_cuts_cli(tmp_path, capsys):
     assert cli(["synthesize", str(cfg), "--out", str(out), "--cuts", "4", "--cut-depths", "5e-6:8e-5"]) == 0
     speed, depth, stable = read_cutting_tests(out / "cuts.csv")
     assert speed.size == 4 and (out / "cuts_truth.json").is_file() and (out / "setup.toml").is_file()
+    # the default truth is the project's SDM on the true FRFs, not the ZOA the cut likelihood uses
+    assert json.loads((out / "cuts_truth.json").read_text())["method"].startswith("sdm")
+
+
+def test_sdm_truth_and_the_benchs_own_zoa_label_the_same_cuts(bench):
+    """Two methods on the same noise-free FRFs: SDM (time-varying directional matrix) and the bench's ZOA
+    (tooth-pass average) agree where ZOA is good (immersion 0.95, four flutes): limits within 15 % (SDM finds
+    a few narrow flip-lobe dips ZOA cannot) and the same label for almost every map cell."""
+    from bayes_rcsa.cuts.truth import SDM_TRUTH, sdm_true_limit
+
+    cfg, zoa = bench
+    sdm = generate_cuts(cfg, PLAN, np.random.default_rng(3), true_limit=sdm_true_limit(PLAN), truth_method=SDM_TRUTH)
+    assert sdm.truth_method == SDM_TRUTH and zoa.truth_method.startswith("zoa")
+    np.testing.assert_array_equal(sdm.speed_rpm, zoa.speed_rpm)  # the same cuts, labelled twice
+    finite = np.isfinite(zoa.map_limit_m) & np.isfinite(sdm.map_limit_m)
+    ratio = sdm.map_limit_m[finite] / zoa.map_limit_m[finite]
+    assert np.median(np.abs(ratio - 1)) < 0.02 and np.all(np.abs(ratio - 1) < 0.15), ratio
+    assert np.mean(sdm.map_stable == zoa.map_stable) > 0.97
 
 
 # ------------------------------------------------------------------ next cut --

@@ -109,6 +109,9 @@ def _add_cut_arguments(p) -> None:
     g.add_argument("--cut-label-noise", default="0", metavar="S",
                    help="sigma of a probit in ln(depth/limit): cuts near the boundary may get either label "
                         "(default 0: exact labels)")
+    g.add_argument("--cut-truth", choices=("sdm", "zoa"), default="sdm",
+                   help="stability method of the true limit on the noise-free FRFs: the project's SDM (default; "
+                        "not the ZOA the cut likelihood uses) or the bench's own ZOA root finder")
     g.add_argument("--cut-layout", choices=("random", "grid"), default="random",
                    help="cuts uniform at random in the speed x depth box, or on a grid (default random)")
 
@@ -148,8 +151,13 @@ def _generate_cuts(args, config, seed: int):
         flutes=args.cut_flutes, radial_immersion=parse_float(args.cut_immersion, "--cut-immersion", positive=True),
         milling=args.cut_milling, feed=args.cut_feed,
         label_noise=parse_float(args.cut_label_noise, "--cut-label-noise"), layout=args.cut_layout)
+    truth = {}
+    if args.cut_truth == "sdm":
+        from ..cuts.truth import SDM_TRUTH, sdm_true_limit
+
+        truth = {"true_limit": sdm_true_limit(plan), "truth_method": SDM_TRUTH}
     # the cuts' own stream (seed + 1 spawned) so that --cuts does not change the hammer-test noise
-    return generate_cuts(config, plan, np.random.default_rng([seed, 23]))
+    return generate_cuts(config, plan, np.random.default_rng([seed, 23]), **truth)
 
 
 # --------------------------------------------------------- tool libraries (issue #20) --

@@ -169,6 +169,10 @@ class CutPlan:
         return math.acos(2.0 * r - 1.0), math.pi
 
 
+#: How the bench's own limit is computed (the default truth when no other method is passed).
+OWN_ZOA = "zoa (own root-finding implementation on the noise-free FE FRFs, X and Y)"
+
+
 @dataclass(frozen=True)
 class CutCampaign:
     """Simulated cutting tests and the truth they were labelled with.
@@ -195,6 +199,7 @@ class CutCampaign:
     map_depth_m: np.ndarray
     map_limit_m: np.ndarray
     map_stable: np.ndarray
+    truth_method: str = OWN_ZOA
 
 
 # ------------------------------------------------------------------ physics --
@@ -337,19 +342,37 @@ def _layout(plan: CutPlan, rng: np.random.Generator) -> tuple[np.ndarray, np.nda
     return s.ravel()[:n], d.ravel()[:n]
 
 
-def generate_cuts(config: BenchConfig, plan: CutPlan, rng: np.random.Generator) -> CutCampaign:
-    """Cut locations (random or grid in the plan's box), their true outcomes and the truth map."""
+def generate_cuts(config: BenchConfig, plan: CutPlan, rng: np.random.Generator, true_limit=None,
+                  truth_method: str | None = None) -> CutCampaign:
+    """Cut locations (random or grid in the plan's box), their true outcomes and the truth map.
+
+    Parameters
+    ----------
+    config : BenchConfig
+    plan : CutPlan
+    rng : numpy.random.Generator
+    true_limit : callable, optional
+        ``(frequency_hz (n_freq,), frf_x (n_freq,), frf_y (n_freq,), speed_rpm (n,)) -> (n,) m``: the true
+        limit from another stability method on the true FRFs (e.g. the project's SDM, passed in from a
+        higher layer: this package may not import ``stability``).  Default: the bench's own ZOA.
+    truth_method : str, optional
+        What ``true_limit`` computes, for the truth file.
+    """
     f = _frequency_grid(config, plan.frequency_step)
     frfs = (f, *true_cut_frfs(config, plan.clamping_length, f))
 
     def limit(s):
+        if true_limit is not None:
+            return np.asarray(true_limit(frfs[0], frfs[1], frfs[2], np.atleast_1d(np.asarray(s, dtype=float))),
+                              dtype=float)
         return true_depth_limit(config, plan, s, frfs)
 
     speeds, depths = _layout(plan, rng)
     lim = limit(speeds) if speeds.size else np.zeros(0)
     stable, p = label_cuts(depths, lim, plan.label_noise, rng)
     ms, md, ml, mstab = truth_map(plan, limit)
-    return CutCampaign(plan, speeds, depths, stable, p, lim, ms, md, ml, mstab)
+    return CutCampaign(plan, speeds, depths, stable, p, lim, ms, md, ml, mstab,
+                       OWN_ZOA if true_limit is None else (truth_method or "a method passed by the caller"))
 
 
 # ------------------------------------------------------------------- files --
@@ -371,7 +394,7 @@ def cuts_truth_document(cuts: CutCampaign, seed: int | None = None) -> dict:
     p = cuts.plan
     return to_jsonable({
         "format": "bayes_rcsa.synthetic.cuts_truth/1",
-        "method": "zoa (own root-finding implementation on the noise-free FE FRFs, X and Y)",
+        "method": cuts.truth_method,
         "seed": seed,
         "plan": dataclasses.asdict(p),
         "kt_true": p.kt_true, "kr_true": p.kr_true, "kt_assumed": p.kt_assumed, "kr_assumed": p.kr_assumed,
