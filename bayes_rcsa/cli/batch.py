@@ -61,20 +61,32 @@ def _dask_executor(address: str):
     return client, client.get_executor()
 
 
-def run(args: argparse.Namespace) -> Summary:
-    from ..batch import load_manifest, run_batch, write_summary
-    from ..io.atomic import atomic_write_text, directory_is_empty, directory_lock, new_output_directory
-    from .main import main as run_command
+def prepare_run(args: argparse.Namespace, marker: str, what: str):
+    """The checks and executor shared by ``batch`` and ``library``: (out, workers, client, executor).
 
-    jobs = load_manifest(args.manifest)
+    ``--out`` must be new, empty, or hold an earlier run of this command (its file ``marker``) unless
+    ``--force``; ``--scheduler`` connects a Dask client (closed by the caller), else local processes.
+    """
+    from ..io.atomic import directory_is_empty
+
     out = Path(args.out)
-    if not directory_is_empty(out) and not (out / "batch.json").is_file() and not args.force:
-        raise SetupError(f"--out {out}: exists, is not empty and holds no earlier batch run; use --force to write "
-                         "into it")
+    if not directory_is_empty(out) and not (out / marker).is_file() and not args.force:
+        raise SetupError(f"--out {out}: exists, is not empty and holds no earlier {what} run; use --force to "
+                         "write into it")
     workers = args.workers or os.cpu_count() or 1
     client = executor = None
     if args.scheduler is not None:
         client, executor = _dask_executor(args.scheduler)
+    return out, workers, client, executor
+
+
+def run(args: argparse.Namespace) -> Summary:
+    from ..batch import load_manifest, run_batch, write_summary
+    from ..io.atomic import atomic_write_text, directory_lock, new_output_directory
+    from .main import main as run_command
+
+    jobs = load_manifest(args.manifest)
+    out, workers, client, executor = prepare_run(args, "batch.json", "batch")
 
     def progress(k, n, row):
         if not args.quiet:

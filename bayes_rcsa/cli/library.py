@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
@@ -54,10 +53,10 @@ def run(args: argparse.Namespace) -> Summary:
     import numpy as np
 
     from ..batch import load_manifest
-    from ..io.atomic import atomic_write_text, directory_is_empty, directory_lock, new_output_directory
+    from ..io.atomic import atomic_write_text, directory_lock, new_output_directory
     from ..library.stage1 import check_setups, collect, run_stage1
     from ..library.workflow import fit_library, write_library
-    from .batch import _dask_executor
+    from .batch import prepare_run
     from .main import main as run_command
 
     jobs = load_manifest(args.manifest)
@@ -65,14 +64,7 @@ def run(args: argparse.Namespace) -> Summary:
         check_setups(jobs)  # everything a setup can be refused for, before stage 1 runs
     except SetupError as exc:
         raise SetupError(f"{args.manifest}: {exc}") from None
-    out = Path(args.out)
-    if not directory_is_empty(out) and not (out / "library_run.json").is_file() and not args.force:
-        raise SetupError(f"--out {out}: exists, is not empty and holds no earlier library run; use --force to "
-                         "write into it")
-    workers = args.workers or os.cpu_count() or 1
-    client = executor = None
-    if args.scheduler is not None:
-        client, executor = _dask_executor(args.scheduler)
+    out, workers, client, executor = prepare_run(args, "library_run.json", "library")
 
     def progress(k, n, row):
         if not args.quiet:
