@@ -6,7 +6,7 @@ emcee fit per holder type, per-setup importance ESS and pooled estimates) and of
 not the physics.  Seeds 5000+ (the development seeds were 0-99).
 
     python3 benchmarks/library_scale.py [N_COMBINATIONS] [REPEATS]
-    python3 benchmarks/library_scale.py joint [REPLICATES]
+    python3 benchmarks/library_scale.py joint [REPLICATES] [SCALE]
 
 Prints one line per repeat and the median; the table goes to docs/library.md ("Scale").  ``joint`` checks
 stage 2 against joint emcee on 4-combination stand-ins (two pooled coordinates, exactly Gaussian stage-1
@@ -78,7 +78,8 @@ def main(n: int = 1000, repeats: int = 3) -> None:
     print(f"median: stage 2 {statistics.median(times):.1f} s, outlier check {statistics.median(loo_times):.1f} s")
 
 
-def joint_check(replicates: int = 5) -> None:
+def joint_check(replicates: int = 5, scale: int = 1) -> None:
+    """``scale`` multiplies stage 2's ESS target and the joint chain's length (Monte Carlo error of the tails)."""
     names = ("k_xf", "g_xf")
     box = np.array([[4.0, 10.0], [0.0, 1.5]])
     hyper = Hyperprior.from_box(names, box, 1.5)
@@ -99,8 +100,8 @@ def joint_check(replicates: int = 5) -> None:
                                      np.array([[-50.0, 50.0], [-50.0, 50.0]])))
         sur = [surrogate(s) for s in setups]
         fit = fit_type("T", [s.name for s in setups], x, np.array([v[0] for v in sur]), np.array([v[1] for v in sur]),
-                       hyper, rng, Stage2Settings(ess_target=3000))
-        joint = sample_joint([gaussian_log_likelihood(m, C) for m, C in exact], x, hyper, rng, n_steps=8000,
+                       hyper, rng, Stage2Settings(ess_target=3000 * scale))
+        joint = sample_joint([gaussian_log_likelihood(m, C) for m, C in exact], x, hyper, rng, n_steps=8000 * scale,
                              n_burn=4000)
         dm, de = 0.0, 0.0
         for j in range(6):
@@ -116,6 +117,6 @@ def joint_check(replicates: int = 5) -> None:
 
 if __name__ == "__main__":
     if sys.argv[1:2] == ["joint"]:
-        joint_check(*(int(v) for v in sys.argv[2:3]))
+        joint_check(*(int(v) for v in sys.argv[2:4]))
     else:
         main(*(int(v) for v in sys.argv[1:3]))
