@@ -393,12 +393,21 @@ def replace_docs_block(marker: str, text: str) -> None:
     DOCS.write_text(doc)
 
 
-def libraries(root: Path, n_loo: int, n_clean: int) -> list[tuple[str, Path]]:
-    """(tag, manifest) of the clean libraries: the LOO ones (12 combinations) first, then 6-combination ones."""
+def libraries(root: Path, n_full: int, n_clean: int) -> list[tuple[str, Path]]:
+    """(tag, manifest) of the clean libraries: ``n_full`` of 12 combinations (4 per type: the LOO and the
+    outlier campaigns' libraries) first, then 6-combination ones (false flags only).
+
+    A 12-combination library of seed ``s`` is tagged ``lib{s}``; a 6-combination one ``lib{s}`` too, unless the
+    workdir already holds a library of the other size under that tag (an earlier run), then ``lib{s}_{n}``.
+    """
     out = []
     for i in range(n_clean):
-        per_type = 4 if i < n_loo else 2
-        out.append((f"lib{SEED0 + i}", make_library(root, f"lib{SEED0 + i}", SEED0 + i, per_type)))
+        per_type = 4 if i < n_full else 2
+        tag = f"lib{SEED0 + i}"
+        existing = root / tag / "manifest.toml"
+        if existing.exists() and len(re.findall(r"^\[\[setup\]\]", existing.read_text(), re.M)) != 3 * per_type:
+            tag = f"{tag}_{3 * per_type}"
+        out.append((tag, make_library(root, tag, SEED0 + i, per_type)))
     return out
 
 
@@ -418,7 +427,7 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     root = args.workdir
     root.mkdir(parents=True, exist_ok=True)
-    libs = libraries(root, args.loo, args.clean)
+    libs = libraries(root, max(args.loo, args.outliers), args.clean)
     parts = {"stage1", "loo", "outliers"} if args.part == "all" else {args.part} - {"none"}
     if "stage1" in parts:
         for tag, manifest in libs:

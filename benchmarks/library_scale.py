@@ -26,7 +26,8 @@ import numpy as np
 from bayes_rcsa.library.joint import gaussian_log_likelihood, sample_joint
 from bayes_rcsa.library.outliers import flag_outliers, loo_p_values
 from bayes_rcsa.library.population import COORDINATES, Hyperprior, covariate
-from bayes_rcsa.library.stage2 import SetupDraws, Stage2Settings, fit_population, fit_type, surrogate
+from bayes_rcsa.library.hierarchy import Group, fit_hyper
+from bayes_rcsa.library.stage2 import SetupDraws, Stage2Settings, fit_population, surrogate
 
 BOX = np.array([[5.0, 9.0], [3.0, 8.0], [0.0, 1.5], [0.0, 1.5], [0.0, 4.0], [-6.0, 0.0]])
 MEAN = np.array([6.6, 5.8, 0.45, 0.35, 1.1, -3.2])  # at 10 mm, per type offset below
@@ -63,17 +64,14 @@ def main(n: int = 1000, repeats: int = 3) -> None:
         t0 = time.perf_counter()
         res = fit_population(setups, hyper, rng)
         t1 = time.perf_counter()
-        rows = []
-        for fit in res.types.values():
-            rows += loo_p_values(fit, hyper, rng)
+        rows = loo_p_values(res.fit, hyper, rng)
         flagged, _ = flag_outliers(rows, n)
         t2 = time.perf_counter()
         times.append(t1 - t0)
         loo_times.append(t2 - t1)
-        ess = [f.ess for f in res.types.values()]
         refused = sum(1 for s in res.setups if s["refused"])
         n_flag = sum(1 for f in flagged if f["outlier"])
-        print(f"repeat {r}: stage 2 {t1 - t0:.1f} s (type ESS {min(ess):.0f}-{max(ess):.0f}, {refused} setups "
+        print(f"repeat {r}: stage 2 {t1 - t0:.1f} s (ESS {res.fit.ess:.0f}, {res.fit.n_steps} steps, {refused} setups "
               f"refused), outlier check {t2 - t1:.1f} s ({n_flag} flagged), load {os.getloadavg()[0]:.1f}")
     print(f"median: stage 2 {statistics.median(times):.1f} s, outlier check {statistics.median(loo_times):.1f} s")
 

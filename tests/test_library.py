@@ -18,7 +18,8 @@ from bayes_rcsa.library.joint import gaussian_log_likelihood, sample_joint
 from bayes_rcsa.library.outliers import flag_outliers, loo_p_values
 from bayes_rcsa.library.population import Hyperprior, covariate
 from bayes_rcsa.library.predictive import Population, predictive_draws, predictive_prior
-from bayes_rcsa.library.stage2 import SetupDraws, Stage2Settings, fit_population, fit_type, surrogate
+from bayes_rcsa.library.hierarchy import Group, fit_hyper
+from bayes_rcsa.library.stage2 import SetupDraws, Stage2Settings, fit_population, surrogate
 from bayes_rcsa.params.priors import JointMember, JointNormal, PriorSet, Uniform, prior_from_spec
 
 NAMES2 = ("k_xf", "g_xf")
@@ -83,26 +84,41 @@ def test_joint_normal_prior_is_the_multivariate_normal_and_round_trips_through_i
 
 
 def test_two_stage_hyperparameters_match_joint_emcee_on_four_combinations():
+    # two holder types of two combinations each: the types share the slope's and the spread's hyperparameters,
+    # so stage 2 is one coupled fit; the joint sampler integrates nothing out
     rng = np.random.default_rng(11)
-    names, box = NAMES2[:1], WIDE[:1]
+    names = NAMES2[:1]
     hyper = Hyperprior.from_box(names, BOX2[:1], 1.5)
-    dia = np.array([0.006, 0.009, 0.013, 0.018])
-    setups, exact = _setups(rng, dia, ["T"] * 4, names=names, box=box, spread=0.15)
-    sur = [surrogate(s) for s in setups]
+    dia = np.array([0.006, 0.013, 0.009, 0.018])
+    types = [0, 0, 1, 1]
     x = covariate(dia)
-    fit = fit_type("T", [s.name for s in setups], x, np.array([m for m, _, _ in sur]), np.array([C for _, C, _ in sur]),
-                   hyper, rng, Stage2Settings(ess_target=3000))
-    joint = sample_joint([gaussian_log_likelihood(m, C) for m, C in exact], x, hyper, rng, n_steps=3000,
-                         n_burn=1500, n_walkers=48)
-    two = fit.flat
-    for j, label in enumerate(("a", "b", "sigma")):
-        qj = np.quantile(joint[:, j], [0.05, 0.5, 0.95])
-        q2 = np.quantile(two[:, j], [0.05, 0.5, 0.95])
-        sd = np.std(joint[:, j])
-        # acceptance: medians within 0.2 posterior sd; 90 % ends within 10 % (of the joint interval's width,
-        # since b's interval straddles 0 and a relative error of its ends is meaningless)
-        assert abs(q2[1] - qj[1]) < 0.2 * sd, (label, q2, qj)
-        assert np.all(np.abs(q2[[0, 2]] - qj[[0, 2]]) < 0.1 * (qj[2] - qj[0])), (label, q2, qj)
+    exact = []
+    for i in range(4):
+        z = 7.0 + 0.2 * types[i] + 1.5 * x[i] + 0.15 * rng.standard_normal(1)
+        C = np.array([[0.02]]) * rng.uniform(0.5, 1.5)
+        exact.append((z + np.sqrt(C[0]) * rng.standard_normal(1), C))
+    groups = [Group(f"T{t}", tuple(f"s{i}" for i in range(4) if types[i] == t), x[[i for i in range(4) if types[i] == t]],
+                    np.array([exact[i][0] for i in range(4) if types[i] == t]),
+                    np.array([exact[i][1] for i in range(4) if types[i] == t])) for t in (0, 1)]
+    fit = fit_hyper(groups, hyper, rng, Stage2Settings(ess_target=3000))
+    joint = sample_joint([gaussian_log_likelihood(m, C) for m, C in exact], types, x, hyper, rng, n_steps=8000,
+                         n_burn=2000, n_walkers=48)
+    for t in range(2):
+        two, ref = fit.types[f"T{t}"].flat, joint["types"][t]
+        for j, label in enumerate(("a", "b", "sigma")):
+            qj = np.quantile(ref[:, j], [0.05, 0.5, 0.95])
+            q2 = np.quantile(two[:, j], [0.05, 0.5, 0.95])
+            sd = np.std(ref[:, j])
+            # acceptance: medians within 0.2 posterior sd; 90 % ends within 10 % (of the joint interval's width,
+            # since b's interval straddles 0 and a relative error of its ends is meaningless).  The spread's
+            # upper end sits in a long tail that 48 x 8000 joint steps (ESS ~1000) pin only to ~15 % of the
+            # width, so it gets 20 % here; benchmarks/library_scale.py joint runs 4x longer chains and finds
+            # every end within 4 % (docs/library.md, "Stage 2").
+            tol = 0.2 if label == "sigma" else 0.1
+            assert abs(q2[1] - qj[1]) < 0.2 * sd, (t, label, q2, qj)
+            assert np.all(np.abs(q2[[0, 2]] - qj[[0, 2]]) < tol * (qj[2] - qj[0])), (t, label, q2, qj)
+    qj, q2 = np.quantile(joint["tau_b"][:, 0], [0.05, 0.5, 0.95]), np.quantile(fit.tau_b[:, 0], [0.05, 0.5, 0.95])
+    assert abs(q2[1] - qj[1]) < 0.2 * np.std(joint["tau_b"][:, 0]), (q2, qj)
 
 
 def test_surrogate_divides_out_a_normal_stage1_prior():
@@ -153,22 +169,82 @@ def test_per_setup_ess_is_reported_and_a_degenerate_reweighting_refused(clean_fi
     assert any("setup bad" in w for w in res2.warnings)
 
 
-def test_a_contact_three_times_softer_is_flagged_and_its_clean_neighbours_are_not():
-    # one holder type, five combinations; the third is clamped badly: both stiffnesses 3x softer
-    names = ("k_xf", "k_thetaM")
-    box = np.array([[4.0, 10.0], [2.0, 9.0]])
-    hyper = Hyperprior.from_box(names, box, 1.5)
-    rng = np.random.default_rng(9)
-    dia = np.array([0.006, 0.009, 0.012, 0.016, 0.020])
-    settings = Stage2Settings(n_burn=150, ess_target=150, chunk=150)
-    flagged_runs = []
-    for shift in ((2, -np.log10(3.0)), None):
-        setups, _ = _setups(rng, dia, ["ER32"] * 5, shift=shift, n_draws=400, names=names, box=box, c_scale=0.01)
-        res = fit_population(setups, hyper, rng, settings)
-        rows, warns = flag_outliers(loo_p_values(res.types["ER32"], hyper, rng, settings=settings), len(setups))
+#: Three holder types shaped like the bench's (docs/library.md): mean at 10 mm and slope of (k_xf, k_thetaM) in
+#: log10 per e-fold, and each type's own spread between combinations (decades): the spreads differ by ~2x.
+_TYPES = {"ER32": ([6.45, 5.95], [0.87, 1.30], 0.065), "shrink_fit": ([6.65, 6.18], [0.78, 1.22], 0.035),
+          "hydraulic": ([6.56, 6.08], [0.96, 1.39], 0.043)}
+_BOX_K = np.array([[4.0, 10.0], [2.0, 9.0]])
+_CHEAP = Stage2Settings(n_burn=100, ess_target=150, chunk=100, n_walkers=24)
+
+
+def _three_types(seed, softer=None):
+    """Four combinations per type; each setup's own data pin its stiffnesses to ~0.004 / 0.02 decade (as the
+    bench's three-length identify fits do), much tighter than the spreads.  ``softer`` = index of a combination
+    whose contact is 3x softer (both stiffnesses) than its population's."""
+    rng = np.random.default_rng(seed)
+    out, i = [], 0
+    for t, (a, b, s) in _TYPES.items():
+        for dia in rng.choice([0.006, 0.008, 0.010, 0.012, 0.016, 0.020], 4, replace=False):
+            z = np.array(a) + np.array(b) * np.log(dia / 0.01) + s * rng.standard_normal(2)
+            if i == softer:
+                z -= np.log10(3.0)
+            sd = np.array([0.004, 0.02]) * rng.uniform(0.5, 1.5)
+            m = z + sd * rng.standard_normal(2)
+            out.append(SetupDraws(f"{t}_{i}", t, float(dia), m + sd * rng.standard_normal((600, 2)), np.zeros(2),
+                                  np.zeros((2, 2)), _BOX_K))
+            i += 1
+    return out
+
+
+@pytest.fixture(scope="module")
+def three_types():
+    hyper = Hyperprior.from_box(("k_xf", "k_thetaM"), _BOX_K, 1.5)
+    setups = _three_types(21)
+    return hyper, setups, fit_population(setups, hyper, np.random.default_rng(22), _CHEAP)
+
+
+def test_a_contact_three_times_softer_is_flagged_with_four_combinations_per_type(three_types):
+    # the #20 acceptance at the size that failed before the types were pooled: three types of four, one
+    # combination of the type with the widest spread (an ER32 collet) clamped badly, both stiffnesses 3x
+    # softer: flagged, and nothing else, nor anything in the clean library
+    hyper, clean, res = three_types
+    rng = np.random.default_rng(23)
+    flagged = []
+    for setups, fit in ((clean, res), (_three_types(21, softer=1), None)):
+        fit = fit or fit_population(setups, hyper, rng, _CHEAP)
+        rows, _ = flag_outliers(loo_p_values(fit.fit, hyper, rng, settings=_CHEAP, n_draws=300), len(setups))
         assert all(r["method"] == "exact" for r in rows)
-        flagged_runs.append({r["name"] for r in rows if r["outlier"]})
-    assert flagged_runs == [{"s2"}, set()], flagged_runs
+        flagged.append({r["name"] for r in rows if r["outlier"]})
+    assert flagged == [set(), {"ER32_1"}], flagged
+
+
+def test_pooled_zero_tap_predictive_is_narrower_than_one_type_alone_and_covers(three_types):
+    # "unpooled": the same type fitted as a library of its own four combinations (its spread and slope from them
+    # and the hyperprior only); pooled: with the other two types, which pin the spreads' and slopes' level
+    hyper, setups, res = three_types
+    rng = np.random.default_rng(24)
+    alone = fit_population([s for s in setups if s.holder_type == "ER32"], hyper, rng, _CHEAP)
+    growth, diam = (0.02, 0.045, 1.5), {"ER32": (0.006, 0.020)}
+    pooled = Population(hyper.names, {"ER32": res.types["ER32"].flat}, _BOX_K, growth, diam)
+    single = Population(hyper.names, {"ER32": alone.types["ER32"].flat}, _BOX_K, growth, diam)
+    zp, _ = predictive_draws(pooled, "ER32", 0.012, rng, 4000)
+    zs, _ = predictive_draws(single, "ER32", 0.012, rng, 4000)
+    wp = np.diff(np.quantile(zp, [0.05, 0.95], axis=0), axis=0)[0]
+    ws = np.diff(np.quantile(zs, [0.05, 0.95], axis=0), axis=0)[0]
+    assert np.all(wp < 0.8 * ws), (wp, ws)  # at least 20 % narrower in both stiffnesses
+    # and it still covers: the type's true median law at 12 mm, and most of 40 new ER32 combinations drawn from
+    # the type's true population.  One library's four ER32 combinations are themselves a small sample of the
+    # spread (here their k_thetaM scatter is 0.038 decade against the true 0.065), so the coverage of one
+    # library scatters around the nominal 90 % (the benchmark averages over libraries, docs/library.md); a
+    # predictive that dropped the spread between combinations (hyperparameter uncertainty only) would cover
+    # ~25 % of them, the 90 % interval of the true population 90 %
+    a, b, s = _TYPES["ER32"]
+    lo, hi = np.quantile(zp, [0.05, 0.95], axis=0)
+    median = np.array(a) + np.array(b) * np.log(1.2)
+    assert np.all((lo < median) & (median < hi)), (lo, median, hi)
+    truth = median + s * np.random.default_rng(25).standard_normal((40, 2))
+    covered = int(np.sum((truth >= lo) & (truth <= hi)))
+    assert covered >= 52, (covered, lo, hi)  # of 80 (40 combinations x 2 stiffnesses), 65 %
 
 
 # -- the predictive of a new combination ------------------------------------------------------------------

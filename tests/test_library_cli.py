@@ -99,13 +99,14 @@ def test_identify_with_the_library_one_tap_and_zero_taps_feed_predict_and_lobes(
     ("unknown type", "holder type 'BT40' is not in the library's population (known: ['ER32', 'HSK'])"),
     ("no type", "no [holder] type; the library knows ['ER32', 'HSK']"),
     ("mixed units", "(mixed units?)"),
-    ("other version", "model_version 'bayes_rcsa.library/0', expected 'bayes_rcsa.library/1'"),
+    # version 1 had no pooling across holder types: its file holds other hyperparameters
+    ("other version", "model_version 'bayes_rcsa.library/1', expected 'bayes_rcsa.library/2'"),
     ("no library", "--no-taps needs --library"),
 ])
 def test_identify_library_bad_input_is_one_line_and_exit_2(example, tmp_path, capsys, case, expected):
     # mixed units: a library whose lengths were given in mm (the setup parser refuses such a setup itself,
     # so the population file is made by hand)
-    pop = _population(tmp_path, version="bayes_rcsa.library/0" if case == "other version" else None,
+    pop = _population(tmp_path, version="bayes_rcsa.library/1" if case == "other version" else None,
                       growth=(25.0, 40.0, 0.5) if case == "mixed units" else (0.025, 0.040, 0.5))
     if case == "unknown type":
         setup = _typed(example, '"BT40"')

@@ -25,19 +25,31 @@ in the setups is not pooled).  The stiffness refers to the library's common
 reference length ``l_a`` (the short end of the clamping range shared by all
 setups).
 
-Hyperparameters per type and coordinate ``j`` (units of ``z_j``; ``x`` is
-dimensionless), weakly informative and set from the stage-1 prior box
-``[lo_j, hi_j]`` so that they carry the units of the setups:
+Across holder types (one more level, model version 2) the diameter slope and
+the spread are partially pooled, per coordinate ``j``:
 
-* ``a_tj ~ Normal((lo_j + hi_j) / 2, (hi_j - lo_j) / 2)``
-* ``b_tj ~ Normal(0, B_j)``, ``B_j = 2`` decades per e-fold of diameter for
+    b_tj = b0_j + tau_b,j * delta_tj,          delta_tj ~ N(0, 1)
+    ln sigma_tj ~ N(ln sigma0_j, tau_s,j^2)
+
+Hyperpriors (units of ``z_j``; ``x`` is dimensionless), weakly informative
+and set from the stage-1 prior box ``[lo_j, hi_j]`` so that they carry the
+units of the setups:
+
+* ``a_tj ~ Normal((lo_j + hi_j) / 2, (hi_j - lo_j) / 2)`` per type
+* ``b0_j ~ Normal(0, B_j)``, ``B_j = 2`` decades per e-fold of diameter for
   log10 coordinates (a stiffness ~ d^4 has b = 1.7), ``Q`` for growth
-* ``sigma_tj ~ HalfNormal(S_j)``, ``S_j = 0.5`` decades (a factor ~3 between
-  combinations) for log10 coordinates, ``Q / 2`` for growth
+* ``tau_b,j ~ HalfNormal(B_j / 8)``: 0.25 decades per e-fold (exponents of
+  the stiffness-diameter law differing by ~0.6 between types), ``Q / 8``
+* ``ln sigma0_j ~ Normal(ln(S_j / 5), 1)``, ``S_j = 0.5`` decades for log10
+  coordinates (median 0.1 decade = 26 % between combinations, 95 % within
+  0.014-0.7 decades), ``Q / 2`` for growth
+* ``tau_s,j ~ HalfNormal(0.5)`` (e-folds: types' spreads differing by a
+  factor ~1.6 per sd)
 
-The sampler moves in ``(a, b, sigma)`` with ``sigma >= 0``.  (In ``ln sigma`` the
-posterior has a long exponential tail towards small spreads that emcee
-explores poorly; in ``sigma`` the same region is a bounded interval.)
+Stage 2 integrates ``a``, ``delta`` and ``b0`` out in closed form (they
+enter linearly), ``ln sigma0`` in closed form and ``tau_s`` by quadrature;
+emcee samples ``(ln sigma_tj, tau_b,j)``: ``d (T + 1)`` dimensions for ``T``
+types.
 """
 
 from __future__ import annotations
@@ -53,7 +65,7 @@ __all__ = ["COORDINATES", "SCALES", "D_REF", "MODEL_VERSION", "Hyperprior", "cov
            "to_coordinates", "from_coordinates"]
 
 #: Version of the population model and of population.nc; a file of another version is refused.
-MODEL_VERSION = "bayes_rcsa.library/1"
+MODEL_VERSION = "bayes_rcsa.library/2"
 #: m, reference shank diameter of the covariate ``x = ln(d / D_REF)``.
 D_REF = 0.010
 #: Contact parameters a population can pool, in vector order.
@@ -105,23 +117,34 @@ def from_coordinates(names, z) -> dict[str, np.ndarray]:
     return {n: (10.0 ** z[:, j] if SCALES[n] == "log10" else z[:, j]) for j, n in enumerate(names)}
 
 
+#: tau_s grid (e-folds) of the quadrature over the spreads' pooling scale: geometric, fine near 0 where the
+#: half-normal prior has its mode and the integrand its (integrable) peak when the types' spreads agree.
+_TAU_S_GRID = np.geomspace(1e-3, 3.0, 96)
+
+
 @dataclass(frozen=True)
 class Hyperprior:
-    """The weakly-informative hyperprior of one holder type (the same for every type).
+    """The weakly-informative hyperprior of a library's population (docs/theory.md, "Tool-library population").
 
     Attributes
     ----------
     names : tuple of str, (d,) pooled coordinates
-    a_mean, a_sd : (d,) prior of the mean at 10 mm (units of z)
-    b_sd : (d,) prior sd of the diameter slope (units of z per unit of x)
-    s_scale : (d,) half-normal scale of the spread (units of z)
+    a_mean, a_sd : (d,) prior of each type's mean at 10 mm (units of z)
+    b_sd : (d,) prior sd of the common diameter slope b0 (units of z per unit of x)
+    tb_scale : (d,) half-normal scale of the slopes' spread between types tau_b (units of b)
+    ls_mean : (d,) prior mean of ln sigma0 (sigma0 in units of z)
+    ls_sd : float, prior sd of ln sigma0 (e-folds)
+    ts_scale : float, half-normal scale of the spreads' spread between types tau_s (e-folds)
     """
 
     names: tuple
     a_mean: np.ndarray
     a_sd: np.ndarray
     b_sd: np.ndarray
-    s_scale: np.ndarray
+    tb_scale: np.ndarray
+    ls_mean: np.ndarray
+    ls_sd: float = 1.0
+    ts_scale: float = 0.5
 
     @classmethod
     def from_box(cls, names, box: np.ndarray, growth_bound: float) -> "Hyperprior":
@@ -131,43 +154,78 @@ class Hyperprior:
             raise SetupError(f"stage-1 prior box {box.tolist()} of {list(names)}: expected finite lo < hi")
         growth = np.array([SCALES[n] == "linear" for n in names])
         q = float(growth_bound) if growth_bound > 0 else 1.0
-        return cls(tuple(names), box.mean(axis=1), 0.5 * (box[:, 1] - box[:, 0]),
-                   np.where(growth, q, 2.0), np.where(growth, 0.5 * q, 0.5))
+        b_sd = np.where(growth, q, 2.0)
+        s_scale = np.where(growth, 0.5 * q, 0.5)
+        return cls(tuple(names), box.mean(axis=1), 0.5 * (box[:, 1] - box[:, 0]), b_sd, b_sd / 8.0,
+                   np.log(s_scale / 5.0))
 
     @property
     def ndim(self) -> int:
         return len(self.names)
 
-    def ln_prob(self, a: np.ndarray, b: np.ndarray, s: np.ndarray) -> np.ndarray:
-        """Log density of (a, b, sigma); ``-inf`` where a spread is negative.
+    def ln_prob_tau_b(self, tau_b: np.ndarray) -> np.ndarray:
+        """Log half-normal density of the slopes' spread ``tau_b`` (..., d); ``-inf`` where negative."""
+        z = tau_b / self.tb_scale
+        lp = np.sum(-0.5 * z * z - np.log(self.tb_scale) + 0.5 * math.log(2.0 / math.pi), axis=-1)
+        return np.where(np.all(tau_b >= 0, axis=-1), lp, -np.inf)
+
+    def ln_prob_log_sigma(self, u: np.ndarray) -> np.ndarray:
+        """Log density of the types' log spreads with ``ln sigma0`` and ``tau_s`` integrated out.
+
+        Per coordinate ``j`` the ``T`` values ``u_tj = ln sigma_tj`` are, given ``tau_s``, jointly normal
+        with mean ``ls_mean_j`` and covariance ``tau_s^2 I + ls_sd^2 1 1^T`` (``ln sigma0`` integrated out in
+        closed form, Sherman-Morrison); ``tau_s`` is integrated numerically against its half-normal prior
+        on a geometric grid (trapezoid weights).
 
         Parameters
         ----------
-        a, b, s : (..., d)
+        u : (..., T, d) ln sigma (sigma in units of z)
 
         Returns
         -------
         (...,)
         """
-        za = (a - self.a_mean) / self.a_sd
-        zb = b / self.b_sd
-        zs = s / self.s_scale
-        const = float(np.sum(-np.log(self.a_sd) - np.log(self.b_sd) - np.log(self.s_scale))
-                      - self.ndim * (1.5 * math.log(2 * math.pi) - math.log(2.0)))
-        lp = const - 0.5 * np.sum(za * za + zb * zb + zs * zs, axis=-1)
-        return np.where(np.all(s >= 0, axis=-1), lp, -np.inf)
+        T = u.shape[-2]
+        c = self.ls_sd ** 2
+        r = u - self.ls_mean  # (..., T, d)
+        rr = np.sum(r * r, axis=-2)[..., None]  # (..., d, 1)
+        rs = np.sum(r, axis=-2)[..., None]
+        t2 = _TAU_S_GRID ** 2  # (G,)
+        q = (rr - c * rs * rs / (t2 + T * c)) / t2
+        logdet = (T - 1) * np.log(t2) + np.log(t2 + T * c)
+        ln_n = -0.5 * (q + logdet + T * math.log(2 * math.pi))  # (..., d, G)
+        ln_w = _tau_weights(self.ts_scale)
+        top = np.max(ln_n + ln_w, axis=-1, keepdims=True)
+        lse = top[..., 0] + np.log(np.sum(np.exp(ln_n + ln_w - top), axis=-1))
+        return np.sum(lse, axis=-1)
 
-    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
-        """(n, 3d) draws of (a, b, sigma)."""
+    def sample_log_sigma(self, rng: np.random.Generator, n: int, n_types: int) -> np.ndarray:
+        """(n, T, d) prior draws of ln sigma."""
         d = self.ndim
-        a = self.a_mean + self.a_sd * rng.standard_normal((n, d))
-        b = self.b_sd * rng.standard_normal((n, d))
-        s = np.abs(self.s_scale * rng.standard_normal((n, d)))
-        return np.concatenate([a, b, s], axis=1)
+        ls0 = self.ls_mean + self.ls_sd * rng.standard_normal((n, 1, d))
+        tau = np.abs(self.ts_scale * rng.standard_normal((n, 1, d)))
+        return ls0 + tau * rng.standard_normal((n, n_types, d))
 
     def describe(self) -> dict:
-        return {n: {"a": {"distribution": "normal", "mu": float(self.a_mean[j]), "sigma": float(self.a_sd[j])},
-                    "b": {"distribution": "normal", "mu": 0.0, "sigma": float(self.b_sd[j])},
-                    "sigma": {"distribution": "half-normal", "scale": float(self.s_scale[j])},
+        return {n: {"a": {"distribution": "normal", "mu": float(self.a_mean[j]), "sigma": float(self.a_sd[j]),
+                          "per": "holder type"},
+                    "b0": {"distribution": "normal", "mu": 0.0, "sigma": float(self.b_sd[j])},
+                    "tau_b": {"distribution": "half-normal", "scale": float(self.tb_scale[j])},
+                    "b": "b_t = b0 + tau_b * delta_t, delta_t ~ normal(0, 1) per holder type",
+                    "ln_sigma0": {"distribution": "normal", "mu": float(self.ls_mean[j]), "sigma": self.ls_sd},
+                    "tau_s": {"distribution": "half-normal", "scale": self.ts_scale, "unit": "e-folds"},
+                    "sigma": "ln sigma_t ~ normal(ln sigma0, tau_s) per holder type",
                     "unit": coordinate_units(n)}
                 for j, n in enumerate(self.names)}
+
+
+def _tau_weights(scale: float) -> np.ndarray:
+    """Log trapezoid weights of the half-normal(scale) prior on :data:`_TAU_S_GRID` (normalised to 1)."""
+    g = _TAU_S_GRID
+    dens = np.exp(-0.5 * (g / scale) ** 2)
+    w = np.empty_like(g)
+    w[1:-1] = 0.5 * (g[2:] - g[:-2])
+    w[0] = 0.5 * (g[1] - g[0]) + g[0]  # the interval [0, g0] joins the first node
+    w[-1] = 0.5 * (g[-1] - g[-2])
+    w = dens * w
+    return np.log(w / np.sum(w))

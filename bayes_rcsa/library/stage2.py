@@ -11,10 +11,11 @@ integrate out in closed form,
 
     m_s ~ N(a_t + b_t x_s, C_s + diag sigma_t^2),
 
-and the hyperparameters ``(a_t, b_t, sigma_t)`` of each holder type are
-sampled with emcee, vectorised over walkers and setups.  Holder types share
-no hyperparameter, so each type is an independent fit (the cost grows
-linearly with the number of setups).
+and the hyperparameters of all holder types are sampled together
+(:mod:`.hierarchy`: slopes and spreads partially pooled across types, the
+linear hyperparameters integrated out in closed form; one emcee vectorised
+over walkers and setups, whose cost grows linearly with the number of
+setups).
 
 The surrogate is then checked setup by setup: the stage-1 draws are
 importance re-weighted to the setup's pooled posterior (weights = population
@@ -32,10 +33,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConvergenceError, SetupError
+from .hierarchy import Group, HyperFit, Stage2Settings, TypeFit, _factor, _forward, fit_hyper
 from .population import Hyperprior
 
-__all__ = ["SetupDraws", "Stage2Settings", "TypeFit", "Stage2Result", "surrogate", "fit_population", "fit_type", "marginal_ln_like",
-           "pooled_weights", "ESS_MIN"]
+__all__ = ["SetupDraws", "Stage2Settings", "TypeFit", "Stage2Result", "surrogate", "fit_population", "pooled_weights",
+           "ESS_MIN"]
 
 #: Smallest importance ESS of a setup's re-weighted stage-1 draws for its pooled estimate to be reported.
 ESS_MIN = 30.0
@@ -119,250 +121,10 @@ def _quad_logdet(Ct: np.ndarray, s2: np.ndarray, r: np.ndarray) -> tuple[np.ndar
     Returns
     -------
     (W, n), (W, n); NaN where V is not positive definite
-
-    Notes
-    -----
-    The Cholesky factor is written out element by element, each element one
-    array over (walkers, setups) and V never formed: for thousands of 6x6
-    matrices this is several times faster than LAPACK's per-matrix calls.
     """
-    d = Ct.shape[0]
-    L = [[None] * d for _ in range(d)]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        logdet = 0.0
-        for j in range(d):
-            acc = Ct[j, j][None, :] + s2[:, j][:, None]
-            for k in range(j):
-                acc = acc - L[j][k] * L[j][k]
-            L[j][j] = np.sqrt(acc)
-            logdet = logdet + np.log(acc)
-            inv = 1.0 / L[j][j]
-            for i in range(j + 1, d):
-                acc = Ct[i, j][None, :]
-                for k in range(j):
-                    acc = acc - L[i][k] * L[j][k]
-                L[i][j] = acc * inv
-        q = 0.0
-        w = [None] * d
-        for i in range(d):
-            acc = r[i]
-            for k in range(i):
-                acc = acc - L[i][k] * w[k]
-            w[i] = acc / L[i][i]
-            q = q + w[i] * w[i]
-    return q, logdet
-
-
-def marginal_ln_like(theta: np.ndarray, m: np.ndarray, C: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Per-setup log marginal likelihood of hyperparameters.
-
-    Parameters
-    ----------
-    theta : (W, 3d) hyperparameters (a, b, sigma)
-    m : (n, d) surrogate means
-    C : (n, d, d) surrogate covariances
-    x : (n,) covariate
-
-    Returns
-    -------
-    (W, n)
-    """
-    return _marginal(theta, _Surrogates(m, C, x))
-
-
-@dataclass(frozen=True)
-class _Surrogates:
-    """A type's surrogates laid out for :func:`_quad_logdet` (setup axis last, contiguous)."""
-
-    m: np.ndarray
-    C: np.ndarray
-    x: np.ndarray
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "mT", np.ascontiguousarray(np.asarray(self.m, float).T))
-        object.__setattr__(self, "Ct", np.ascontiguousarray(np.moveaxis(np.asarray(self.C, float), 0, -1)))
-        object.__setattr__(self, "x_mean", float(np.mean(self.x)))
-
-
-def _marginal(theta: np.ndarray, sur: _Surrogates) -> np.ndarray:
-    d = sur.mT.shape[0]
-    a, b, s = theta[:, :d], theta[:, d:2 * d], theta[:, 2 * d:]
-    r = sur.mT[:, None, :] - a.T[:, :, None] - b.T[:, :, None] * sur.x[None, None, :]  # (d, W, n)
-    q, logdet = _quad_logdet(sur.Ct, s * s, r)
-    out = -0.5 * (q + logdet + d * math.log(2 * math.pi))
-    return np.where(np.isfinite(out), out, -np.inf)
-
-
-@dataclass
-class TypeFit:
-    """Stage-2 posterior of one holder type.
-
-    Attributes
-    ----------
-    holder_type : str
-    names : tuple of str, setups of this type
-    x : (n,) covariate; m : (n, d); C : (n, d, d) surrogates
-    chain : (n_walkers, n_keep, 3d) hyperparameter draws (a, b, sigma)
-    tau : (3d,) integrated autocorrelation times (steps)
-    acceptance : float
-    warnings : list of str
-    """
-
-    holder_type: str
-    names: tuple
-    x: np.ndarray
-    m: np.ndarray
-    C: np.ndarray
-    chain: np.ndarray
-    tau: np.ndarray
-    acceptance: float
-    warnings: list = field(default_factory=list)
-
-    @property
-    def flat(self) -> np.ndarray:
-        """(n_walkers * n_keep, 3d) draws."""
-        return self.chain.reshape(-1, self.chain.shape[-1])
-
-    @property
-    def ess(self) -> float:
-        """Smallest effective sample size over the hyperparameters."""
-        n = self.chain.shape[0] * self.chain.shape[1]
-        return float(n / np.max(self.tau))
-
-
-def _uncentre(theta: np.ndarray, x_mean: float) -> np.ndarray:
-    """(a, b, ln s) from the sampler's (a + b x_mean, b, ln s): a and b decorrelate when x is centred."""
-    d = theta.shape[1] // 3
-    out = theta.copy()
-    out[:, :d] -= theta[:, d:2 * d] * x_mean
-    return out
-
-
-def _log_post(theta, hyper: Hyperprior, sur: "_Surrogates"):
-    theta = _uncentre(theta, sur.x_mean)  # unit Jacobian
-    lp = hyper.ln_prob(theta[:, :hyper.ndim], theta[:, hyper.ndim:2 * hyper.ndim], theta[:, 2 * hyper.ndim:])
-    ok = np.isfinite(lp)
-    out = np.full(theta.shape[0], -np.inf)
-    if np.any(ok):
-        out[ok] = lp[ok] + np.sum(_marginal(theta[ok], sur), axis=1)
-    return out
-
-
-def _start(hyper: Hyperprior, sur: "_Surrogates", rng, n_walkers) -> np.ndarray:
-    """Walkers around the posterior mode (L-BFGS from a moment estimate; gradient by central differences,
-    all 2 x 3d + 1 points in one vectorised call)."""
-    from scipy.optimize import minimize
-
-    d = hyper.ndim
-    m = sur.m
-    spread = np.std(m, axis=0) if m.shape[0] > 1 else 0.5 * hyper.s_scale
-    s0 = np.clip(spread, 0.05 * hyper.s_scale, 2 * hyper.s_scale)
-    t0 = np.concatenate([m.mean(axis=0), np.zeros(d), s0])  # centred: a + b mean(x) = mean(m)
-    h = 1e-5 * np.eye(3 * d)
-
-    def f(t):
-        v = -_log_post(np.vstack([t, t + h, t - h]), hyper, sur)
-        if not np.all(np.isfinite(v)):
-            return float(v[0]) if np.isfinite(v[0]) else 1e300, np.zeros(3 * d)
-        return float(v[0]), (v[1:3 * d + 1] - v[3 * d + 1:]) / 2e-5
-
-    bounds = [(None, None)] * (2 * d) + [(1e-6 * v, None) for v in hyper.s_scale]
-    res = minimize(f, t0, jac=True, method="L-BFGS-B", bounds=bounds, options={"maxiter": 500})
-    t = res.x if np.isfinite(res.fun) and res.fun <= f(t0)[0] else t0
-    scale = np.concatenate([0.05 * hyper.a_sd, 0.05 * hyper.b_sd, 0.05 * hyper.s_scale])
-    start = t + scale * rng.standard_normal((n_walkers, 3 * d))
-    start[:, 2 * d:] = np.abs(start[:, 2 * d:])
-    lp = _log_post(start, hyper, sur)
-    start[~np.isfinite(lp)] = t
-    return start
-
-
-@dataclass(frozen=True)
-class Stage2Settings:
-    """How long stage 2 samples each holder type.
-
-    Attributes
-    ----------
-    n_burn : int, steps discarded after the start at the posterior mode
-    ess_target : float, effective draws (walkers x kept steps / max autocorrelation time) to reach
-    chunk : int, steps between checks of the ESS
-    max_steps : int, kept steps at most; reaching it is a warning
-    n_walkers : int or None
-        Default ``max(2 x 3d + 2, min(96, 8000 / n_setups))``: a call's cost
-        grows with walkers x setups, so a large type gets few walkers, a
-        small one (where the Python overhead dominates) many.
-    """
-
-    n_burn: int = 400
-    ess_target: float = 400.0
-    chunk: int = 250
-    max_steps: int = 10000
-    n_walkers: int | None = None
-
-
-def fit_type(holder_type: str, names, x, m, C, hyper: Hyperprior, rng: np.random.Generator,
-             settings: Stage2Settings = Stage2Settings()) -> TypeFit:
-    """Sample one holder type's hyperparameters (emcee, vectorised over walkers and setups).
-
-    Parameters
-    ----------
-    holder_type : str
-    names : sequence of str, (n,) setups
-    x : (n,) covariate ln(d / 10 mm)
-    m, C : (n, d), (n, d, d) likelihood surrogates
-    hyper : Hyperprior
-    rng : numpy Generator
-    settings : Stage2Settings
-    """
-    import emcee
-
-    ndim = 3 * hyper.ndim
-    n_walkers = settings.n_walkers or max(2 * ndim + 2, min(96, 8000 // max(1, len(names))))
-    n_walkers += n_walkers % 2
-    sur = _Surrogates(m, C, np.asarray(x, dtype=float))
-    start = _start(hyper, sur, rng, n_walkers)
-    sampler = emcee.EnsembleSampler(n_walkers, ndim, _log_post, args=(hyper, sur), vectorize=True,
-                                    moves=[(emcee.moves.StretchMove(), 1.0)])
-    # emcee draws from a private RandomState: seed it from our generator (the global state is never touched)
-    rstate = np.random.RandomState(int(rng.integers(0, 2**32 - 1))).get_state()
-    state = sampler.run_mcmc(emcee.State(start, random_state=rstate), settings.n_burn, progress=False)
-    sampler.reset()
-    n_kept = 0
-    while True:
-        state = sampler.run_mcmc(state, settings.chunk, progress=False)
-        n_kept += settings.chunk
-        chain = np.swapaxes(sampler.get_chain(), 0, 1)  # (walkers, steps, ndim), centred coordinates
-        tau = _autocorr(chain)
-        ess = n_walkers * n_kept / np.max(tau)
-        # the autocorrelation estimate itself needs a chain of >~10 tau to be trusted
-        if (ess >= settings.ess_target and n_kept >= 10 * np.max(tau)) or n_kept >= settings.max_steps:
-            break
-    chain = _uncentre(chain.reshape(-1, ndim), sur.x_mean).reshape(chain.shape)
-    warns = []
-    if ess < settings.ess_target or n_kept < 10 * np.max(tau):
-        warns.append(f"holder type {holder_type}: stage 2 stopped at {n_kept} steps with ESS {ess:.0f} (target "
-                     f"{settings.ess_target:g}) and autocorrelation time {np.max(tau):.0f}; the hyperparameter "
-                     "intervals are approximate")
-    if len(names) < 3:
-        warns.append(f"holder type {holder_type}: {len(names)} combination(s); its spread and diameter slope mostly "
-                     "restate the hyperprior (a weak fit)")
-    return TypeFit(holder_type, tuple(names), np.asarray(x, float), m, C, chain, np.asarray(tau),
-                   float(np.mean(sampler.acceptance_fraction)), warns)
-
-
-def _autocorr(chain: np.ndarray) -> np.ndarray:
-    """Integrated autocorrelation time (steps) per parameter of (walkers, steps, ndim), quietly."""
-    import logging
-
-    import emcee
-
-    log = logging.getLogger("emcee.autocorr")
-    level = log.level
-    log.setLevel(logging.ERROR)  # emcee logs a warning for short chains; ours goes into the outputs instead
-    try:
-        return np.asarray(emcee.autocorr.integrated_time(np.swapaxes(chain, 0, 1), quiet=True))
-    finally:
-        log.setLevel(level)
+    L, logdet = _factor(Ct, s2)
+    w = _forward(L, r)
+    return sum(v * v for v in w), logdet
 
 
 def pooled_weights(setup: SetupDraws, theta: np.ndarray, x: float, max_draws: int = 1000) -> tuple[np.ndarray, np.ndarray]:
@@ -407,6 +169,7 @@ class Stage2Result:
     setups : list of dict, per setup: name, holder_type, diameter_m, own/pooled q05/q50/q95 per coordinate,
         ess, refused (reason or None)
     warnings : list of str
+    fit : HyperFit, the coupled posterior (sampler draws, groups) the types are views of
     """
 
     names: tuple
@@ -414,11 +177,13 @@ class Stage2Result:
     types: dict
     setups: list
     warnings: list
+    fit: HyperFit | None = None
 
 
 def fit_population(setups, hyper: Hyperprior, rng: np.random.Generator, settings: Stage2Settings = Stage2Settings(),
                    ess_min: float = ESS_MIN, n_weight_draws: int = 32) -> Stage2Result:
-    """Stage 2 for a library: surrogates, one emcee fit per holder type, per-setup ESS and pooled estimates.
+    """Stage 2 for a library: surrogates, one coupled emcee fit of all holder types, per-setup ESS and pooled
+    estimates.
 
     Parameters
     ----------
@@ -447,15 +212,15 @@ def fit_population(setups, hyper: Hyperprior, rng: np.random.Generator, settings
         m, C, notes = surrogate(s)
         surr[s.name] = (m, C)
         warns += notes
-    types: dict[str, TypeFit] = {}
+    groups = []
     for t in sorted({s.holder_type for s in setups}):
         group = [s for s in setups if s.holder_type == t]
         x = covariate([s.diameter for s in group], f"holder type {t}: shank diameter")
-        m = np.array([surr[s.name][0] for s in group])
-        C = np.array([surr[s.name][1] for s in group])
-        fit = fit_type(t, [s.name for s in group], x, m, C, hyper, rng, settings)
-        types[t] = fit
-        warns += fit.warnings
+        groups.append(Group(t, tuple(s.name for s in group), x, np.array([surr[s.name][0] for s in group]),
+                            np.array([surr[s.name][1] for s in group])))
+    hfit = fit_hyper(groups, hyper, rng, settings)
+    types: dict[str, TypeFit] = hfit.types
+    warns += hfit.warnings
     rows = []
     for s in setups:
         fit = types[s.holder_type]
@@ -478,7 +243,7 @@ def fit_population(setups, hyper: Hyperprior, rng: np.random.Generator, settings
             for j, n in enumerate(names):
                 row[f"{n}_pooled"] = [float(v) for v in _weighted_quantiles(z[:, j], w, (0.05, 0.5, 0.95))]
         rows.append(row)
-    return Stage2Result(tuple(names), hyper, types, rows, warns)
+    return Stage2Result(tuple(names), hyper, types, rows, warns, hfit)
 
 
 def _weighted_quantiles(v: np.ndarray, w: np.ndarray, q) -> np.ndarray:
@@ -489,7 +254,6 @@ def _weighted_quantiles(v: np.ndarray, w: np.ndarray, q) -> np.ndarray:
 
 
 def check_converged(result: Stage2Result) -> None:
-    """Raise :class:`ConvergenceError` if a type's stage-2 chain has fewer than 100 effective draws."""
-    for t, fit in result.types.items():
-        if fit.ess < 100:
-            raise ConvergenceError(f"holder type {t}: stage-2 ESS {fit.ess:.0f} < 100; rerun with more steps")
+    """Raise :class:`ConvergenceError` if the stage-2 chain has fewer than 100 effective draws."""
+    if result.fit is not None and result.fit.ess < 100:
+        raise ConvergenceError(f"stage-2 ESS {result.fit.ess:.0f} < 100; rerun with more steps")

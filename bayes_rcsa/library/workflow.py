@@ -58,9 +58,7 @@ def fit_library(stage1: Stage1, rng: np.random.Generator, settings: Stage2Settin
     warns += res.warnings
     rows = [dict(r) for r in res.setups]
     if outliers:
-        p_rows = []
-        for t in types:
-            p_rows += loo_p_values(res.types[t], hyper, rng)
+        p_rows = loo_p_values(res.fit, hyper, rng)
         flagged, w = flag_outliers(p_rows, len(rows))
         warns += w
         by_name = {r["name"]: r for r in flagged}

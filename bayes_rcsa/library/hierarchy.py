@@ -1,0 +1,489 @@
+"""The coupled stage-2 posterior of all holder types: spreads and slopes pooled across types (model version 2).
+
+Per holder type ``t`` the setups' Gaussian likelihood surrogates ``N(m_s, C_s)``
+(:func:`.stage2.surrogate`) give, with the law integrated out,
+
+    m_s ~ N(a_t + b_t x_s, V_s),   V_s = C_s + diag(sigma_t^2),   b_t = b0 + tau_b * delta_t.
+
+Given the spreads ``sigma`` (all types) and the slopes' spread ``tau_b`` the
+model is linear-Gaussian in ``beta = (a_1..a_T, delta_1..delta_T, b0)``
+(``2 d T + d`` numbers, prior normal), so ``beta`` is integrated out in
+closed form: with the per-type sums ``S_p = sum_s x_s^p V_s^-1`` and ``g_p =
+sum_s x_s^p V_s^-1 m_s`` the posterior precision of ``beta`` is ``P = P0 +
+F(S, tau_b)`` and the marginal likelihood a ratio of Gaussian normalisers.
+emcee samples only ``theta = (ln sigma_tj, tau_b,j)`` (``d (T + 1)``
+dimensions, the types coupled through ``b0`` and the spreads' hyperprior,
+:meth:`.population.Hyperprior.ln_prob_log_sigma`), vectorised over walkers
+and setups; ``beta`` is then drawn from its conditional normal for every kept
+draw, which gives each type's ``(a_t, b_t, sigma_t)`` draws.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .population import Hyperprior
+
+__all__ = ["Group", "HyperFit", "TypeFit", "Stage2Settings", "fit_hyper", "log_posterior", "beta_posterior",
+           "predictive_of_setup"]
+
+#: Kept hyperparameter draws (evenly thinned) for which ``beta`` is drawn: at most 8000, and fewer (down to 2000)
+#: for large libraries, where each draw costs a pass over all setups.
+MAX_KEPT = 8000
+MIN_KEPT = 2000
+
+
+def _factor(Ct: np.ndarray, s2: np.ndarray):
+    """Cholesky factors of ``V = C_s + diag(s2_w)`` for every walker w and setup s, element by element.
+
+    Parameters
+    ----------
+    Ct : (d, d, n) surrogate covariances, setup axis last
+    s2 : (W, d) population variances per walker
+
+    Returns
+    -------
+    L : nested list, ``L[i][j]`` (W, n) for j <= i
+    logdet : (W, n) ln det V; NaN where V is not positive definite
+
+    Notes
+    -----
+    Each element is one array over (walkers, setups) and V is never formed:
+    for thousands of 6x6 matrices this is several times faster than LAPACK's
+    per-matrix calls.
+    """
+    d = Ct.shape[0]
+    L = [[None] * d for _ in range(d)]
+    logdet = 0.0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for j in range(d):
+            acc = Ct[j, j][None, :] + s2[:, j][:, None]
+            for k in range(j):
+                acc = acc - L[j][k] * L[j][k]
+            L[j][j] = np.sqrt(acc)
+            logdet = logdet + np.log(acc)
+            inv = 1.0 / L[j][j]
+            for i in range(j + 1, d):
+                acc = Ct[i, j][None, :]
+                for k in range(j):
+                    acc = acc - L[i][k] * L[j][k]
+                L[i][j] = acc * inv
+    return L, logdet
+
+
+def _forward(L, r):
+    """``L^-1 r`` for the factors of :func:`_factor`; r (d, W, n) -> list of d arrays (W, n)."""
+    d = len(L)
+    w = [None] * d
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for i in range(d):
+            acc = r[i]
+            for k in range(i):
+                acc = acc - L[i][k] * w[k]
+            w[i] = acc / L[i][i]
+    return w
+
+
+@dataclass(frozen=True)
+class Group:
+    """The surrogates of one holder type, laid out for the vectorised sums (setup axis last).
+
+    Attributes
+    ----------
+    holder_type : str
+    names : tuple of str, (n,) setups
+    x : (n,) covariate ln(d / 10 mm)
+    m : (n, d) surrogate means; C : (n, d, d) surrogate covariances
+    """
+
+    holder_type: str
+    names: tuple
+    x: np.ndarray
+    m: np.ndarray
+    C: np.ndarray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "x", np.asarray(self.x, dtype=float))
+        object.__setattr__(self, "m", np.asarray(self.m, dtype=float))
+        object.__setattr__(self, "C", np.asarray(self.C, dtype=float))
+        object.__setattr__(self, "mT", np.ascontiguousarray(self.m.T))
+        object.__setattr__(self, "Ct", np.ascontiguousarray(np.moveaxis(self.C, 0, -1)))
+
+    def without(self, i: int) -> "Group":
+        keep = np.arange(len(self.names)) != i
+        return Group(self.holder_type, tuple(n for k, n in enumerate(self.names) if keep[k]), self.x[keep],
+                     self.m[keep], self.C[keep])
+
+
+def _sums(g: Group, s2: np.ndarray):
+    """Per walker: ``S_p = sum_s x^p V^-1`` (p = 0, 1, 2; (W, d, d)), ``g_p = sum_s x^p V^-1 m`` (p = 0, 1;
+    (W, d)), ``q = sum_s m^T V^-1 m`` and ``sum_s ln det V`` ((W,)); NaN where a V is not positive definite."""
+    d, n = g.mT.shape
+    W = s2.shape[0]
+    L, logdet = _factor(g.Ct, s2)
+    y = _forward(L, np.broadcast_to(g.mT[:, None, :], (d, W, n)))
+    # A[w, s, k] = (row k of L^-1, x_s * row k of L^-1, y_k): V^-1 = sum_k Linv[k]^T Linv[k], so one batched
+    # product A^T A over (setups, k) gives every sum at once
+    A = np.zeros((W, n, d, 2 * d + 1))
+    xs = g.x[None, :]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        Linv = [[None] * d for _ in range(d)]
+        for i in range(d):
+            Linv[i][i] = 1.0 / L[i][i]
+            for j in range(i):
+                acc = L[i][j] * Linv[j][j]
+                for k in range(j + 1, i):
+                    acc = acc + L[i][k] * Linv[k][j]
+                Linv[i][j] = -acc * Linv[i][i]
+            for j in range(i + 1):
+                A[:, :, i, j] = Linv[i][j]
+                A[:, :, i, d + j] = Linv[i][j] * xs
+            A[:, :, i, 2 * d] = y[i]
+    A = A.reshape(W, n * d, 2 * d + 1)
+    G = np.swapaxes(A, 1, 2) @ A  # (W, 2d + 1, 2d + 1)
+    S0, S1, S2 = G[:, :d, :d], G[:, :d, d:2 * d], G[:, d:2 * d, d:2 * d]
+    return S0, S1, S2, G[:, :d, 2 * d], G[:, d:2 * d, 2 * d], G[:, 2 * d, 2 * d], np.sum(logdet, axis=1)
+
+
+def _split(theta: np.ndarray, T: int, d: int):
+    """(W, T, d) ln sigma and (W, d) tau_b of sampler coordinates (W, d (T + 1))."""
+    return theta[:, :T * d].reshape(-1, T, d), theta[:, T * d:]
+
+
+def _linear_system(theta: np.ndarray, groups, hyper: Hyperprior):
+    """Posterior precision ``P`` (W, K, K), right-hand side ``r`` (W, K) of ``beta`` and the rest of the log
+    marginal likelihood (W,), with ``K = 2 d T + d``; also the prior parts ``(mu0, p0)``."""
+    T, d = len(groups), hyper.ndim
+    u, tau_b = _split(theta, T, d)
+    W, K = theta.shape[0], 2 * d * T + d
+    mu0 = np.concatenate([np.tile(hyper.a_mean, T), np.zeros(T * d), np.zeros(d)])
+    p0 = np.concatenate([np.tile(hyper.a_sd ** -2, T), np.ones(T * d), hyper.b_sd ** -2])
+    P = np.zeros((W, K, K))
+    P[:, np.arange(K), np.arange(K)] = p0
+    r = np.broadcast_to(p0 * mu0, (W, K)).copy()
+    rest = np.zeros(W)
+    ib = slice(2 * d * T, K)
+    for t, g in enumerate(groups):
+        S0, S1, S2, g0, g1, q, ld = _sums(g, np.exp(2.0 * u[:, t, :]))
+        ia, idl = slice(t * d, (t + 1) * d), slice(T * d + t * d, T * d + (t + 1) * d)
+        D = tau_b[:, None, :]  # column scaling by tau_b
+        P[:, ia, ia] += S0
+        P[:, ia, idl] += S1 * D
+        P[:, idl, ia] += (S1 * D).transpose(0, 2, 1)
+        P[:, ia, ib] += S1
+        P[:, ib, ia] += S1
+        P[:, idl, idl] += S2 * D * tau_b[:, :, None]
+        P[:, idl, ib] += S2 * tau_b[:, :, None]
+        P[:, ib, idl] += S2 * D
+        P[:, ib, ib] += S2
+        r[:, ia] += g0
+        r[:, idl] += tau_b * g1
+        r[:, ib] += g1
+        rest = rest - 0.5 * (q + ld + len(g.names) * d * math.log(2 * math.pi))
+    return P, r, rest, mu0, p0
+
+
+def _chol(P: np.ndarray):
+    """Batched Cholesky; ``ok`` (W,) marks the walkers whose ``P`` is finite and positive definite."""
+    ok = np.all(np.isfinite(P), axis=(1, 2))
+    Lp = np.zeros_like(P)
+    Lp[:, np.arange(P.shape[1]), np.arange(P.shape[1])] = 1.0
+    if np.any(ok):
+        try:
+            Lp[ok] = np.linalg.cholesky(P[ok])
+        except np.linalg.LinAlgError:
+            for w in np.flatnonzero(ok):
+                try:
+                    Lp[w] = np.linalg.cholesky(P[w])
+                except np.linalg.LinAlgError:
+                    ok[w] = False
+    return Lp, ok
+
+
+def log_posterior(theta: np.ndarray, groups, hyper: Hyperprior) -> np.ndarray:
+    """Log posterior (W,) of the sampler coordinates ``(ln sigma_tj, tau_b,j)`` (W, d (T + 1)), beta integrated out."""
+    T, d = len(groups), hyper.ndim
+    u, tau_b = _split(theta, T, d)
+    lp = hyper.ln_prob_log_sigma(u) + hyper.ln_prob_tau_b(tau_b)
+    ok = np.isfinite(lp) & np.all(np.abs(u) < 50, axis=(1, 2))  # exp(2u) stays finite
+    out = np.full(theta.shape[0], -np.inf)
+    if not np.any(ok):
+        return out
+    P, r, rest, mu0, p0 = _linear_system(theta[ok], groups, hyper)
+    Lp, good = _chol(P)
+    v = np.linalg.solve(Lp, r[..., None])[..., 0] if Lp.shape[0] else r
+    diag = np.diagonal(Lp, axis1=1, axis2=2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ll = (rest - 0.5 * float(np.sum(p0 * mu0 * mu0)) + 0.5 * np.sum(v * v, axis=1) + 0.5 * float(np.sum(np.log(p0)))
+              - np.sum(np.log(diag), axis=1))
+    ll = np.where(good & np.isfinite(ll), ll, -np.inf)
+    out[ok] = lp[ok] + ll
+    return out
+
+
+def beta_posterior(theta: np.ndarray, groups, hyper: Hyperprior):
+    """Conditional normal of ``beta`` given sampler coordinates: mean (W, K) and Cholesky factor of its precision."""
+    P, r, _, _, _ = _linear_system(theta, groups, hyper)
+    Lp, _ = _chol(P)
+    mean = np.linalg.solve(np.swapaxes(Lp, 1, 2), np.linalg.solve(Lp, r[..., None]))[..., 0]
+    return mean, Lp
+
+
+def _type_draws(theta: np.ndarray, groups, hyper: Hyperprior, rng: np.random.Generator) -> list[np.ndarray]:
+    """Per type (H, 3d) draws of (a_t, b_t, sigma_t), one per row of ``theta`` (H, d (T + 1))."""
+    T, d = len(groups), hyper.ndim
+    out = [[] for _ in range(T)]
+    for lo in range(0, theta.shape[0], 1000):  # bounded memory: K x K per draw
+        th = theta[lo:lo + 1000]
+        mean, Lp = beta_posterior(th, groups, hyper)
+        eps = rng.standard_normal(mean.shape)
+        beta = mean + np.linalg.solve(np.swapaxes(Lp, 1, 2), eps[..., None])[..., 0]
+        u, tau_b = _split(th, T, d)
+        b0 = beta[:, 2 * d * T:]
+        for t in range(T):
+            a = beta[:, t * d:(t + 1) * d]
+            b = b0 + tau_b * beta[:, T * d + t * d:T * d + (t + 1) * d]
+            out[t].append(np.concatenate([a, b, np.exp(u[:, t, :])], axis=1))
+    return [np.concatenate(v) for v in out]
+
+
+def predictive_of_setup(theta: np.ndarray, groups, hyper: Hyperprior, t: int, m: np.ndarray, C: np.ndarray,
+                        x: float) -> np.ndarray:
+    """Mahalanobis distance (H,) of a setup's surrogate ``(m, C)`` of type ``t`` from the population predictive
+    given each row of ``theta``, with ``beta`` integrated out (its conditional normal from ``groups``)."""
+    T, d = len(groups), hyper.ndim
+    mean, Lp = beta_posterior(theta, groups, hyper)
+    u, tau_b = _split(theta, T, d)
+    H, K = mean.shape
+    X = np.zeros((H, d, K))  # design row of the setup: a_t + (b0 + tau_b delta_t) x
+    j = np.arange(d)
+    X[:, j, t * d + j] = 1.0
+    X[:, j, T * d + t * d + j] = tau_b * x
+    X[:, j, 2 * d * T + j] = x
+    mu = np.einsum("hjk,hk->hj", X, mean)
+    Z = np.linalg.solve(Lp, np.swapaxes(X, 1, 2))  # (H, K, d): X P^-1 X^T = Z^T Z
+    V = np.swapaxes(Z, 1, 2) @ Z + C[None] + np.eye(d)[None] * np.exp(2.0 * u[:, t, :])[:, None, :]
+    res = m[None, :] - mu
+    return np.einsum("hj,hj->h", res, np.linalg.solve(V, res[..., None])[..., 0])
+
+
+@dataclass(frozen=True)
+class Stage2Settings:
+    """How long stage 2 samples.
+
+    Attributes
+    ----------
+    n_burn : int, steps discarded after the start at the posterior mode
+    ess_target : float, effective draws (walkers x kept steps / max autocorrelation time) to reach
+    chunk : int, steps between checks of the ESS
+    max_steps : int, kept steps at most; reaching it is a warning
+    n_walkers : int or None
+        Default ``max(2 x ndim + 2, min(96, 16000 / n_setups))``: a call's
+        cost grows with walkers x setups, so a large library gets few
+        walkers, a small one (where the Python overhead dominates) many.
+    """
+
+    n_burn: int = 400
+    ess_target: float = 400.0
+    chunk: int = 250
+    max_steps: int = 10000
+    n_walkers: int | None = None
+
+
+@dataclass
+class TypeFit:
+    """Stage-2 posterior of one holder type (a view of the coupled fit).
+
+    Attributes
+    ----------
+    holder_type : str
+    names : tuple of str, setups of this type
+    x : (n,) covariate; m : (n, d); C : (n, d, d) surrogates
+    chain : (n_walkers, n_keep, 3d) hyperparameter draws (a_t, b_t, sigma_t)
+    tau : (ndim,) integrated autocorrelation times (steps) of the coupled chain
+    acceptance : float
+    warnings : list of str
+    """
+
+    holder_type: str
+    names: tuple
+    x: np.ndarray
+    m: np.ndarray
+    C: np.ndarray
+    chain: np.ndarray
+    tau: np.ndarray
+    acceptance: float
+    warnings: list = field(default_factory=list)
+
+    @property
+    def flat(self) -> np.ndarray:
+        """(n_walkers * n_keep, 3d) draws."""
+        return self.chain.reshape(-1, self.chain.shape[-1])
+
+    @property
+    def ess(self) -> float:
+        """Smallest effective sample size over the sampled hyperparameters (of the coupled chain)."""
+        return float(self.chain.shape[0] * self.n_steps / np.max(self.tau))
+
+    n_steps: int = 0
+
+
+@dataclass
+class HyperFit:
+    """The coupled stage-2 posterior.
+
+    Attributes
+    ----------
+    groups : tuple of Group, one per holder type (sorted)
+    theta : (H, d (T + 1)) kept sampler draws (ln sigma_tj, tau_b,j), evenly thinned
+    types : dict holder type -> TypeFit (draws of a_t, b_t, sigma_t; row i of every type from theta[i])
+    tau, acceptance, n_steps, warnings, n_walkers
+    """
+
+    groups: tuple
+    theta: np.ndarray
+    types: dict
+    tau: np.ndarray
+    acceptance: float
+    n_steps: int
+    warnings: list
+    n_walkers: int = 0
+
+    @property
+    def tau_b(self) -> np.ndarray:
+        """(H, d) draws of the slopes' spread between types."""
+        return self.theta[:, len(self.groups) * (self.theta.shape[1] // (len(self.groups) + 1)):]
+
+    @property
+    def ess(self) -> float:
+        return float(self.n_walkers * self.n_steps / np.max(self.tau))
+
+
+def _autocorr(chain: np.ndarray) -> np.ndarray:
+    """Integrated autocorrelation time (steps) per parameter of (walkers, steps, ndim), quietly."""
+    import logging
+
+    import emcee
+
+    log = logging.getLogger("emcee.autocorr")
+    level = log.level
+    log.setLevel(logging.ERROR)  # emcee logs a warning for short chains; ours goes into the outputs instead
+    # a walker that has not moved in the whole chain (rare, e.g. started where the density is tiny) has a zero
+    # autocovariance and would turn the estimate into NaN: estimate from the walkers that move
+    moving = np.all(np.ptp(chain, axis=1) > 0, axis=1)
+    if np.sum(moving) >= 2:
+        chain = chain[moving]
+    try:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            tau = np.asarray(emcee.autocorr.integrated_time(np.swapaxes(chain, 0, 1), quiet=True))
+        return np.where(np.isfinite(tau), tau, float(chain.shape[1]))
+    finally:
+        log.setLevel(level)
+
+
+def _start(groups, hyper: Hyperprior, rng, n_walkers) -> np.ndarray:
+    """Walkers around the posterior mode (L-BFGS from a moment estimate; gradient by central differences,
+    all 2 ndim + 1 points in one vectorised call)."""
+    from scipy.optimize import minimize
+
+    T, d = len(groups), hyper.ndim
+    ndim = d * (T + 1)
+    s_guess = np.exp(hyper.ls_mean)
+    u0 = []
+    for g in groups:
+        if g.m.shape[0] > 2:  # residual spread about a straight line in x, less the stage-1 width
+            X = np.column_stack([np.ones_like(g.x), g.x - g.x.mean()])
+            res = g.m - X @ np.linalg.lstsq(X, g.m, rcond=None)[0]
+            v = np.sum(res * res, axis=0) / (g.m.shape[0] - 2) - np.mean(np.diagonal(g.C, axis1=1, axis2=2), axis=0)
+            s = np.sqrt(np.maximum(v, (0.05 * s_guess) ** 2))
+        else:
+            s = s_guess
+        u0.append(np.log(np.clip(s, 0.02 * s_guess, 20 * s_guess)))
+    t0 = np.concatenate([np.concatenate(u0), 0.5 * hyper.tb_scale])
+    h = 1e-5 * np.eye(ndim)
+
+    def f(t):
+        v = -log_posterior(np.vstack([t, t + h, t - h]), groups, hyper)
+        if not np.all(np.isfinite(v)):
+            return float(v[0]) if np.isfinite(v[0]) else 1e300, np.zeros(ndim)
+        return float(v[0]), (v[1:ndim + 1] - v[ndim + 1:]) / 2e-5
+
+    bounds = [(-30.0, 10.0)] * (T * d) + [(1e-3 * v, None) for v in hyper.tb_scale]
+    res = minimize(f, t0, jac=True, method="L-BFGS-B", bounds=bounds, options={"maxiter": 500})
+    t = res.x if np.isfinite(res.fun) and res.fun <= f(t0)[0] else t0
+    scale = np.concatenate([np.full(T * d, 0.05), 0.05 * hyper.tb_scale])
+    start = t + scale * rng.standard_normal((n_walkers, ndim))
+    start[:, T * d:] = np.abs(start[:, T * d:])
+    lp = log_posterior(start, groups, hyper)
+    start[~np.isfinite(lp)] = t
+    return start
+
+
+def fit_hyper(groups, hyper: Hyperprior, rng: np.random.Generator, settings: Stage2Settings = Stage2Settings(),
+              start_from: np.ndarray | None = None, type_draws: bool = True) -> HyperFit:
+    """Sample the coupled hyperparameters of all holder types (one emcee, vectorised over walkers and setups).
+
+    Parameters
+    ----------
+    groups : sequence of Group, one per holder type
+    hyper : Hyperprior
+    rng : numpy Generator
+    settings : Stage2Settings
+    start_from : (H, d (T + 1)) or None
+        Draws of a nearby posterior (e.g. the full library's for a leave-one-out refit): the walkers start
+        at randomly chosen rows instead of around the mode found by L-BFGS.
+    type_draws : bool
+        Draw each type's ``(a_t, b_t, sigma_t)`` (``types`` of the result); a leave-one-out refit needs only
+        the sampler draws.
+    """
+    import emcee
+
+    groups = tuple(groups)
+    T, d = len(groups), hyper.ndim
+    ndim = d * (T + 1)
+    n_setups = sum(len(g.names) for g in groups)
+    n_walkers = settings.n_walkers or max(2 * ndim + 2, min(96, 16000 // max(1, n_setups)))
+    n_walkers += n_walkers % 2
+    if start_from is not None and start_from.shape[0] >= n_walkers and start_from.shape[1] == ndim:
+        start = start_from[rng.choice(start_from.shape[0], n_walkers, replace=False)]
+    else:
+        start = _start(groups, hyper, rng, n_walkers)
+    sampler = emcee.EnsembleSampler(n_walkers, ndim, log_posterior, args=(groups, hyper), vectorize=True,
+                                    moves=[(emcee.moves.StretchMove(), 1.0)])
+    # emcee draws from a private RandomState: seed it from our generator (the global state is never touched)
+    rstate = np.random.RandomState(int(rng.integers(0, 2**32 - 1))).get_state()
+    state = sampler.run_mcmc(emcee.State(start, random_state=rstate), settings.n_burn, progress=False)
+    sampler.reset()
+    n_kept = 0
+    while True:
+        state = sampler.run_mcmc(state, settings.chunk, progress=False)
+        n_kept += settings.chunk
+        chain = np.swapaxes(sampler.get_chain(), 0, 1)  # (walkers, steps, ndim)
+        tau = _autocorr(chain)
+        ess = n_walkers * n_kept / np.max(tau)
+        # the autocorrelation estimate itself needs a chain of >~10 tau to be trusted
+        if (ess >= settings.ess_target and n_kept >= 10 * np.max(tau)) or n_kept >= settings.max_steps:
+            break
+    warns = []
+    if ess < settings.ess_target or n_kept < 10 * np.max(tau):
+        warns.append(f"stage 2 stopped at {n_kept} steps with ESS {ess:.0f} (target {settings.ess_target:g}) and "
+                     f"autocorrelation time {np.max(tau):.0f}; the hyperparameter intervals are approximate")
+    n_keep = int(np.clip(2e6 / n_setups, MIN_KEPT, MAX_KEPT))
+    step = max(1, int(math.ceil(chain.shape[0] * chain.shape[1] / n_keep)))
+    kept = chain[:, ::step]
+    theta = kept.reshape(-1, ndim)
+    draws = _type_draws(theta, groups, hyper, rng) if type_draws else [np.zeros((theta.shape[0], 0))] * T
+    acc = float(np.mean(sampler.acceptance_fraction))
+    types = {}
+    for g, dr in zip(groups, draws):
+        tw = []
+        if len(g.names) < 3:
+            tw.append(f"holder type {g.holder_type}: {len(g.names)} combination(s); its mean and slope lean on the "
+                      "other types and the hyperprior (a weak fit)")
+        types[g.holder_type] = TypeFit(g.holder_type, g.names, g.x, g.m, g.C, dr.reshape(kept.shape[0], kept.shape[1], -1),
+                                       np.asarray(tau), acc, tw, n_kept)
+        warns += tw
+    return HyperFit(groups, theta, types, np.asarray(tau), acc, n_kept, warns, n_walkers)
