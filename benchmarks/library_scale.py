@@ -2,16 +2,17 @@
 
 Stage-1 posteriors are synthetic (Gaussian draws around each combination's law, 1,000 draws of the six pooled
 coordinates, as narrow as the bench's identify posteriors): the point is the time of stage 2 (surrogates, one
-emcee fit per holder type, per-setup importance ESS and pooled estimates) and of the leave-one-out outlier check,
+coupled emcee fit of all holder types, per-setup importance ESS and pooled estimates) and of the leave-one-out outlier check,
 not the physics.  Seeds 5000+ (the development seeds were 0-99).
 
     python3 benchmarks/library_scale.py [N_COMBINATIONS] [REPEATS]
     python3 benchmarks/library_scale.py joint [REPLICATES] [SCALE]
 
 Prints one line per repeat and the median; the table goes to docs/library.md ("Scale").  ``joint`` checks
-stage 2 against joint emcee on 4-combination stand-ins (two pooled coordinates, exactly Gaussian stage-1
-likelihoods): per replicate the largest |median difference| / posterior sd and the largest difference of a 90 %
-interval end / the joint interval's width over the six hyperparameters (docs/library.md, "Stage 2").
+stage 2 against joint emcee on 4-combination stand-ins (two holder types of two, two pooled coordinates,
+exactly Gaussian stage-1 likelihoods): per replicate the largest |median difference| / posterior sd and the
+largest difference of a 90 % interval end / the joint interval's width over the 14 hyperparameters (a, b, sigma
+per type and coordinate, tau_b per coordinate; docs/library.md, "Stage 2").
 """
 
 from __future__ import annotations
@@ -23,10 +24,10 @@ import time
 
 import numpy as np
 
+from bayes_rcsa.library.hierarchy import Group, fit_hyper
 from bayes_rcsa.library.joint import gaussian_log_likelihood, sample_joint
 from bayes_rcsa.library.outliers import flag_outliers, loo_p_values
 from bayes_rcsa.library.population import COORDINATES, Hyperprior, covariate
-from bayes_rcsa.library.hierarchy import Group, fit_hyper
 from bayes_rcsa.library.stage2 import SetupDraws, Stage2Settings, fit_population, surrogate
 
 BOX = np.array([[5.0, 9.0], [3.0, 8.0], [0.0, 1.5], [0.0, 1.5], [0.0, 4.0], [-6.0, 0.0]])
@@ -77,38 +78,49 @@ def main(n: int = 1000, repeats: int = 3) -> None:
 
 
 def joint_check(replicates: int = 5, scale: int = 1) -> None:
-    """``scale`` multiplies stage 2's ESS target and the joint chain's length (Monte Carlo error of the tails)."""
+    """Two holder types of two combinations each (4 in all), two pooled coordinates: per type (a, b, sigma) of
+    both coordinates and the slopes' spread tau_b, 14 hyperparameters.  ``scale`` multiplies stage 2's ESS
+    target and the joint chain's length (Monte Carlo error of the tails)."""
     names = ("k_xf", "g_xf")
     box = np.array([[4.0, 10.0], [0.0, 1.5]])
     hyper = Hyperprior.from_box(names, box, 1.5)
-    dia = np.array([0.006, 0.009, 0.013, 0.018])
+    dia = np.array([0.006, 0.013, 0.009, 0.018])
+    types = np.array([0, 0, 1, 1])
     x = covariate(dia)
     worst = []
-    print("replicate  max |d median| / sd  max |d end| / width  (over a, b, sigma of both coordinates)")
+    print("replicate  max |d median| / sd  max |d end| / width  (over a, b, sigma of both types and coordinates, "
+          "and tau_b)")
     for r in range(replicates):
         rng = np.random.default_rng(5100 + r)
-        exact, setups = [], []
+        exact = []
         for i in range(4):
-            z = np.array([7.0 + 1.5 * x[i], 0.6]) + np.array([0.15, 0.1]) * rng.standard_normal(2)
+            z = np.array([7.0 + 0.2 * types[i] + 1.5 * x[i], 0.6]) + np.array([0.15, 0.1]) * rng.standard_normal(2)
             C = np.array([[0.04, 0.015], [0.015, 0.02]]) * rng.uniform(0.5, 2.0)
-            m = z + np.linalg.cholesky(C) @ rng.standard_normal(2)
-            exact.append((m, C))
-            draws = m + rng.standard_normal((4000, 2)) @ np.linalg.cholesky(C).T
-            setups.append(SetupDraws(f"s{i}", "T", dia[i], draws, np.zeros(2), np.zeros((2, 2)),
-                                     np.array([[-50.0, 50.0], [-50.0, 50.0]])))
-        sur = [surrogate(s) for s in setups]
-        fit = fit_type("T", [s.name for s in setups], x, np.array([v[0] for v in sur]), np.array([v[1] for v in sur]),
-                       hyper, rng, Stage2Settings(ess_target=3000 * scale))
-        joint = sample_joint([gaussian_log_likelihood(m, C) for m, C in exact], x, hyper, rng, n_steps=8000 * scale,
-                             n_burn=4000)
+            exact.append((z + np.linalg.cholesky(C) @ rng.standard_normal(2), C))
+        groups = []
+        for t in (0, 1):
+            idx = np.flatnonzero(types == t)
+            sur = []
+            for i in idx:  # stage-1 draws of the exact likelihood under a flat prior, and their surrogate
+                m, C = exact[i]
+                draws = m + rng.standard_normal((4000, 2)) @ np.linalg.cholesky(C).T
+                sur.append(surrogate(SetupDraws(f"s{i}", f"T{t}", dia[i], draws, np.zeros(2), np.zeros((2, 2)),
+                                                np.array([[-50.0, 50.0], [-50.0, 50.0]])))[:2])
+            groups.append(Group(f"T{t}", tuple(f"s{i}" for i in idx), x[idx], np.array([v[0] for v in sur]),
+                                np.array([v[1] for v in sur])))
+        fit = fit_hyper(groups, hyper, rng, Stage2Settings(ess_target=3000 * scale))
+        joint = sample_joint([gaussian_log_likelihood(m, C) for m, C in exact], types, x, hyper, rng,
+                             n_steps=8000 * scale, n_burn=4000)
+        pairs = [(fit.types[f"T{t}"].flat[:, j], joint["types"][t][:, j]) for t in (0, 1) for j in range(6)]
+        pairs += [(fit.tau_b[:, j], joint["tau_b"][:, j]) for j in range(2)]
         dm, de = 0.0, 0.0
-        for j in range(6):
-            qj = np.quantile(joint[:, j], [0.05, 0.5, 0.95])
-            q2 = np.quantile(fit.flat[:, j], [0.05, 0.5, 0.95])
-            dm = max(dm, abs(q2[1] - qj[1]) / np.std(joint[:, j]))
+        for two, ref in pairs:
+            qj = np.quantile(ref, [0.05, 0.5, 0.95])
+            q2 = np.quantile(two, [0.05, 0.5, 0.95])
+            dm = max(dm, abs(q2[1] - qj[1]) / np.std(ref))
             de = max(de, float(np.max(np.abs(q2[[0, 2]] - qj[[0, 2]]))) / (qj[2] - qj[0]))
         worst.append((dm, de))
-        print(f"{r:9d}  {dm:20.3f}  {de:19.3f}")
+        print(f"{r:9d}  {dm:20.3f}  {de:19.3f}", flush=True)
     print(f"largest: {max(w[0] for w in worst):.3f} sd, {max(w[1] for w in worst):.3f} of the width "
           "(acceptance: 0.2 sd, 0.10)")
 

@@ -204,6 +204,10 @@ def test_library_outputs_and_the_report_section(tmp_path):
     er32 = next(r for r in laws if r["holder_type"] == "ER32" and r["parameter"] == "k_xf")
     # the population median at 10 mm is 10^7 N/m (the stand-in's law), its interval around it
     assert er32["median_at_10mm_q05"] < 1e7 < er32["median_at_10mm_q95"] and er32["unit"] == "N/m"
+    # what the two types share (model version 2): the spreads' level, here the stand-in's 0.05 decade for both
+    pool = json.loads((tmp_path / "lib" / "library.json").read_text())["pooling"]["coordinates"]["k_xf"]
+    assert pool["sigma_geometric_mean"][0] < 0.05 < pool["sigma_geometric_mean"][2], pool
+    assert 0 <= pool["tau_b"][0] <= pool["tau_b"][1] <= pool["tau_b"][2] and pool["sigma_max_over_min"][0] >= 1
     html = write_report_html([tmp_path / "lib"], tmp_path / "report.html").read_text()
     assert "Tool library: the contact population" in html and html.count("<td>ER32</td><td>k_xf</td>") == 1
     assert "shrinkage: own vs pooled estimates" in html

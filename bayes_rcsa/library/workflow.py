@@ -15,7 +15,7 @@ from .predictive import Population
 from .stage1 import Stage1
 from .stage2 import ESS_MIN, Stage2Result, Stage2Settings, fit_population
 
-__all__ = ["LibraryFit", "fit_library", "write_library", "OUTPUT_FILES"]
+__all__ = ["LibraryFit", "fit_library", "write_library", "pooling_summary", "OUTPUT_FILES"]
 
 #: Files ``bayes-rcsa library`` writes beside the stage-1 folder ``setups/``.
 OUTPUT_FILES = ("population.nc", "laws.json", "laws.csv", "library.json", "shrinkage.png")
@@ -72,21 +72,42 @@ def fit_library(stage1: Stage1, rng: np.random.Generator, settings: Stage2Settin
     return LibraryFit(pop, res, rows, list(dict.fromkeys(warns)))
 
 
+def pooling_summary(fit: LibraryFit) -> dict:
+    """What the types share: per coordinate the q05/q50/q95 of the slopes' spread between types ``tau_b`` (units
+    of the coordinate per e-fold of diameter) and of the types' spreads' geometric mean and ratio max/min."""
+    hf = fit.stage2.fit
+    if hf is None:
+        return {}
+    names = fit.population.names
+    d, T = len(names), len(hf.groups)
+    ln_s = hf.theta[:, :T * d].reshape(-1, T, d)
+    q = (0.05, 0.5, 0.95)
+    out = {}
+    for j, n in enumerate(names):
+        out[n] = {"tau_b": [float(v) for v in np.quantile(hf.tau_b[:, j], q)],
+                  "sigma_geometric_mean": [float(v) for v in np.exp(np.quantile(ln_s[:, :, j].mean(axis=1), q))],
+                  "sigma_max_over_min": [float(v) for v in np.exp(np.quantile(np.ptp(ln_s[:, :, j], axis=1), q))]}
+    return {"coordinates": out, "stage2_ess": hf.ess, "stage2_steps": hf.n_steps,
+            "sampler": "one emcee over ln sigma per type and coordinate and tau_b per coordinate"}
+
+
 def write_library(out_dir, fit: LibraryFit, plots: bool = True, attrs: dict | None = None) -> dict[str, Path]:
     """population.nc, laws.json/csv, library.json (per-setup rows, ESS, outliers, warnings), shrinkage.png."""
     from ..io.atomic import atomic_write_text
     from .outputs import law_table, shrinkage_plot, write_law_table, write_population
 
     out = Path(out_dir)
+    pooling = pooling_summary(fit)
     paths = {"population": write_population(out / "population.nc", fit.population, fit.setups,
                                             fit.stage2.hyper.describe(),
-                                            {"warnings": json.dumps(fit.warnings), **(attrs or {})})}
+                                            {"warnings": json.dumps(fit.warnings), "pooling": json.dumps(pooling),
+                                             **(attrs or {})})}
     laws = law_table(fit.population)
     paths["laws_json"], paths["laws_csv"] = write_law_table(out, laws)
     stage2 = {t: {"n_setups": len(f.names), "ess": f.ess, "acceptance": f.acceptance,
                   "autocorrelation_steps": float(np.max(f.tau))} for t, f in fit.stage2.types.items()}
     doc = {"holder_types": list(fit.population.holder_types), "coordinates": list(fit.population.names),
-           "stage2": stage2, "setups": fit.setups, "laws": laws,
+           "stage2": stage2, "pooling": pooling, "setups": fit.setups, "laws": laws,
            "outliers": [r["name"] for r in fit.setups if r.get("outlier")], "warnings": fit.warnings}
     atomic_write_text(out / "library.json", json.dumps(doc, indent=1, default=float))
     paths["json"] = out / "library.json"
