@@ -303,3 +303,30 @@ def test_spindle_error_moves_the_file_towards_the_true_spindle(tmp_path_factory)
         assert _rel(after[j], truth[j]) < 5e-3 < 0.03 < _rel(before[j], truth[j])
     # the bearing-dominated 710 Hz flange mode: modal stiffness 1/1.15 - 1 = -13 % (measured -15 %)
     assert -0.18 < fit.x[1] < -0.10
+
+
+def test_law_shape_uncertainty_spans_the_two_spring_laws_and_keeps_the_ends():
+    # Two springs in series, k(l) = k1 c l / (k1 + c l): for every stiffness ratio the normalised shape lies
+    # between the linear law (u = 0) and the term's limit (u = 1), so u in [0, 1] covers the two-spring family
+    # and the prior's mirror [-1, 0] the same bend the other way.
+    from bayes_rcsa.params.terms.law_shape_uncertainty import two_spring_limit
+
+    l_a, l_b = 0.025, 0.040
+    lengths = np.linspace(l_a, l_b, 7)
+    x = (lengths - l_a) / (l_b - l_a)
+    for k1_over_c in (1e-4, 0.01, 0.03, 0.1, 10.0):  # m: from contact-dominated to collet-dominated
+        k = lengths / (k1_over_c + lengths)
+        shape = (k - k[0]) / (k[-1] - k[0])
+        assert np.all(shape >= x - 1e-12) and np.all(shape <= two_spring_limit(x, l_b / l_a) + 1e-12)
+    term = make_term("law_shape_uncertainty")
+    assert term.role == "discrepancy" and term.min_clamping_lengths == 2
+    vals = {"k_xf": np.array([1e7, 1e7, 1e7]), "k_thetaM": np.array([1e5] * 3), "g_xf": np.array([0.4] * 3),
+            "g_thetaM": np.array([0.2] * 3), "law_shape_bend": np.array([0.0, 1.0, -1.0])}
+    lin_k = vals["k_xf"][:, None] * (1 + 0.4 * x[None, :])
+    lin_r = vals["k_thetaM"][:, None] * (1 + 0.2 * x[None, :])
+    zeros = np.zeros_like(lin_k)
+    out = term.joint(vals, Contact(lin_k, lin_r, zeros, zeros), lengths, l_a, l_b)
+    assert np.array_equal(out.k_xf[0], lin_k[0])  # u = 0: exactly the linear law
+    np.testing.assert_allclose(out.k_xf[:, [0, -1]], lin_k[:, [0, -1]], rtol=1e-12)  # the ends are kept
+    np.testing.assert_allclose(out.k_xf[1], 1e7 * (1 + 0.4 * two_spring_limit(x, l_b / l_a)), rtol=1e-12)
+    assert np.all(out.k_xf[2, 1:-1] < lin_k[2, 1:-1]) and np.all(out.k_thetaM[1, 1:-1] > lin_r[1, 1:-1])

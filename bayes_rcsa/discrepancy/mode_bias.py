@@ -11,12 +11,24 @@ machinist uses, the frequency of each mode:
 
 ``f_k(l) = f_model,k(l; theta) + delta_k(l)``, with the bias ``delta_k`` of
 mode ``k`` (per direction, modes in frequency order among the matched ones)
-a Gaussian process over clamping length,
+a Gaussian process over clamping length with an unknown constant mean
+(Kennedy & O'Hagan's regression mean ``h(l) beta`` with ``h = 1`` and a flat
+prior on ``beta``: universal kriging),
 
-* zero mean, squared-exponential kernel ``a_k^2 exp(-(l - l')^2 / (2 lam^2))``;
-* amplitude ``a_k^2`` = the mean of ``delta_k^2`` over the fitted lengths plus
-  their measurement variance (a moment estimate: the prior spread of the
-  bias is the bias seen);
+* kernel ``a_k^2 exp(-(l - l')^2 / (2 lam^2))`` (squared exponential);
+* the constant ``beta`` is the bias shared by every length: a model that is
+  off by the same few hertz everywhere (a wrong modulus, a softer holder)
+  is corrected by it, with the uncertainty the noise of the measured peaks
+  leaves, and needs no large amplitude to do so;
+* amplitude ``a_k^2``: how much the bias *changes* between lengths, the
+  sample variance over the fitted lengths of the posterior-median bias,
+  but never less than the measured peak's noise variance (two or three
+  fitted lengths cannot show a smaller variation).  It is estimated from
+  the median over draws, not from every draw: the draws' spread is
+  parameter uncertainty, which the draws themselves carry to every length,
+  and counting it again in the bias's prior would count it twice.  With
+  one fitted length the variation is not seen at all, and the prior spread
+  is the bias seen (``bias^2`` + noise variance);
 * length scale ``lam`` = half the span of the fitted lengths (the bias may
   change its course once between the outermost fitted lengths; a longer
   scale would trust the interpolation more than two or three points allow);
@@ -30,9 +42,10 @@ a Gaussian process over clamping length,
 
 The corrected draws are the model's mode-frequency draws plus the shift
 ``mu_k(l)`` and an independent Gaussian of variance ``v_k(l)``, the GP
-posterior at ``l``: at a fitted length they sit on the measured frequency
-within its noise; between fitted lengths they widen.  Only mode
-frequencies are corrected; the FRF, gap and stiffness are not.
+posterior at ``l`` (including the uncertainty of ``beta``): at a fitted
+length they sit on the measured frequency within its noise; between fitted
+lengths they widen with the bias's variation.  Only mode frequencies are
+corrected; the FRF, gap and stiffness are not.
 """
 
 from __future__ import annotations
@@ -43,11 +56,12 @@ import numpy as np
 
 __all__ = ["correct_mode_frequencies", "BIAS_RULE"]
 
-BIAS_RULE = ("remainder mode-frequency bias: per direction and mode order, a zero-mean Gaussian process over "
-             "clamping length (squared-exponential, amplitude^2 = mean of the fitted-length biases^2 plus their "
-             "measurement variance, length scale = half the fitted span) conditioned, per posterior draw, on "
-             "measured - model frequency at the fitted lengths; its posterior mean (per draw) and variance are "
-             "added to the model's draws")
+BIAS_RULE = ("remainder mode-frequency bias: per direction and mode order, a Gaussian process over clamping "
+             "length with an unknown constant mean (flat prior; universal kriging), squared-exponential kernel, "
+             "amplitude^2 = sample variance of the posterior-median bias over the fitted lengths but at least "
+             "the measured peak's noise variance (one fitted length: bias^2 + noise variance), length scale = "
+             "half the fitted span, conditioned per posterior draw on measured - model frequency at the fitted "
+             "lengths; its posterior mean (per draw) and variance are added to the model's draws")
 
 
 def _quantiles(x: np.ndarray) -> dict:
@@ -55,18 +69,70 @@ def _quantiles(x: np.ndarray) -> dict:
     return {"q05": float(q[0]), "q50": float(q[1]), "q95": float(q[2])}
 
 
-def _gp_weights(x_obs, noise_var, x_new, amp2: float, lam: float):
-    """Kriging weights ``W`` (n_obs, n_new) and posterior variances (n_new,) of a zero-mean GP.
+def _robust_var(x: np.ndarray) -> float:
+    """``(1.4826 MAD)^2`` of the finite values of ``x``: the variance for Gaussian data, robust to outliers."""
+    x = x[np.isfinite(x)]
+    if x.size < 2:
+        return 0.0
+    return float((1.4826 * np.median(np.abs(x - np.median(x)))) ** 2)
 
-    The posterior mean at ``x_new`` of observations ``y`` is ``y @ W`` for any batch of ``y`` (n_draws, n_obs).
+
+def _basis(x: np.ndarray, centre: float, scale: float, degree: int) -> np.ndarray:
+    """Regression basis ``h(l)`` of the bias's mean: 1, and ``(l - centre) / scale`` for degree 1; (n, degree + 1)."""
+    t = (np.asarray(x, dtype=float) - centre) / scale
+    return np.column_stack([t**k for k in range(degree + 1)])
+
+
+def _gp_weights(x_obs, noise_var, x_new, amp2: float, lam: float, degree: int = 1):
+    """Universal-kriging weights ``W`` (n_obs, n_new) and posterior variances (n_new,).
+
+    A GP with squared-exponential kernel (amplitude² ``amp2``, length scale
+    ``lam``) plus an unknown polynomial mean of ``degree`` (0: a constant,
+    1: a straight line in clamping length) under a flat prior, observed at
+    ``x_obs`` with independent noise variances ``noise_var``.  The posterior
+    mean at ``x_new`` of observations ``y`` is ``y @ W`` for any batch of
+    ``y`` (n_draws, n_obs): the weights reproduce the mean's polynomial
+    exactly, so a bias shared by all observations (or changing linearly) is
+    carried unshrunk.  The variance includes the uncertainty of the mean's
+    coefficients (Rasmussen & Williams 2006, eq. 2.42 with a vague prior).
     """
     x_obs, noise_var, x_new = (np.asarray(v, dtype=float) for v in (x_obs, noise_var, x_new))
+    degree = min(degree, x_obs.size - 1)
+    centre, scale = float(np.mean(x_obs)), max(float(np.ptp(x_obs)), lam)
+    h, hs = _basis(x_obs, centre, scale, degree), _basis(x_new, centre, scale, degree)
     k = lambda a, b: amp2 * np.exp(-0.5 * ((a[:, None] - b[None, :]) / lam) ** 2)  # noqa: E731
     kxx = k(x_obs, x_obs) + np.diag(noise_var) + 1e-12 * amp2 * np.eye(x_obs.size)
     kxs = k(x_obs, x_new)
-    w = np.linalg.solve(kxx, kxs)
-    var = amp2 - np.einsum("ij,ij->j", kxs, w)
+    a = np.linalg.solve(kxx, kxs)  # K^-1 k*   (n_obs, n_new)
+    b = np.linalg.solve(kxx, h)  # K^-1 H      (n_obs, p)
+    m = h.T @ b  # H^T K^-1 H                  (p, p)
+    r = hs.T - h.T @ a  # what the kriging weights leave of the mean's basis   (p, n_new)
+    c = np.linalg.solve(m, r)
+    w = a + b @ c
+    var = amp2 - np.einsum("ij,ij->j", kxs, a) + np.einsum("ij,ij->j", r, c)
     return w, np.maximum(var, 0.0)  # round-off only: the GP posterior variance is >= 0 exactly
+
+
+def _amplitude2(x: np.ndarray, y: np.ndarray, noise_var: np.ndarray, degree: int = 1) -> float:
+    """The kernel's amplitude² (Hz²) from the per-draw biases ``y`` (n_draws, n_fitted) and their noise variances.
+
+    How far the bias departs from its mean's polynomial between lengths: the residual variance of the
+    posterior-median bias about its least-squares polynomial over the fitted lengths, floored at the mean
+    noise variance (two or three fitted lengths cannot show a smaller departure); with a single fitted
+    length, the bias seen (bias² + noise variance).
+    """
+    ym = np.median(y, axis=0)
+    nv = float(np.mean(noise_var))
+    if ym.size < 2:
+        return float(ym[0] ** 2) + nv
+    degree = min(degree, ym.size - 1)
+    dof = ym.size - degree - 1
+    if dof <= 0:
+        return nv
+    x = np.asarray(x, dtype=float)
+    h = _basis(x, float(np.mean(x)), float(np.ptp(x)), degree)
+    res = ym - h @ np.linalg.lstsq(h, ym, rcond=None)[0]
+    return max(float(np.sum(res**2) / dof), nv)
 
 
 def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Generator) -> list:
@@ -106,10 +172,12 @@ def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Gen
             b = measurements[j]["modes"][i]["measured_hz"] - fd
             cols.append(np.where(np.isfinite(b), b, np.nanmedian(b)))
             # the measured peak's noise: predictive minus model draw *of the same draw* (the noise's effect on
-            # the peak alone; a difference of the two spreads is swamped by the parameter spread)
-            nv.append(float(np.nanvar(fp - fd)))
+            # the peak alone; a difference of the two spreads is swamped by the parameter spread).  A robust
+            # variance (1.4826 MAD)^2: a few noisy draws whose tracked peak jumps to a noise spike at the edge of
+            # the mode's window would otherwise set the variance of every draw
+            nv.append(_robust_var(fp - fd))
         y, nv = np.column_stack(cols), np.array(nv)  # (n_draws, n_fitted), (n_fitted,)
-        amp2 = float(np.mean(y**2) + np.mean(nv))
+        amp2 = _amplitude2(np.array(xl), y, nv)
         span = max(xl) - min(xl)
         lam = 0.5 * span if span > 0 else 0.01
         if amp2 <= 0:
