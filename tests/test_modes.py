@@ -261,3 +261,17 @@ def test_measurement_noise_is_estimated_without_a_model():
     assert relative_noise_scale(noisy) == pytest.approx(0.02, rel=0.10)
     assert relative_noise_scale(h) < 0.002  # a noise-free FRF: only the curvature of the peaks
     assert np.isnan(relative_noise_scale(h[:4]))
+
+
+def test_bias_with_repeated_taps_at_one_length_is_a_constant_and_widens_away_from_it():
+    # two taps at 25 mm, none elsewhere: no straight line can be fitted (a singular design would crash), the
+    # bias is one constant, and at 35 mm its uncertainty includes the unseen change with length
+    from bayes_rcsa.discrepancy.mode_bias import correct_mode_frequencies
+
+    rng = np.random.default_rng(14)
+    meas, draws = _bias_case(rng, (0.025, 0.025, 0.035), {0.025: 10.0}, 10.0)
+    meas[1]["fitted"] = True
+    correct_mode_frequencies(meas, draws, rng)
+    fitted, held = meas[0]["modes"][0], meas[2]["modes"][0]
+    assert fitted["bias_hz"]["mean"] == pytest.approx(10.0, abs=1.5)
+    assert np.isfinite(held["bias_hz"]["sd"]) and held["bias_hz"]["sd"] > 2 * fitted["bias_hz"]["sd"]

@@ -97,7 +97,8 @@ def _gp_weights(x_obs, noise_var, x_new, amp2: float, lam: float, degree: int = 
     coefficients (Rasmussen & Williams 2006, eq. 2.42 with a vague prior).
     """
     x_obs, noise_var, x_new = (np.asarray(v, dtype=float) for v in (x_obs, noise_var, x_new))
-    degree = min(degree, x_obs.size - 1)
+    # a straight line needs two distinct lengths (repeated taps at one length give one)
+    degree = min(degree, np.unique(x_obs).size - 1)
     centre, scale = float(np.mean(x_obs)), max(float(np.ptp(x_obs)), lam)
     h, hs = _basis(x_obs, centre, scale, degree), _basis(x_new, centre, scale, degree)
     k = lambda a, b: amp2 * np.exp(-0.5 * ((a[:, None] - b[None, :]) / lam) ** 2)  # noqa: E731
@@ -119,18 +120,18 @@ def _amplitude2(x: np.ndarray, y: np.ndarray, noise_var: np.ndarray, degree: int
     How far the bias departs from its mean's polynomial between lengths: the residual variance of the
     posterior-median bias about its least-squares polynomial over the fitted lengths, floored at the mean
     noise variance (two or three fitted lengths cannot show a smaller departure); with a single fitted
-    length, the bias seen (bias² + noise variance).
+    length (tapped once or repeatedly), the bias seen (mean bias² + noise variance).
     """
     ym = np.median(y, axis=0)
     nv = float(np.mean(noise_var))
-    if ym.size < 2:
-        return float(ym[0] ** 2) + nv
-    degree = min(degree, ym.size - 1)
+    x = np.asarray(x, dtype=float)
+    if np.unique(x).size < 2:  # one length (perhaps tapped repeatedly): its change with length is not seen
+        return float(np.mean(ym**2)) + nv
+    degree = min(degree, np.unique(x).size - 1)
     dof = ym.size - degree - 1
     if dof <= 0:
         return nv
-    x = np.asarray(x, dtype=float)
-    h = _basis(x, float(np.mean(x)), float(np.ptp(x)), degree)
+    h = _basis(x, float(np.mean(x)), max(float(np.ptp(x)), 1e-3), degree)
     res = ym - h @ np.linalg.lstsq(h, ym, rcond=None)[0]
     return max(float(np.sum(res**2) / dof), nv)
 
