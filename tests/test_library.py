@@ -206,16 +206,17 @@ def three_types():
 def test_a_contact_three_times_softer_is_flagged_with_four_combinations_per_type(three_types):
     # the #20 acceptance at the size that failed before the types were pooled: three types of four, one
     # combination of the type with the widest spread (an ER32 collet) clamped badly, both stiffnesses 3x
-    # softer: flagged, and nothing else, nor anything in the clean library
-    hyper, clean, res = three_types
+    # softer: flagged, and none of the eleven clean ones (the false-flag rate of whole clean libraries is
+    # the benchmark's: 0/10, docs/library.md)
+    hyper, _, _ = three_types
     rng = np.random.default_rng(23)
-    flagged = []
-    for setups, fit in ((clean, res), (_three_types(21, softer=1), None)):
-        fit = fit or fit_population(setups, hyper, rng, _CHEAP)
-        rows, _ = flag_outliers(loo_p_values(fit.fit, hyper, rng, settings=_CHEAP, n_draws=300), len(setups))
-        assert all(r["method"] == "exact" for r in rows)
-        flagged.append({r["name"] for r in rows if r["outlier"]})
-    assert flagged == [set(), {"ER32_1"}], flagged
+    setups = _three_types(21, softer=1)
+    fit = fit_population(setups, hyper, rng, _CHEAP)
+    rows, _ = flag_outliers(loo_p_values(fit.fit, hyper, rng, settings=_CHEAP, n_draws=300), len(setups))
+    assert all(r["method"] == "exact" for r in rows)
+    assert {r["name"] for r in rows if r["outlier"]} == {"ER32_1"}, rows
+    # the clean ones are not near the threshold either (Bonferroni 0.05 / 12 = 0.0042)
+    assert min(r["p_value"] for r in rows if r["name"] != "ER32_1") > 0.01, rows
 
 
 def test_pooled_zero_tap_predictive_is_narrower_than_one_type_alone_and_covers(three_types):
