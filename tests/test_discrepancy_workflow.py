@@ -241,6 +241,10 @@ def test_unexplained_effect_gets_the_statistical_discrepancy_and_wider_intervals
     assert width(f_interval(r["measurements_after"])) < 0.05 * f30
     assert inside(r["stiffness_after"]["k_xf"]["25"], cfg.k_xf)
     assert "cluster-robust" in r["interval_notes"][-1]
+    # the missing flange resonance (1000 Hz) leaves misfit away from every fitted mode; the 30-mm mode
+    # predicted within 10 % of it is flagged, and the result is not usable for prediction there
+    assert r["unexplained_features"] and not r["usable_for_prediction"]
+    assert any("30 mm (not fitted)" in w for w in r["usable_for_prediction_reasons"])
 
 
 def test_a_partial_explanation_is_not_named(tmp_path_factory):

@@ -275,3 +275,26 @@ def test_bias_with_repeated_taps_at_one_length_is_a_constant_and_widens_away_fro
     fitted, held = meas[0]["modes"][0], meas[2]["modes"][0]
     assert fitted["bias_hz"]["mean"] == pytest.approx(10.0, abs=1.5)
     assert np.isfinite(held["bias_hz"]["sd"]) and held["bias_hz"]["sd"] > 2 * fitted["bias_hz"]["sd"]
+
+
+def test_unexplained_feature_away_from_modes_flags_nearby_predictions_at_unmeasured_lengths():
+    # a misfit band 1014-1028 Hz at a fitted length whose modes sit at 858 Hz (width 30 Hz): a feature; a band
+    # on the mode itself is the mode's own misfit, not a feature.  The 30-mm mode predicted at 964 Hz (5 %
+    # below the feature) is flagged, the one at 1250 Hz (22 % above) is not, nor any fitted mode.
+    from bayes_rcsa.discrepancy.features import modes_near_features, unexplained_features
+
+    det = [{"source": "a", "direction": "x", "clamping_length": 0.025,
+            "bands": [{"lo_hz": 1014.0, "hi_hz": 1028.0}, {"lo_hz": 850.0, "hi_hz": 866.0}]}]
+    fitted = {"source": "a", "direction": "x", "clamping_length": 0.025, "fitted": True,
+              "modes": [{"measured_hz": 858.0, "measured_width_hz": 30.0, "model_hz": 858.5}]}
+    held = {"source": "b", "direction": "x", "clamping_length": 0.030, "fitted": False,
+            "modes": [{"measured_hz": 959.0, "measured_width_hz": 30.0, "model_hz": 964.0},
+                      {"measured_hz": 1250.0, "measured_width_hz": 30.0, "model_hz": 1250.0}]}
+    feats = unexplained_features(det, [fitted, held])
+    assert [(b["lo_hz"], b["hi_hz"]) for b in feats] == [(1014.0, 1028.0)]
+    reasons = modes_near_features([fitted, held], feats)
+    assert len(reasons) == 1 and "30 mm (not fitted)" in reasons[0] and "1014-1028 Hz" in reasons[0]
+    assert held["modes"][0]["near_unexplained_feature_hz"] == [1014.0, 1028.0]
+    assert "near_unexplained_feature_hz" not in held["modes"][1]
+    assert "near_unexplained_feature_hz" not in fitted["modes"][0]
+    assert modes_near_features([fitted, held], []) == []

@@ -41,6 +41,7 @@ from ..params.forward import ForwardModel
 from ..params.terms import get_term, known_terms
 from .detect import TAU_MAX, UNMATCHED_REL_HEIGHT, Detection, detect_from_fit, transfer_failures
 from .fit import ModelFit, fit_baseline, fit_variant, laplace_draws, with_robust_covariance
+from .features import modes_near_features, unexplained_features
 from .mode_bias import BIAS_RULE, correct_mode_frequencies
 from .noise import relative_noise_scale
 from .screen import embed_baseline, score_test
@@ -282,7 +283,8 @@ def mode_entries(f: np.ndarray, measured: np.ndarray, h_map: np.ndarray, h_draws
         # the point estimate is the median of the tracked draws, inside its own interval by construction (the
         # MAP's mode, kept as model_map_hz, can sit on an interval's end when the draws pile up on a line)
         point = q["q50"] if np.isfinite(q["q50"]) else float(fmap[i])
-        modes.append({"measured_hz": fm, "measured_height": mm[j].height, "model_hz": point,
+        modes.append({"measured_hz": fm, "measured_height": mm[j].height, "measured_width_hz": mm[j].width_hz,
+                      "model_hz": point,
                       "model_map_hz": float(fmap[i]),
                       "model_height": pm[i].height, "model_interval": q, "predictive_interval": qp,
                       "error_pct": 100.0 * (point - fm) / fm,
@@ -695,8 +697,12 @@ def build_report(res: DiscrepancyResult) -> dict:
     named = dec["named"]
     b, a = res.evaluation["before"], res.evaluation["after"]
     on_bounds = bound_warnings(res.final)
-    usable, why = prediction_usability(a, b, a["gap_detail"]["resolution"],
-                                       remainder=res.final_label == "statistical_discrepancy")
+    remainder = res.final_label == "statistical_discrepancy"
+    usable, why = prediction_usability(a, b, a["gap_detail"]["resolution"], remainder=remainder)
+    # an unexplained resonance near a mode predicted at an unmeasured length: the bias cannot see it coming
+    features = unexplained_features(res.detection.as_dict()["measurements"], a["measurements"]) if remainder else []
+    near = modes_near_features(a["measurements"], features)
+    usable, why = usable and not near, why + near
     grew = bool(a["gap"] > b["gap"] + a["gap_detail"]["resolution"])
     warnings = [f"final model: {w}" for w in on_bounds]
     if not usable:
@@ -726,6 +732,7 @@ def build_report(res: DiscrepancyResult) -> dict:
         "gap_after_at_noise_floor": a["gap_detail"]["at_noise_floor"],
         "warnings": warnings,
         "usable_for_prediction": usable,
+        "unexplained_features": features,
         "usable_for_prediction_reasons": why,
         "gap_grew": grew,
         "mode_rule": MODE_RULE,
