@@ -138,7 +138,7 @@ COVERAGE_CASES = (
 )
 
 
-def coverage(reps: int, root: Path, write_docs: bool) -> str:
+def coverage(reps: int, root: Path, write_docs: bool, first_seed: int = 200) -> str:
     from bayes_rcsa.synthetic import true_tool_point_frf
     from bayes_rcsa.model.assembly import Configuration
     from bayes_rcsa.model.natural_frequencies import natural_frequency
@@ -150,7 +150,7 @@ def coverage(reps: int, root: Path, write_docs: bool) -> str:
         flagged = usable_f = usable_n = 0
         wk, wf, named = [], [], []
         for seed in range(reps):
-            setup, cfg, _ = campaign({effect: True}, 200 + seed, root)
+            setup, cfg, _ = campaign({effect: True}, first_seed + seed, root)
             r = run_discrepancy(setup, DiscrepancyOptions(lengths=lengths, candidates=cands, seed=seed)).report
             f = np.arange(cfg.frequency_start, cfg.frequency_stop + 1e-9, cfg.frequency_step)
             f_true = float(natural_frequency(f, true_tool_point_frf(cfg, Configuration(0.030, "x"), f)))
@@ -173,7 +173,7 @@ def coverage(reps: int, root: Path, write_docs: bool) -> str:
             wk.append(100 * (k["q95"] - k["q05"]) / cfg.k_xf)
             wf.append(q["q95"] - q["q05"])
             named.append(str(r["named_effect"]))
-            print(f"{effect} seed {200 + seed} lengths {lengths}: named {r['named_effect']}, k_xf(25) "
+            print(f"{effect} seed {first_seed + seed} lengths {lengths}: named {r['named_effect']}, k_xf(25) "
                   f"[{k['q05']:.4g}, {k['q95']:.4g}] truth {cfg.k_xf:.4g}; f(30 mm) [{q['q05']:.1f}, {q['q95']:.1f}] "
                   f"truth {f_true:.1f}; usable {r['usable_for_prediction']}, 30 mm flagged {flag}", flush=True)
         (klo, khi), (flo, fhi) = clopper_pearson(cover_k, reps), clopper_pearson(cover_f, reps)
@@ -200,6 +200,7 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=1)
     ap.add_argument("--clean-seeds", type=int, default=2)
     ap.add_argument("--coverage", type=int, default=0)
+    ap.add_argument("--coverage-seed", type=int, default=200, help="first campaign seed of the coverage rows")
     ap.add_argument("--write-docs", action="store_true")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
@@ -209,7 +210,7 @@ def main() -> None:
         if args.seeds or args.clean_seeds:
             naming(args.seeds, args.clean_seeds, root, args.write_docs)
         if args.coverage:
-            coverage(args.coverage, root, args.write_docs)
+            coverage(args.coverage, root, args.write_docs, args.coverage_seed)
 
 
 if __name__ == "__main__":

@@ -70,11 +70,17 @@ def _quantiles(x: np.ndarray) -> dict:
 
 
 def _robust_var(x: np.ndarray) -> float:
-    """``(1.4826 MAD)^2`` of the finite values of ``x``: the variance for Gaussian data, robust to outliers."""
+    """Variance of a normal with the same central 90 % range as the finite values of ``x``: ``((q95 - q05) / 3.29)^2``.
+
+    Robust to the few draws whose noisy peak jumps to the edge of its window (which would set a plain
+    variance), yet true to the 90 % range the intervals are about; a MAD would follow only the core and
+    understate a peak's heavier tails.
+    """
     x = x[np.isfinite(x)]
     if x.size < 2:
         return 0.0
-    return float((1.4826 * np.median(np.abs(x - np.median(x)))) ** 2)
+    q05, q95 = np.quantile(x, [0.05, 0.95])
+    return float(((q95 - q05) / (2.0 * 1.6448536269514722)) ** 2)
 
 
 def _basis(x: np.ndarray, centre: float, scale: float, degree: int) -> np.ndarray:
@@ -173,9 +179,9 @@ def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Gen
             b = measurements[j]["modes"][i]["measured_hz"] - fd
             cols.append(np.where(np.isfinite(b), b, np.nanmedian(b)))
             # the measured peak's noise: predictive minus model draw *of the same draw* (the noise's effect on
-            # the peak alone; a difference of the two spreads is swamped by the parameter spread).  A robust
-            # variance (1.4826 MAD)^2: a few noisy draws whose tracked peak jumps to a noise spike at the edge of
-            # the mode's window would otherwise set the variance of every draw
+            # the peak alone; a difference of the two spreads is swamped by the parameter spread), from its
+            # central 90 % range: a few noisy draws whose tracked peak jumps to a noise spike at the edge of the
+            # mode's window would otherwise set the variance of every draw
             nv.append(_robust_var(fp - fd))
         y, nv = np.column_stack(cols), np.array(nv)  # (n_draws, n_fitted), (n_fitted,)
         amp2 = _amplitude2(np.array(xl), y, nv)
