@@ -108,7 +108,7 @@ def big_type(root: Path, n: int, campaigns: int) -> dict:
             others = [r["name"] for r in rows if r.get("outlier") and r["name"] != name]
             counts[label][0] += bool(row.get("outlier"))
             counts[label][1] += 1
-            counts[label][2].append(f"{name} p = {row.get('p_value', float('nan')):.1e}"
+            counts[label][2].append(f"{name} {_p(row)}"
                                     + (f" (+{others})" if others else ""))
             print(f"big {label} {stag}: {name} flagged {row.get('outlier')} (p = {row.get('p_value')}); others "
                   f"{others}", flush=True)
@@ -262,12 +262,24 @@ def _case_star(a):
 
 
 def _flags(stage1_dir: Path, manifest: Path, seed: int) -> list[dict]:
+    """The library's outlier rows, with both leave-one-out p-values (``p_shift``, ``p_omnibus``) beside the combined
+    ``p_value``: ``fit_library``'s check, called on the same generator in the same order."""
     from bayes_rcsa.batch.manifest import load_manifest
+    from bayes_rcsa.library.outliers import flag_outliers, loo_p_values
     from bayes_rcsa.library.stage1 import collect
     from bayes_rcsa.library.workflow import fit_library
 
-    fit = fit_library(collect(load_manifest(manifest), stage1_dir), np.random.default_rng(seed))
-    return fit.setups
+    rng = np.random.default_rng(seed)
+    fit = fit_library(collect(load_manifest(manifest), stage1_dir), rng, outliers=False)
+    rows, _ = flag_outliers(loo_p_values(fit.stage2.fit, fit.stage2.hyper, rng), len(fit.setups))
+    return rows
+
+
+def _p(row: dict) -> str:
+    """``p = 3.1e-04 (shift 1.5e-04, omnibus 2.0e-02)``."""
+    def f(v):
+        return "-" if v is None else f"{v:.1e}"
+    return f"p = {f(row.get('p_value'))} (shift {f(row.get('p_shift'))}, omnibus {f(row.get('p_omnibus'))})"
 
 
 def special_stage1(root: Path, tag: str, base_tag: str, manifest: Path, special: str) -> Path:
@@ -322,7 +334,7 @@ def outliers(root: Path, libs: list[tuple[str, Path]], n_campaigns: int) -> dict
             row = next(r for r in rows if r["name"] == name)
             others = [r["name"] for r in rows if r.get("outlier") and r["name"] != name]
             hits += bool(row.get("outlier"))
-            detail.append(f"{name} p = {row.get('p_value', float('nan')):.1e}" + (f" (+{others})" if others else ""))
+            detail.append(f"{name} {_p(row)}" + (f" (+{others})" if others else ""))
             print(f"{kind} {tag}: {name} flagged {row.get('outlier')} (p = {row.get('p_value')}); others {others}",
                   flush=True)
         res[kind] = (hits, n_campaigns, "; ".join(detail))

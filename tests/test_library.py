@@ -8,14 +8,15 @@ finite-element bench are in benchmarks/library.py and docs/library.md.
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
-from scipy.stats import multivariate_normal, norm
+from scipy.stats import kstest, multivariate_normal, norm
 
 from bayes_rcsa.errors import SetupError
 from bayes_rcsa.library.joint import gaussian_log_likelihood, sample_joint
-from bayes_rcsa.library.outliers import flag_outliers, loo_p_values
+from bayes_rcsa.library.outliers import draw_statistics, flag_outliers, loo_p_values, shift_direction
 from bayes_rcsa.library.population import Hyperprior, covariate
 from bayes_rcsa.library.predictive import Population, predictive_draws, predictive_prior
 from bayes_rcsa.library.hierarchy import Group, fit_hyper
@@ -217,6 +218,52 @@ def test_a_contact_three_times_softer_is_flagged_with_four_combinations_per_type
     assert {r["name"] for r in rows if r["outlier"]} == {"ER32_1"}, rows
     # the clean ones are not near the threshold either (Bonferroni 0.05 / 12 = 0.0042)
     assert min(r["p_value"] for r in rows if r["name"] != "ER32_1") > 0.01, rows
+
+
+def _bench_like_predictives(rng, H):
+    """H predictive covariances shaped like the bench's (k_xf, k_thetaM, g_xf, g_thetaM): the setup's own stage-1
+    sd 0.001 / 0.06-0.38 / 0.0015 / 0.27 (the rotational coordinates loosely pinned, g_thetaM not at all) plus a
+    spread 0.035-0.065 / 0.1 / 0.06 / 0.1 and a random correlation of the stage-1 posterior."""
+    sd = np.array([0.001, 0.2, 0.0015, 0.27]) * rng.uniform(0.3, 1.9, (H, 4))
+    R = rng.standard_normal((H, 4, 6))
+    R = R @ np.swapaxes(R, 1, 2)
+    R = R / np.sqrt(np.einsum("hii,hjj->hij", R, R))  # a random correlation matrix per draw
+    sig = np.array([0.05, 0.1, 0.06, 0.1]) * rng.uniform(0.7, 1.3, (H, 4))
+    return sd[:, :, None] * R * sd[:, None, :] + np.eye(4) * (sig * sig)[:, None, :]
+
+
+def test_outlier_statistics_are_calibrated_under_the_predictive():
+    # given the hyperparameters the predictive is normal and both statistics are exact: for residuals drawn
+    # from it, p_shift and p_omnibus are uniform, and the combined p = 2 min(p_shift, p_omnibus) falls below a
+    # threshold a at most at rate a (Bonferroni).  A wrong standardisation of the shift or the wrong degrees of
+    # freedom of the distance would break the uniformity.
+    rng = np.random.default_rng(31)
+    H = 20000
+    V = _bench_like_predictives(rng, H)
+    r = np.einsum("hij,hj->hi", np.linalg.cholesky(V), rng.standard_normal((H, 4)))
+    e = shift_direction(("k_xf", "k_thetaM", "g_xf", "g_thetaM"))
+    st = draw_statistics(r, V, e)
+    # KS at 20000 draws: a correct implementation passes the 1e-3 floor with probability 0.999; a shift whose sd
+    # is 10 % off gives ~1e-35
+    assert kstest(st["p_shift"], "uniform").pvalue > 1e-3
+    assert kstest(st["p_omnibus"], "uniform").pvalue > 1e-3
+    p = np.minimum(1.0, 2.0 * np.minimum(st["p_shift"], st["p_omnibus"]))
+    for a in (0.05, 0.2):  # rate <= a, up to 3 binomial sd
+        assert np.mean(p < a) <= a + 3 * math.sqrt(a * (1 - a) / H), (a, np.mean(p < a))
+
+
+def test_a_softer_contact_is_seen_by_the_shift_statistic_where_the_omnibus_distance_dilutes_it():
+    # the bench's 3x softer contact: both log stiffnesses 0.48 decade low, in a predictive whose spread (from a
+    # leave-one-out posterior with a wide draw for the type's spread) is 0.2 decade in k_xf.  The loosely pinned
+    # rotational coordinates add near-pure noise degrees of freedom to D; the shift statistic tests one
+    # direction
+    V = np.diag([0.2, 0.3, 0.06, 0.29]) ** 2
+    r = np.array([-0.48, -0.48, 0.0, 0.0])
+    st = draw_statistics(r[None], V[None], shift_direction(("k_xf", "k_thetaM", "g_xf", "g_thetaM")))
+    assert st["t"][0] < -2.5  # softer
+    assert st["p_shift"][0] < 0.3 * st["p_omnibus"][0], st
+    # without a stiffness among the pooled coordinates only the omnibus statistic is left
+    assert shift_direction(("g_xf", "c_xf")) is None
 
 
 def test_pooled_zero_tap_predictive_is_narrower_than_one_type_alone_and_covers(three_types):

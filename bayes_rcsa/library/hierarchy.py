@@ -251,9 +251,15 @@ def _type_draws(theta: np.ndarray, groups, hyper: Hyperprior, rng: np.random.Gen
 
 
 def predictive_of_setup(theta: np.ndarray, groups, hyper: Hyperprior, t: int, m: np.ndarray, C: np.ndarray,
-                        x: float) -> np.ndarray:
-    """Mahalanobis distance (H,) of a setup's surrogate ``(m, C)`` of type ``t`` from the population predictive
-    given each row of ``theta``, with ``beta`` integrated out (its conditional normal from ``groups``)."""
+                        x: float) -> tuple[np.ndarray, np.ndarray]:
+    """The population predictive of a setup's surrogate mean ``m`` (type ``t``, covariance ``C``) given each row of
+    ``theta``, with ``beta`` integrated out (its conditional normal from ``groups``).
+
+    Returns
+    -------
+    res : (H, d) residual ``m - E[m]``
+    V : (H, d, d) predictive covariance ``C + diag(sigma_t^2) + Var(a_t + b_t x)``
+    """
     T, d = len(groups), hyper.ndim
     mean, Lp = beta_posterior(theta, groups, hyper)
     u, tau_b = _split(theta, T, d)
@@ -266,8 +272,7 @@ def predictive_of_setup(theta: np.ndarray, groups, hyper: Hyperprior, t: int, m:
     mu = np.einsum("hjk,hk->hj", X, mean)
     Z = np.linalg.solve(Lp, np.swapaxes(X, 1, 2))  # (H, K, d): X P^-1 X^T = Z^T Z
     V = np.swapaxes(Z, 1, 2) @ Z + C[None] + np.eye(d)[None] * np.exp(2.0 * u[:, t, :])[:, None, :]
-    res = m[None, :] - mu
-    return np.einsum("hj,hj->h", res, np.linalg.solve(V, res[..., None])[..., 0])
+    return m[None, :] - mu, V
 
 
 @dataclass(frozen=True)
