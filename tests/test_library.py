@@ -216,6 +216,9 @@ def test_a_contact_three_times_softer_is_flagged_with_four_combinations_per_type
     rows, _ = flag_outliers(loo_p_values(fit.fit, hyper, rng, settings=_CHEAP, n_draws=300), len(setups))
     assert all(r["method"] == "exact" for r in rows)
     assert {r["name"] for r in rows if r["outlier"]} == {"ER32_1"}, rows
+    # seen as what it is: a softer contact, the shift statistic stronger than the omnibus distance
+    bad = next(r for r in rows if r["name"] == "ER32_1")
+    assert bad["shift_median"] < -2 and bad["p_shift"] < bad["p_omnibus"], bad
     # the clean ones are not near the threshold either (Bonferroni 0.05 / 12 = 0.0042)
     assert min(r["p_value"] for r in rows if r["name"] != "ER32_1") > 0.01, rows
 
