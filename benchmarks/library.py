@@ -385,7 +385,8 @@ def render(s1: dict, transfer: dict, flags: dict, n_cases: int, seconds: float) 
         lines.append(f"| {names[key]} | {t['median_abs_error_pct']:.2f} % | {t['p90_abs_error_pct']:.2f} % | "
                      f"{_cov(t['coverage'])} | {_cov(t['coverage_45mm'])} | {t['median_width_pct']:.2f} % |")
     lines += ["", "**Outliers** (`bayes_rcsa.library.workflow.fit_library` with its leave-one-out check: flagged when "
-              "the predictive p-value < 0.05 / number of combinations, Bonferroni; the special combination's flag per "
+              "p = 2 min(p_shift, p_omnibus) < 0.05 / number of combinations, Bonferroni over the two statistics and "
+              "the library; the special combination's flag and its p-values (contact shift, omnibus distance) per "
               "campaign, any flag in a clean library):", "",
               "| case | flagged | 95 % interval | detail |", "|---|---|---|---|"]
     for key, (k, n, detail) in flags.items():
