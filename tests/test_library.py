@@ -219,6 +219,10 @@ def test_a_contact_three_times_softer_is_flagged_with_four_combinations_per_type
     # seen as what it is: a softer contact, the shift statistic stronger than the omnibus distance
     bad = next(r for r in rows if r["name"] == "ER32_1")
     assert bad["shift_median"] < -2 and bad["p_shift"] < bad["p_omnibus"], bad
+    # the importance-sampling check of large types (no refits; here forced) sees the same combination
+    imp, _ = flag_outliers(loo_p_values(fit.fit, hyper, rng, exact_max=0), len(setups))
+    assert all(r["method"] == "importance" for r in imp)
+    assert {r["name"] for r in imp if r["outlier"]} == {"ER32_1"}, imp
     # the clean ones are not near the threshold either (Bonferroni 0.05 / 12 = 0.0042)
     assert min(r["p_value"] for r in rows if r["name"] != "ER32_1") > 0.01, rows
 

@@ -37,7 +37,7 @@ import math
 
 import numpy as np
 
-from .hierarchy import HyperFit, Stage2Settings, fit_hyper, predictive_of_setup
+from .hierarchy import HyperFit, Stage2Settings, _factor, _forward, fit_hyper, predictive_of_setup
 
 __all__ = ["loo_p_values", "flag_outliers", "draw_statistics", "shift_direction", "ALPHA", "EXACT_MAX"]
 
@@ -69,16 +69,33 @@ def draw_statistics(res: np.ndarray, V: np.ndarray, e: np.ndarray | None) -> dic
     shift (None without ``e``), ``p_shift`` (H,) ``2 Phi(-|t|)`` (None without ``e``), ``ll`` (H,) log
     predictive density
     """
-    from scipy.stats import chi2, norm
-
-    d = res.shape[1]
     L = np.linalg.cholesky(V)
     y = np.linalg.solve(L, res[..., None])[..., 0]  # L^-1 r
+    f = None if e is None else np.linalg.solve(L, np.broadcast_to(e, res.shape)[..., None])[..., 0]  # L^-1 e
+    return _from_whitened(y, f, 2.0 * np.sum(np.log(np.diagonal(L, axis1=1, axis2=2)), axis=1))
+
+
+def _diagonal_spread_statistics(res: np.ndarray, C: np.ndarray, s2: np.ndarray, e: np.ndarray | None) -> dict:
+    """:func:`draw_statistics` for ``V = C + diag(s2_h)`` (the importance-sampling check of a large type): the
+    Cholesky factors element by element over the draws (:func:`.hierarchy._factor`), ~50x faster than
+    batched LAPACK calls on thousands of 6x6 matrices.  res (H, d), C (d, d), s2 (H, d)."""
+    L, logdet = _factor(C[:, :, None], s2)
+    y = np.stack([v[:, 0] for v in _forward(L, res.T[:, :, None])], axis=1)
+    f = None if e is None else np.stack([v[:, 0] for v in _forward(L, np.broadcast_to(e[:, None, None],
+                                                                                          (len(e),) + res.shape[:1] + (1,)))], axis=1)
+    return _from_whitened(y, f, logdet[:, 0])
+
+
+def _from_whitened(y: np.ndarray, f: np.ndarray | None, logdet: np.ndarray) -> dict:
+    """The statistics from the whitened residual ``y = L^-1 r`` (H, d), direction ``f = L^-1 e`` (H, d) or None
+    and ``ln det V`` (H,)."""
+    from scipy.stats import chi2, norm
+
+    d = y.shape[1]
     D = np.sum(y * y, axis=1)
     out = {"D": D, "p_omnibus": chi2.sf(D, d), "t": None, "p_shift": None,
-           "ll": -0.5 * (D + 2.0 * np.sum(np.log(np.diagonal(L, axis1=1, axis2=2)), axis=1) + d * math.log(2 * math.pi))}
-    if e is not None:
-        f = np.linalg.solve(L, np.broadcast_to(e, res.shape)[..., None])[..., 0]  # L^-1 e
+           "ll": -0.5 * (D + logdet + d * math.log(2 * math.pi))}
+    if f is not None:
         t = np.sum(f * y, axis=1) / np.sqrt(np.sum(f * f, axis=1))
         out["t"], out["p_shift"] = t, 2.0 * norm.sf(np.abs(t))
     return out
@@ -131,8 +148,7 @@ def loo_p_values(fit: HyperFit, hyper, rng: np.random.Generator, exact_max: int 
                 method = "exact"
             else:
                 a, b, s = flat[:, :d], flat[:, d:2 * d], flat[:, 2 * d:]
-                V = g.C[i][None] + (s * s)[:, :, None] * np.eye(d)
-                st = draw_statistics(g.m[i][None, :] - a - b * float(g.x[i]), V, e)
+                st = _diagonal_spread_statistics(g.m[i][None, :] - a - b * float(g.x[i]), g.C[i], s * s, e)
                 w = np.exp(-st["ll"] - np.max(-st["ll"]))
                 w = np.minimum(w, np.mean(w) * math.sqrt(w.size))  # truncated importance sampling
                 w = w / np.sum(w)
