@@ -65,7 +65,10 @@ def fit_library(stage1: Stage1, rng: np.random.Generator, settings: Stage2Settin
         for r in rows:
             f = by_name[r["name"]]
             r.update({"p_value": f["p_value"], "p_method": f["method"], "outlier": f["outlier"],
-                      "outlier_threshold": f["threshold"]})
+                      "outlier_threshold": f["threshold"],
+                      # the two statistics behind the combined p-value (library.json): a common shift of the
+                      # contact (negative: softer) and the omnibus distance
+                      **{k: f.get(k) for k in ("p_shift", "p_omnibus", "shift_median")}})
     diameters = {t: (min(s.diameter for s in stage1.setups if s.holder_type == t),
                      max(s.diameter for s in stage1.setups if s.holder_type == t)) for t in types}
     pop = Population(stage1.names, {t: res.types[t].flat for t in types}, stage1.box, stage1.growth, diameters)
