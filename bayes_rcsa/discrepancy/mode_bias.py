@@ -1,7 +1,7 @@
 """Mode-frequency bias of an unexplained remainder, learned at the fitted lengths (Kennedy & O'Hagan 2001).
 
 When no known effect explains the data, the remainder model (a smooth
-statistical discrepancy on the FRF and the law's shape marginalised) widens
+statistical discrepancy on the FRF and the law's bend marginalised) widens
 the FRF, but a smooth multiplicative discrepancy cannot move a sharp
 resonance: at the *fitted* lengths its mode frequencies can stay off the
 measured ones by many line spacings.  Those data were given to the model, so
@@ -11,24 +11,26 @@ machinist uses, the frequency of each mode:
 
 ``f_k(l) = f_model,k(l; theta) + delta_k(l)``, with the bias ``delta_k`` of
 mode ``k`` (per direction, modes in frequency order among the matched ones)
-a Gaussian process over clamping length with an unknown constant mean
-(Kennedy & O'Hagan's regression mean ``h(l) beta`` with ``h = 1`` and a flat
-prior on ``beta``: universal kriging),
+a Gaussian process over clamping length with an unknown straight-line mean
+(Kennedy & O'Hagan's regression mean ``h(l)^T beta`` with ``h = (1, l)`` and
+a flat prior on ``beta``: universal kriging; a constant when only one
+length was fitted),
 
 * kernel ``a_k^2 exp(-(l - l')^2 / (2 lam^2))`` (squared exponential);
-* the constant ``beta`` is the bias shared by every length: a model that is
-  off by the same few hertz everywhere (a wrong modulus, a softer holder)
-  is corrected by it, with the uncertainty the noise of the measured peaks
-  leaves, and needs no large amplitude to do so;
-* amplitude ``a_k^2``: how much the bias *changes* between lengths, the
-  sample variance over the fitted lengths of the posterior-median bias,
-  but never less than the measured peak's noise variance (two or three
-  fitted lengths cannot show a smaller variation).  It is estimated from
-  the median over draws, not from every draw: the draws' spread is
-  parameter uncertainty, which the draws themselves carry to every length,
-  and counting it again in the bias's prior would count it twice.  With
-  one fitted length the variation is not seen at all, and the prior spread
-  is the bias seen (``bias^2`` + noise variance);
+* the straight line carries a bias shared by every length, or changing
+  steadily with it (a wrong modulus, a softer holder), unshrunk, with the
+  uncertainty the noise of the measured peaks leaves, and needs no large
+  amplitude to do so;
+* amplitude ``a_k^2``: how far the bias departs from its straight line
+  between lengths, the residual variance of the posterior-median bias about
+  its least-squares line over the fitted lengths, but never less than the
+  measured peak's noise variance (two or three fitted lengths cannot show a
+  smaller departure).  It is estimated from the median over draws, not from
+  every draw: the draws' spread is parameter uncertainty, which the draws
+  themselves carry to every length, and counting it again in the bias's
+  prior would count it twice.  With one fitted length the change with
+  length is not seen at all, and the prior spread is the bias seen
+  (``bias^2`` + noise variance);
 * length scale ``lam`` = half the span of the fitted lengths (the bias may
   change its course once between the outermost fitted lengths; a longer
   scale would trust the interpolation more than two or three points allow);
@@ -57,11 +59,12 @@ import numpy as np
 __all__ = ["correct_mode_frequencies", "BIAS_RULE"]
 
 BIAS_RULE = ("remainder mode-frequency bias: per direction and mode order, a Gaussian process over clamping "
-             "length with an unknown constant mean (flat prior; universal kriging), squared-exponential kernel, "
-             "amplitude^2 = sample variance of the posterior-median bias over the fitted lengths but at least "
-             "the measured peak's noise variance (one fitted length: bias^2 + noise variance), length scale = "
-             "half the fitted span, conditioned per posterior draw on measured - model frequency at the fitted "
-             "lengths; its posterior mean (per draw) and variance are added to the model's draws")
+             "length with an unknown straight-line mean (flat prior; universal kriging; a constant with one "
+             "fitted length), squared-exponential kernel, amplitude^2 = residual variance of the posterior-median "
+             "bias about its line over the fitted lengths but at least the measured peak's noise variance (one "
+             "fitted length: bias^2 + noise variance), length scale = half the fitted span, conditioned per "
+             "posterior draw on measured - model frequency at the fitted lengths; its posterior mean (per draw) "
+             "and variance are added to the model's draws")
 
 
 def _quantiles(x: np.ndarray) -> dict:
