@@ -67,8 +67,9 @@ def cli_reference() -> str:
     names = [n for n in COMMANDS if n in subparsers.choices]
     out = [_HEADER.format(cmd=COMMAND), "# Command-line reference\n\n",
            "`bayes-rcsa` and `python3 -m bayes_rcsa` are the same program.  Every sub-command prints one line on "
-           "stderr and exits with status 2 on bad input.  See [getting-started.md](getting-started.md) for a "
-           "walk-through.\n\n",
+           "stderr and exits with status 2 on bad input.  A run that fails while writing (a full disk, a folder "
+           "turned read-only) leaves none of its own files behind, and under `--force` puts the earlier run's "
+           "files back as they were.  See [getting-started.md](getting-started.md) for a walk-through.\n\n",
            "".join(f"- [`{n}`](#bayes-rcsa-{n})\n" for n in names), "\n## bayes-rcsa\n\n```text\n",
            _help(parser), "```\n"]
     for n in names:

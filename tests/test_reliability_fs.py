@@ -260,3 +260,26 @@ def test_full_or_read_only_tmpfs(command, options, code, runs, tmpfs, capsys):
     _remount(tmpfs, "rw,size=8m")
     assert main(_argv(command, runs, out)) == 0, capsys.readouterr().err
     capsys.readouterr()
+
+
+def test_failed_forced_run_puts_the_earlier_results_back_unchanged(runs, faults, tmp_path, capsys):
+    """--force over an earlier run, failing on its last file: no mix of old and new results is left."""
+    out = tmp_path / "out"
+    # the earlier run predicts 10 draws, the forced one 20: every file differs between the two
+    earlier_argv = [a if a != "20" else "10" for a in _argv("predict", runs, out)]
+    assert main(earlier_argv) == 0
+    capsys.readouterr()
+    (out / "mine.txt").write_text("kept\n")
+    earlier = {str(p.relative_to(out)): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    # count the writes of the forced run elsewhere, then fail its last write: every file before it is replaced
+    faults.arm(at=10**9)
+    assert main(_argv("predict", runs, tmp_path / "count") + ["--force"]) == 0
+    n_writes = faults.count
+    assert n_writes >= 2
+    capsys.readouterr()
+    faults.arm(at=n_writes)
+    assert main(_argv("predict", runs, out) + ["--force"]) == 2
+    _one_error_line(capsys.readouterr().err, "(ENOSPC)")
+    after = {str(p.relative_to(out)): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    assert after == earlier
+    assert not list(tmp_path.glob(".out.restore-*"))  # the copies set aside are gone

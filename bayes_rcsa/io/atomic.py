@@ -366,7 +366,11 @@ def new_output_directory(out_dir, option: str = "--out", keep_on_interrupt: Iter
     the block began is removed (files, and folders with what is in them),
     then ``out_dir`` itself and the parents this call created if they are
     empty: a failed run, a full disk or a folder turned read-only leaves
-    nothing behind, and a rerun is not blocked.  Entries named in
+    nothing behind, and a rerun is not blocked.  The entries that *were*
+    there (an earlier run's results under ``--force``) are copied aside
+    first and put back as they were, so a failed forced run never leaves
+    a mix of old and new results (a failure while copying them aside is an
+    :class:`OutputError` before anything is written).  Entries named in
     ``keep_on_interrupt`` stay when the failure is a keyboard interrupt (the
     checkpoint of ``identify``, which ``--resume`` continues).  An
     :class:`OSError` raised in the block becomes one :class:`OutputError`
@@ -380,20 +384,64 @@ def new_output_directory(out_dir, option: str = "--out", keep_on_interrupt: Iter
         created = make_parents(out_dir)
     except OSError as exc:
         raise output_error(exc, out_dir, "cannot create the output folder") from exc
+    # the earlier entries, except the lock and the entries that carry their own progress (a checkpoint)
+    saved = sorted(n for n in before if n != _INNER_LOCK and n not in keep)
+    backup = _back_up(out_dir, saved) if saved else None
     try:
         yield out_dir
     except BaseException as exc:
         interrupted = isinstance(exc, KeyboardInterrupt)
         with contextlib.suppress(OSError):
             for p in list(out_dir.iterdir()):
-                if p.name in before or (interrupted and p.name in keep):
+                if (p.name in before and p.name not in saved) or (interrupted and p.name in keep) or p == backup:
                     continue
-                if p.is_dir() and not p.is_symlink():
-                    shutil.rmtree(p, ignore_errors=True)
-                else:
-                    with contextlib.suppress(OSError):
-                        p.unlink()
+                _remove(p)
+        if backup is not None:
+            with contextlib.suppress(OSError):
+                for name in saved:
+                    if (backup / name).exists() or (backup / name).is_symlink():
+                        os.replace(backup / name, out_dir / name)
         remove_empty_directories(created)
         if is_io_error(exc):
             raise output_error(exc, out_dir) from exc
         raise
+    finally:
+        if backup is not None:
+            shutil.rmtree(backup, ignore_errors=True)
+
+
+def _remove(p: Path) -> None:
+    """Remove a file, link or folder tree; errors are left to the caller's suppression."""
+    if p.is_dir() and not p.is_symlink():
+        shutil.rmtree(p, ignore_errors=True)
+    else:
+        with contextlib.suppress(OSError):
+            p.unlink()
+
+
+def _back_up(out_dir: Path, names: list) -> Path:
+    """Copy ``names`` of ``out_dir`` into a hidden folder beside it (inside it when the parent is read-only).
+
+    Raises
+    ------
+    OutputError
+        When the copies cannot be made (a full disk): nothing of the run has been written yet.
+    """
+    try:
+        backup = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.restore-", dir=out_dir.parent))
+    except OSError:
+        try:
+            backup = Path(tempfile.mkdtemp(prefix=".bayes-rcsa.restore-", dir=out_dir))
+        except OSError as exc:
+            raise output_error(exc, out_dir, "cannot set the earlier results aside before replacing them") from exc
+    try:
+        for name in names:
+            src = out_dir / name
+            if src.is_dir() and not src.is_symlink():
+                shutil.copytree(src, backup / name, symlinks=True)
+            else:
+                shutil.copy2(src, backup / name, follow_symlinks=False)
+    except OSError as exc:
+        shutil.rmtree(backup, ignore_errors=True)
+        raise output_error(exc, out_dir, "cannot set the earlier results aside before replacing them") from exc
+    return backup
