@@ -33,7 +33,7 @@ from bayes_rcsa.synthetic import default_bench_config, generate_campaign, write_
 
 LENGTHS = (0.025, 0.030, 0.040)
 # the 200-step chain has fewer draws per walker than walkers; ArviZ says so, and it is intended here
-pytestmark = pytest.mark.filterwarnings("ignore:More chains:UserWarning")
+
 
 
 @pytest.fixture(scope="module")

@@ -12,6 +12,7 @@ walkers that have not mixed (e.g. stuck in a second mode).
 
 from __future__ import annotations
 
+import contextlib
 import warnings
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -29,6 +30,19 @@ def _az():
         import arviz
 
     return arviz
+
+
+@contextlib.contextmanager
+def _walkers_as_chains():
+    """Silence ArviZ's "More chains than draws" for the one call it wraps.
+
+    Every emcee walker is a chain of ArviZ's (chain, draw) layout, so a short run (or a thinned one) can
+    have more walkers than kept draws on purpose; the shape is right and the warning would reach the
+    user's terminal without reaching the JSON outputs.
+    """
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="More chains", category=UserWarning)
+        yield
 
 
 def chain_diagnostics(chain: np.ndarray) -> dict[str, np.ndarray]:
@@ -49,7 +63,8 @@ def chain_diagnostics(chain: np.ndarray) -> dict[str, np.ndarray]:
         nan = np.full(nd, np.nan)
         return {"rhat": nan, "ess_bulk": nan, "ess_tail": nan}
     data = {f"p{j}": np.ascontiguousarray(chain[:, :, j].T) for j in range(nd)}
-    ds = az.convert_to_dataset(data)
+    with _walkers_as_chains():
+        ds = az.convert_to_dataset(data)
     with warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
         warnings.simplefilter("ignore", RuntimeWarning)
         rhat = az.rhat(ds)
@@ -84,16 +99,17 @@ def build_inference_data(
     """
     az = _az()
     observed = np.asarray(observed)
-    return az.from_dict(
-        posterior=dict(posterior),
-        sample_stats={"lp": np.asarray(log_prob)},
-        log_likelihood={"frf": np.asarray(log_likelihood)},
-        observed_data={"frf_real": observed.real, "frf_imag": observed.imag},
-        constant_data=dict(constant),
-        dims={**dict(dims), "frf": ["line"], "frf_real": ["line"], "frf_imag": ["line"]},
-        coords=dict(coords),
-        attrs={k: _attr(v) for k, v in attrs.items()},
-    )
+    with _walkers_as_chains():
+        return az.from_dict(
+            posterior=dict(posterior),
+            sample_stats={"lp": np.asarray(log_prob)},
+            log_likelihood={"frf": np.asarray(log_likelihood)},
+            observed_data={"frf_real": observed.real, "frf_imag": observed.imag},
+            constant_data=dict(constant),
+            dims={**dict(dims), "frf": ["line"], "frf_real": ["line"], "frf_imag": ["line"]},
+            coords=dict(coords),
+            attrs={k: _attr(v) for k, v in attrs.items()},
+        )
 
 
 def _attr(v):
