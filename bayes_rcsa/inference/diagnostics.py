@@ -21,7 +21,7 @@ import numpy as np
 
 from ..io.atomic import atomic_path
 
-__all__ = ["chain_diagnostics", "build_inference_data", "write_netcdf", "read_netcdf"]
+__all__ = ["chain_diagnostics", "build_inference_data", "inference_data_from_dict", "write_netcdf", "read_netcdf"]
 
 
 def _az():
@@ -110,6 +110,17 @@ def build_inference_data(
             coords=dict(coords),
             attrs={k: _attr(v) for k, v in attrs.items()},
         )
+
+
+def inference_data_from_dict(**groups):
+    """:func:`arviz.from_dict` for the other packages' netCDF files (the population of a tool library, ...).
+
+    Keeps the ArviZ import in this module, and walkers or hyperparameter chains laid out as ArviZ chains
+    without its "More chains than draws" warning.
+    """
+    az = _az()
+    with _walkers_as_chains():
+        return az.from_dict(**groups)
 
 
 def _attr(v):

@@ -92,9 +92,7 @@ def write_zero_tap(out_dir, pop: Population, setup, rng: np.random.Generator, n_
     -------
     dict, the summary written
     """
-    import arviz as az
-
-    from ..inference.diagnostics import write_netcdf
+    from ..inference.diagnostics import inference_data_from_dict, write_netcdf
     from ..io.atomic import atomic_write_text
     from ..posterior.setup_match import GEOMETRY_KEY, setup_geometry
 
@@ -120,10 +118,10 @@ def write_zero_tap(out_dir, pop: Population, setup, rng: np.random.Generator, n_
              "holder_type": htype, "shank_diameter_m": diameter, "library_model_version": pop.version,
              "l_a": growth.l_a, "l_b": growth.l_b, "growth_bound": growth.growth_bound,
              PARAMETER_MODEL_ATTR: json.dumps(pm.to_dict())}
-    idata = az.from_dict(posterior=post, constant_data={"fit_clamping_length": np.zeros(0)},
-                         dims={"k_xf_at_length": ["clamping_length"], "k_thetaM_at_length": ["clamping_length"],
-                               "fit_clamping_length": ["fit_measurement"]},
-                         coords={"clamping_length": lengths}, attrs=attrs)
+    dims = {"k_xf_at_length": ["clamping_length"], "k_thetaM_at_length": ["clamping_length"],
+            "fit_clamping_length": ["fit_measurement"]}
+    idata = inference_data_from_dict(posterior=post, constant_data={"fit_clamping_length": np.zeros(0)}, dims=dims,
+                                     coords={"clamping_length": lengths}, attrs=attrs)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     write_netcdf(idata, out / "posterior.nc")

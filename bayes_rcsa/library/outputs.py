@@ -45,9 +45,7 @@ def write_population(path, pop: Population, setups: list[dict], hyper_descriptio
     hyper_description : dict, :meth:`Hyperprior.describe`
     attrs : dict, extra attributes (warnings, seed)
     """
-    import arviz as az
-
-    from ..inference.diagnostics import write_netcdf
+    from ..inference.diagnostics import inference_data_from_dict, write_netcdf
 
     types = pop.holder_types
     d = len(pop.names)
@@ -80,10 +78,8 @@ def write_population(path, pop: Population, setups: list[dict], hyper_descriptio
         "hyperprior": json.dumps(hyper_description),
         **(attrs or {}),
     }
-    idata = az.from_dict(posterior=post, constant_data=const, dims=dims,
-                         coords={"holder_type": list(types), "coordinate": list(pop.names),
-                                 "setup": [s["name"] for s in setups]},
-                         attrs=a)
+    coords = {"holder_type": list(types), "coordinate": list(pop.names), "setup": [s["name"] for s in setups]}
+    idata = inference_data_from_dict(posterior=post, constant_data=const, dims=dims, coords=coords, attrs=a)
     return write_netcdf(idata, path)
 
 
