@@ -16,7 +16,8 @@ from scipy.stats import kstest, multivariate_normal, norm
 
 from bayes_rcsa.errors import SetupError
 from bayes_rcsa.library.joint import gaussian_log_likelihood, sample_joint
-from bayes_rcsa.library.outliers import draw_statistics, flag_outliers, loo_p_values, shift_direction
+from bayes_rcsa.library.outliers import (ADEQUACY_WEIGHT, adequacy_p_value, adequacy_rows, combine, draw_statistics,
+                                         flag_outliers, loo_p_values, shift_direction)
 from bayes_rcsa.library.population import Hyperprior, covariate
 from bayes_rcsa.library.predictive import Population, predictive_draws, predictive_prior
 from bayes_rcsa.library.hierarchy import Group, fit_hyper
@@ -213,7 +214,8 @@ def test_a_contact_three_times_softer_is_flagged_with_four_combinations_per_type
     rng = np.random.default_rng(23)
     setups = _three_types(21, softer=1)
     fit = fit_population(setups, hyper, rng, _CHEAP)
-    rows, _ = flag_outliers(loo_p_values(fit.fit, hyper, rng, settings=_CHEAP, n_draws=300), len(setups))
+    p_rows = loo_p_values(fit.fit, hyper, rng, settings=_CHEAP, n_draws=300)
+    rows, _ = flag_outliers(p_rows, len(setups))
     assert all(r["method"] == "exact" for r in rows)
     assert {r["name"] for r in rows if r["outlier"]} == {"ER32_1"}, rows
     # seen as what it is: a softer contact, the shift statistic stronger than the omnibus distance
@@ -225,6 +227,100 @@ def test_a_contact_three_times_softer_is_flagged_with_four_combinations_per_type
     assert {r["name"] for r in imp if r["outlier"]} == {"ER32_1"}, imp
     # the clean ones are not near the threshold either (Bonferroni 0.05 / 12 = 0.0042)
     assert min(r["p_value"] for r in rows if r["name"] != "ER32_1") > 0.01, rows
+    # with the model-adequacy component: a setup whose contact agrees with its type but whose own hammer tests the
+    # model does not reproduce is flagged for that, and says so; the softer one still for its contact; a skipped
+    # component (no stage-1 summary) leaves the contact check as it was
+    contact = {r["name"]: r["p_value"] for r in p_rows}
+    adq = {r["name"]: {"p_adequacy": 0.6, "residual_correlation_lines": 1.0, "adequacy_skipped": None} for r in rows}
+    adq["hydraulic_9"] = {"p_adequacy": 5e-5, "residual_correlation_lines": 7.6, "adequacy_skipped": None}
+    adq["shrink_fit_5"] = {"p_adequacy": None, "residual_correlation_lines": None, "adequacy_skipped": "no summary"}
+    both, warns = flag_outliers(p_rows, len(setups), adequacy=adq)
+    by = {r["name"]: r for r in both}
+    assert {n for n, r in by.items() if r["outlier"]} == {"ER32_1", "hydraulic_9"}, both
+    assert by["hydraulic_9"]["outlier_reason"].startswith("its own hammer tests are not reproduced by the model: "
+                                                          "hidden effect or bad measurement"), by["hydraulic_9"]
+    assert "contact disagrees" not in by["hydraulic_9"]["outlier_reason"]
+    assert "residuals correlated over 7.6 lines (> 2)" in by["hydraulic_9"]["outlier_reason"]  # discrepancy's rule 1
+    assert by["ER32_1"]["outlier_reason"].startswith("its contact disagrees with its holder type's population")
+    assert "softer" in by["ER32_1"]["outlier_reason"] and "not reproduced" not in by["ER32_1"]["outlier_reason"]
+    assert by["shrink_fit_5"]["p_value"] == by["shrink_fit_5"]["p_contact"]  # two components: as before
+    assert any(w.startswith("setup hydraulic_9: outlier") and "not reproduced" in w for w in warns)
+    # the contact statistics' own combination is kept beside the overall p-value
+    assert all(by[n]["p_contact"] == contact[n] for n in contact), (by, contact)
+    assert all(r["p_value"] == combine(r["p_shift"], r["p_omnibus"], r["p_adequacy"]) for r in both)
+
+
+def test_combined_p_value_is_a_weighted_bonferroni_over_the_available_components():
+    # contact statistics alone: 2 min(p_shift, p_omnibus), as before the adequacy component
+    assert combine(0.01, 0.2) == pytest.approx(0.02) and combine(None, 0.2) == pytest.approx(0.2)
+    # all three: p_k / w_k with the adequacy share ADEQUACY_WEIGHT and the rest split between the contact ones
+    w = ADEQUACY_WEIGHT
+    assert combine(0.01, 0.2, 0.5) == pytest.approx(0.01 / ((1 - w) / 2))
+    assert combine(0.5, 0.5, 1e-4) == pytest.approx(1e-4 / w)
+    assert combine(None, None, 0.003) == pytest.approx(0.003)  # the only one of its type: adequacy alone
+    assert combine(None, None, None) is None and combine(0.9, 0.9, 0.9) == 1.0
+    # the rule keeps the rate: independent uniform components, P(combined < a) <= a
+    u = np.random.default_rng(40).uniform(size=(3, 20000))
+    p = np.array([combine(*c) for c in u.T])
+    for a in (0.05, 0.2):
+        assert np.mean(p < a) <= a + 3 * math.sqrt(a * (1 - a) / p.size)
+
+
+def test_adequacy_p_value_is_calibrated_for_white_residuals_and_tiny_for_a_smooth_misfit():
+    # the null the component tests: the fit's normalised residuals white on its lines.  The statistic is the
+    # residual correlation length identify reports; its p-value comes from simulating the same statistic, so
+    # for white residuals it is uniform (up to ties at tau = 1, where it is 1: conservative)
+    from bayes_rcsa.inference.likelihood import residual_correlation_length
+
+    rng = np.random.default_rng(41)
+    lines = (60, 70, 80)
+    edges = np.cumsum((0,) + lines)
+    slices = [slice(a, b) for a, b in zip(edges[:-1], edges[1:])]
+    z = rng.standard_normal((300, edges[-1])) + 1j * rng.standard_normal((300, edges[-1]))
+    p = np.array([adequacy_p_value(residual_correlation_length(v, slices), lines, rng, 2000) for v in z])
+    for a in (0.1, 0.3):  # rate <= a up to 3 binomial sd (a p-value of the wrong statistic or lines fails)
+        assert np.mean(p <= a) <= a + 3 * math.sqrt(a * (1 - a) / p.size), (a, np.mean(p <= a))
+    assert np.mean(p <= 0.3) > 0.15  # and not trivially 1: it has power to be small
+    # a smooth misfit over ~15 lines (what a hidden tip mass leaves beside a resonance) on top of the noise
+    f = np.arange(edges[-1])
+    bump = 3.0 * np.exp(-0.5 * ((f - 100) / 10.0) ** 2) * (1 + 1j)
+    tau = residual_correlation_length(z[0] + bump, slices)
+    assert tau > 2 and adequacy_p_value(tau, lines, rng, 2000) == pytest.approx(1 / 2001)
+
+
+@pytest.fixture(scope="module")
+def tip_mass_stage1(tmp_path_factory):
+    """Two ER32 8 mm combinations of a development library (seed 3), hammer tests at 25 and 45 mm: one clean,
+    one with the bench's hidden 2 g tip mass; each identified by the real ``identify`` (a short chain: the
+    residual correlation is taken at the optimum, before sampling)."""
+    from bayes_rcsa.batch.manifest import load_manifest
+    from bayes_rcsa.cli.main import main as cli
+    from bayes_rcsa.synthetic.library import LibrarySpec, Special, generate_library, write_library
+
+    root = tmp_path_factory.mktemp("tip_mass")
+    spec = LibrarySpec(holder_types=("ER32",), per_type=2, diameters=(0.008,), clamping_lengths=(0.025, 0.045),
+                       specials=(Special(1, hidden_effects={"tip_mass": True}),),
+                       identify={"walkers": 14, "max_steps": 10, "check_every": 10, "ess_min": 10, "seed": 0})
+    write_library(generate_library(spec, seed=3), root / "lib")
+    paths = {}
+    for job in load_manifest(root / "lib" / "manifest.toml"):
+        assert cli(job.argv("identify", root / "setups" / job.name) + ["--no-plots", "--quiet"]) == 0
+        paths[job.name] = root / "setups" / job.name / "identify" / "summary.json"
+    return root, paths
+
+
+def test_a_hidden_tip_mass_fails_the_adequacy_component_and_a_clean_combination_passes(tip_mass_stage1):
+    _, paths = tip_mass_stage1
+    clean, mass = sorted(paths)  # ER32_d8_1 clean, ER32_d8_2 with the tip mass
+    rows, warns = adequacy_rows({**paths, "synthetic": None}, 4, np.random.default_rng(42))
+    assert not warns
+    # the contact law absorbs the mass at each length, but not its shape over the band: a smooth residual
+    assert rows[mass]["residual_correlation_lines"] > 3, rows
+    # below the component's share of a 4-combination library's threshold (the smallest p the simulations reach)
+    assert rows[mass]["p_adequacy"] < ADEQUACY_WEIGHT * 0.05 / 4, rows
+    assert rows[clean]["p_adequacy"] > 0.05 and rows[clean]["residual_correlation_lines"] < 1.5, rows
+    # no hammer tests known (synthetic stage-1 draws): skipped with the reason recorded
+    assert rows["synthetic"]["p_adequacy"] is None and "no stage-1 summary" in rows["synthetic"]["adequacy_skipped"]
 
 
 def _bench_like_predictives(rng, H):

@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> Summary:
             result = run_stage1(jobs, out, run_command, executor=executor, workers=workers, force=args.force,
                                 progress=progress)
             stage1 = collect(jobs, out, result.rows)
-            fit = fit_library(stage1, np.random.default_rng(args.seed), outliers=not args.no_outliers)
+            fit = fit_library(stage1, np.random.default_rng(args.seed), outliers=not args.no_outliers, stage1_dir=out)
             fit.warnings[:0] = command_warnings()
             paths = write_library(out, fit, plots=not args.no_plots, attrs={"seed": args.seed})
     finally:

@@ -41,7 +41,8 @@ def write_population(path, pop: Population, setups: list[dict], hyper_descriptio
     ----------
     path : path-like
     pop : Population
-    setups : list of dict, per-setup rows (name, holder_type, diameter_m, ess, p_value, outlier, own/pooled medians)
+    setups : list of dict, per-setup rows (name, holder_type, diameter_m, ess, p_value, p_adequacy, outlier,
+        own/pooled medians)
     hyper_description : dict, :meth:`Hyperprior.describe`
     attrs : dict, extra attributes (warnings, seed)
     """
@@ -57,6 +58,9 @@ def write_population(path, pop: Population, setups: list[dict], hyper_descriptio
         "setup_diameter_m": np.array([s["diameter_m"] for s in setups], dtype=float),
         "setup_ess": np.array([s["ess"] for s in setups], dtype=float),
         "setup_p_value": np.array([np.nan if s.get("p_value") is None else s["p_value"] for s in setups], dtype=float),
+        # the model-adequacy component of the outlier check (NaN: skipped, e.g. no stage-1 summary)
+        "setup_p_adequacy": np.array([np.nan if s.get("p_adequacy") is None else s["p_adequacy"] for s in setups],
+                                     dtype=float),
         "setup_outlier": np.array([int(bool(s.get("outlier"))) for s in setups]),
         "setup_own_median": np.array([[s[f"{c}_own"][1] for c in pop.names] for s in setups], dtype=float),
         "setup_pooled_median": np.array([[s[f"{c}_pooled"][1] if f"{c}_pooled" in s else np.nan for c in pop.names]

@@ -9,13 +9,13 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SetupError
-from .outliers import flag_outliers, loo_p_values
+from .outliers import adequacy_rows, flag_outliers, loo_p_values
 from .population import Hyperprior
 from .predictive import Population
 from .stage1 import Stage1
 from .stage2 import ESS_MIN, Stage2Result, Stage2Settings, fit_population
 
-__all__ = ["LibraryFit", "fit_library", "write_library", "pooling_summary", "OUTPUT_FILES"]
+__all__ = ["LibraryFit", "fit_library", "outlier_check", "stage1_summaries", "write_library", "pooling_summary", "OUTPUT_FILES"]
 
 #: Files ``bayes-rcsa library`` writes beside the stage-1 folder ``setups/``.
 OUTPUT_FILES = ("population.nc", "laws.json", "laws.csv", "library.json", "shrinkage.png")
@@ -31,8 +31,36 @@ class LibraryFit:
     warnings: list
 
 
+def stage1_summaries(stage1: Stage1, stage1_dir) -> dict:
+    """name -> ``stage1_dir/setups/<name>/identify/summary.json`` of every setup (None without a folder)."""
+    return {s.name: None if stage1_dir is None else Path(stage1_dir) / "setups" / s.name / "identify" / "summary.json"
+            for s in stage1.setups}
+
+
+def outlier_check(stage2: Stage2Result, stage1: Stage1, stage1_dir, rng: np.random.Generator,
+                  adequacy: bool = True) -> tuple[list[dict], list[str]]:
+    """The outlier rows and warnings of a library (docs/library.md, "Outliers").
+
+    The leave-one-out contact statistics first, then (``adequacy``) the model-adequacy component of every
+    setup from its stage-1 summary in ``stage1_dir``; without a folder (synthetic stage-1 draws, which carry
+    no hammer tests) that component is skipped and recorded as such in each row.
+    """
+    n = len(stage2.setups)
+    p_rows = loo_p_values(stage2.fit, stage2.hyper, rng)
+    warns = []
+    adq = None
+    if adequacy:
+        adq, warns = adequacy_rows(stage1_summaries(stage1, stage1_dir), n, rng)
+        if stage1_dir is None:
+            for r in adq.values():
+                r["adequacy_skipped"] = "no stage-1 folder: no hammer tests to check (e.g. synthetic stage-1 draws)"
+    rows, w = flag_outliers(p_rows, n, adequacy=adq)
+    return rows, warns + w
+
+
 def fit_library(stage1: Stage1, rng: np.random.Generator, settings: Stage2Settings = Stage2Settings(),
-                ess_min: float = ESS_MIN, outliers: bool = True) -> LibraryFit:
+                ess_min: float = ESS_MIN, outliers: bool = True, stage1_dir=None,
+                adequacy: bool = True) -> LibraryFit:
     """Stage 2, the outlier check and the population of a library.
 
     Parameters
@@ -41,7 +69,10 @@ def fit_library(stage1: Stage1, rng: np.random.Generator, settings: Stage2Settin
     rng : numpy Generator
     settings : Stage2Settings
     ess_min : float, smallest per-setup importance ESS for a pooled estimate
-    outliers : bool, run the leave-one-out check
+    outliers : bool, run the outlier check
+    stage1_dir : path-like or None, the folder holding ``setups/<name>/identify/summary.json`` (the model-adequacy
+        component reads each fit's residual correlation there; None skips it, with the reason in every row)
+    adequacy : bool, include the model-adequacy component (False: the contact statistics alone)
 
     Raises
     ------
@@ -58,17 +89,18 @@ def fit_library(stage1: Stage1, rng: np.random.Generator, settings: Stage2Settin
     warns += res.warnings
     rows = [dict(r) for r in res.setups]
     if outliers:
-        p_rows = loo_p_values(res.fit, hyper, rng)
-        flagged, w = flag_outliers(p_rows, len(rows))
+        flagged, w = outlier_check(res, stage1, stage1_dir, rng, adequacy)
         warns += w
         by_name = {r["name"]: r for r in flagged}
         for r in rows:
             f = by_name[r["name"]]
             r.update({"p_value": f["p_value"], "p_method": f["method"], "outlier": f["outlier"],
-                      "outlier_threshold": f["threshold"],
-                      # the two statistics behind the combined p-value (library.json): a common shift of the
-                      # contact (negative: softer) and the omnibus distance
-                      **{k: f.get(k) for k in ("p_shift", "p_omnibus", "shift_median")}})
+                      "outlier_threshold": f["threshold"], "outlier_reason": f["outlier_reason"],
+                      # the components behind the combined p-value (library.json): a common shift of the contact
+                      # (negative: softer), the omnibus distance, both combined, and the model adequacy of the
+                      # setup's own hammer tests (residual correlation at its stage-1 optimum)
+                      **{k: f.get(k) for k in ("p_shift", "p_omnibus", "shift_median", "p_contact", "p_adequacy",
+                                               "residual_correlation_lines", "adequacy_skipped")}})
     diameters = {t: (min(s.diameter for s in stage1.setups if s.holder_type == t),
                      max(s.diameter for s in stage1.setups if s.holder_type == t)) for t in types}
     pop = Population(stage1.names, {t: res.types[t].flat for t in types}, stage1.box, stage1.growth, diameters)
