@@ -43,7 +43,7 @@ def naive(model, d: PosteriorDraws, targets) -> list:
     out = []
     for t in targets:
         cache = model.precompute(t.configuration, t.frequency_hz)
-        kx, kt, cx, ct = d.contact([t.configuration.clamping_length])
+        kx, kt, cx, ct = d.contact([t.configuration.clamping_length])[:4]
         h = np.empty((d.n_draws, t.frequency_hz.size), complex)
         for i in range(d.n_draws):
             h[i] = cache.frf(kx[i, 0], kt[i, 0], cx[i, 0], ct[i, 0])

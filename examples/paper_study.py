@@ -104,7 +104,7 @@ def table3(results: dict) -> dict:
     for label, result in results.items():
         # Method II: the growth law gives a contact per length; single-length sets have one constant contact
         lengths = LENGTHS if result.problem.method == "multi" else (result.problem.growth.l_a,)
-        kx, kt, _, _ = draws_from_result(result).contact(lengths)
+        kx, kt = draws_from_result(result).contact(lengths)[:2]
         out[label] = {}
         for j, length in enumerate(lengths):
             qx = np.quantile(kx[:, j], [0.05, 0.5, 0.95])

@@ -72,7 +72,7 @@ def main(quick: bool | None = None, out: Path | None = None, seed: int = 0) -> d
         print(f"reloaded {draws.n_draws} draws of {', '.join(draws.parameters.names)} from {path.name}")
 
         lengths = [0.025, 0.030, 0.035, 0.040]               # step 5: contact at any clamping length
-        kx, kt, _, _ = draws.contact(lengths)
+        kx, kt = draws.contact(lengths)[:2]
         stiffness = {}
         for j, length in enumerate(lengths):
             qx, qt = np.quantile(kx[:, j], [0.05, 0.5, 0.95]), np.quantile(kt[:, j], [0.05, 0.5, 0.95])

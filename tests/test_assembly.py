@@ -244,3 +244,32 @@ def test_configuration_stack_equals_per_configuration_evaluation(caches):
     values = stack.frf(kx, kt, 10.0, 5e-4)
     for j, (cache, part) in enumerate(zip(caches, stack.split(values))):
         np.testing.assert_allclose(part, cache.frf(kx[:, j], kt[:, j], 10.0, 5e-4), rtol=1e-12, atol=0)
+
+
+def test_hysteretic_joint_loss_is_the_same_in_every_path_and_passive(caches):
+    """A rate-independent joint loss h = eta k (``joint_loss_factor``): the compiled kernels (shared, batched
+    and tip-attachment paths) and the numpy path equal the general block formula, and the assembly stays
+    passive (Im h <= 0) for any eta >= 0 with the viscous damping removed."""
+    from bayes_rcsa.model.assembly import tool_point_coefficients
+
+    rng = np.random.default_rng(77)
+    n_cfg = len(caches)
+    kx, kt, cx, ct = _random_parameters(rng, (16, n_cfg))
+    eta = rng.uniform(0.0, 0.5, (16, 1))
+    hx, ht = eta * kx, eta * kt
+    stack = ConfigurationStack(caches)
+    fast = stack.frf(kx, kt, cx, ct, hx, ht)
+    want = np.concatenate([c.block(kx[:, j], kt[:, j], cx[:, j], ct[:, j], hx[:, j], ht[:, j])[..., 0, 0]
+                           for j, c in enumerate(caches)], axis=-1)
+    np.testing.assert_allclose(fast, want, rtol=1e-9, atol=0)  # same formula, different evaluation order
+    np.testing.assert_allclose(stack.frf_numpy(kx, kt, cx, ct, hx, ht), want, rtol=1e-9, atol=0)
+    holder_tip = np.concatenate([c.holder_tip for c in caches])[None]
+    tool = stack.substructures()[2]
+    coeff = tool_point_coefficients(holder_tip, tool)
+    np.testing.assert_allclose(stack.frf_with(coeff, kx, kt, cx, ct, hx, ht), want, rtol=1e-9, atol=0)
+    zero_tip = np.zeros((1, stack.n_lines, 2))
+    np.testing.assert_allclose(stack.frf_tip(zero_tip, kx, kt, cx, ct, hx, ht), want, rtol=1e-9, atol=0)
+    # the loss matters (not silently dropped) and a lossy joint with no viscous part is still passive
+    assert np.max(np.abs(fast - stack.frf(kx, kt, cx, ct)) / np.abs(fast)) > 1e-3
+    lossy = stack.frf(kx, kt, 0.0, 0.0, hx, ht)
+    assert np.all(lossy.imag <= 0)

@@ -24,7 +24,7 @@ from bayes_rcsa.params.terms.stiffness_step import step_shape
 from bayes_rcsa.synthetic import default_bench_config, generate_campaign, true_tool_point_frf, write_campaign
 
 SIX = ("contact_damping", "extra_mode", "fluted_section", "nonlinear_stiffness_law", "spindle_error",
-       "spindle_rotation_omitted")
+       "spindle_rotation_omitted", "joint_loss_factor")
 FREQ = np.arange(600.0, 1500.0, 2.0)  # Hz, around the dominant tool mode at 25-40 mm
 LENGTHS = (0.025, 0.030, 0.040)
 
@@ -93,7 +93,7 @@ def reference_frf(model, cfg, configurations, term=None, values=None, n_sets=1):
     out = np.empty((n_sets, len(ctx.configurations), n), dtype=complex)
     for j in range(len(ctx.configurations)):
         sl = slice(j * n, (j + 1) * n)
-        comp = contact_compliance(ctx.omega[sl], *(np.asarray(a)[:, j] for a in contact))
+        comp = contact_compliance(ctx.omega[sl], *(np.broadcast_to(np.asarray(a), kx.shape)[:, j] for a in contact))
         two = subs.tool
         from bayes_rcsa.model.timoshenko import TwoPort
 

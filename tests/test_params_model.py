@@ -220,7 +220,7 @@ def test_toy_term_identify_write_reload_predict(toy_term, tmp_path):
     f = np.linspace(600.0, 1800.0, 200)
     sub = draws.subset(50, np.random.default_rng(0))
     h = predictive_frf(sub, model, Configuration(0.030), f)
-    kx, kt, cx, ct = sub.contact([0.030])
+    kx, kt, cx, ct = sub.contact([0.030])[:4]
     manual = model.precompute(Configuration(0.030), f).frf(kx[:, 0], kt[:, 0], cx[:, 0], ct[:, 0])
     np.testing.assert_allclose(h, manual * (1 + sub.values["toy_gain"])[:, None], rtol=1e-12)
     assert not np.allclose(h, manual)

@@ -63,7 +63,7 @@ def _model():
 
 def test_contact_follows_the_growth_law():
     d = _draws(5)
-    kx, kt, cx, ct = d.contact([0.025, 0.0325, 0.040])
+    kx, kt, cx, ct = d.contact([0.025, 0.0325, 0.040])[:4]
     v = d.values
     # independent statement of the law: linear in l, k(l_a) at l_a, k(l_a)(1+g) at l_b
     np.testing.assert_allclose(kx[:, 0], v["k_xf"], rtol=1e-14)
@@ -71,7 +71,7 @@ def test_contact_follows_the_growth_law():
     np.testing.assert_allclose(kt[:, 1], v["k_thetaM"] * (1 + 0.5 * v["g_thetaM"]), rtol=1e-14)
     assert cx.shape == (5, 3) and np.all(cx == 10.0) and np.all(ct == 5e-4)
     single = _draws(5, growth=GrowthLaw(0.030, 0.030))
-    kx, _, _, _ = single.contact([0.025, 0.040])
+    kx = single.contact([0.025, 0.040]).k_xf
     np.testing.assert_array_equal(kx[:, 0], kx[:, 1])
 
 
@@ -177,7 +177,7 @@ def test_predict_bands_and_modes_against_direct_evaluation():
     targets = [PredictionTarget(Configuration(0.030), f)]
     p = predict(d, model, targets)
     cache = model.precompute(Configuration(0.030), f)
-    kx, kt, cx, ct = d.contact([0.030])
+    kx, kt, cx, ct = d.contact([0.030])[:4]
     h = np.array([cache.frf(kx[i, 0], kt[i, 0], cx[i, 0], ct[i, 0]) for i in range(d.n_draws)])
     np.testing.assert_allclose(p.bands[0].magnitude, np.quantile(np.abs(h), QUANTILE_LEVELS, axis=0), rtol=1e-10)
     np.testing.assert_allclose(p.bands[0].real[2], np.median(h.real, axis=0), rtol=1e-10, atol=1e-18)
@@ -203,7 +203,7 @@ def test_batched_prediction_of_1000_draws_equals_per_draw_evaluation():
     h = predictive_frf(d, model, cfg, f)
     assert h.shape == (1000, 800)
     cache = model.precompute(cfg, f)
-    kx, kt, cx, ct = d.contact([0.030])
+    kx, kt, cx, ct = d.contact([0.030])[:4]
     for i in (0, 417, 999):
         np.testing.assert_allclose(h[i], cache.frf(kx[i, 0], kt[i, 0], cx[i, 0], ct[i, 0]), rtol=1e-10)
 

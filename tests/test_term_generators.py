@@ -130,6 +130,10 @@ CASES = {
     # the ring around the collet nut (0.136 kg, 2.4 kHz uncoupled, also rocking on its fit): its translation
     # carries the effect in the tool-mode band; one start near the ring's frequency (a resonator's frequency
     # is a sharply peaked, multimodal coordinate; the workflow's score test grids it)
+    # a hysteretic joint: the bench adds the loss factor to its viscous joint damping, the rotor bench replaces
+    # the viscous joint damping by it (its author's choice, unknown to the term)
+    "bench joint loss factor 0.05": ("bench", {"joint_loss_factor": 0.05}, {}, False, "joint_loss_factor", None),
+    "rotor hysteretic joint": ("rotor", {"hysteretic_joint": True}, {}, False, "joint_loss_factor", None),
     "rotor ring on the collet nut": ("rotor", {"extra_mode": True}, {}, False, "extra_mode",
                                      [{"extra_mode_mass_kg": 0.1, "extra_mode_frequency_hz": 2400.0,
                                        "extra_mode_damping_ratio": 0.03, "extra_mode_position": 0.85}]),

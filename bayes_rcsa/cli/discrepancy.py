@@ -15,7 +15,7 @@ DESCRIPTION = """\
 Fit the setup's model, look for systematic disagreement with the measurements (residual correlation,
 resonance shifts, trends with clamping length, prior-bound pile-up), rank the candidate effects
 (model terms: contact_damping, tip_mass, fluted_section, extra_mode, nonlinear_stiffness_law,
-stiffness_step, spindle_error, spindle_rotation_omitted, ...) by a score test, refit them, and name the
+joint_loss_factor, stiffness_step, spindle_error, spindle_rotation_omitted, ...) by a score test, refit them, and name the
 one the tempered evidence supports.  Nothing named but the model inadequate: a statistical
 discrepancy term widens the intervals instead.
 

@@ -351,10 +351,9 @@ def _predicted_natural_frequencies(problem: Problem, stack: ConfigurationStack, 
         if stacks is None:
             h = forward.frf(values)
         else:
-            kx, kt, cx, ct = forward.contact(values)
             from ..spindle.uncertainty import mixed_stack_frf
 
-            h = mixed_stack_frf(stacks, assignment[a : a + batch], kx, kt, cx, ct)
+            h = mixed_stack_frf(stacks, assignment[a : a + batch], *forward.contact(values))
         for j, (part, cache) in enumerate(zip(stack.split(h), stack.caches)):
             out[a : a + batch, j] = natural_frequency(cache.frequency_hz, part)
     return out
@@ -722,7 +721,7 @@ def _write_posterior(result: IdentificationResult, path: Path) -> Path:
     values = pm.values(flat)
     post = {n: values[n].reshape(nc, nd) for n in pm.names}
     lengths = np.array(sorted({round(c.clamping_length, 12) for c, _ in problem.all_measurements}))
-    kx, kt, _, _ = pm.contact(values, lengths)
+    kx, kt = pm.contact(values, lengths)[:2]
     post["k_xf_at_length"] = kx.reshape(nc, nd, -1)
     post["k_thetaM_at_length"] = kt.reshape(nc, nd, -1)
     post["natural_frequency"] = result.natural_frequency

@@ -108,7 +108,7 @@ def write_zero_tap(out_dir, pop: Population, setup, rng: np.random.Generator, n_
     lengths = np.array(sorted({round(m.clamping_length, 12) for m in setup.measurements})) if setup.measurements \
         else np.array([growth.l_a])
     full = {**values, **{n: np.full(z.shape[0], v) for n, v in fixed.items()}}
-    kx, kt, _, _ = pm.contact(full, lengths)
+    kx, kt = pm.contact(full, lengths)[:2]
     post["k_xf_at_length"] = kx[None]
     post["k_thetaM_at_length"] = kt[None]
     warns = list(warnings or []) + warns + [

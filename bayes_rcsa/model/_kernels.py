@@ -5,7 +5,8 @@ One fused loop over (parameter set, configuration, frequency line) evaluates
     h = t22 - (p (e11 Kt + 1) Kx + q (e00 Kx + 1) Kt - r Kx Kt)
               / ((e00 Kx + 1)(e11 Kt + 1) - g Kx Kt)
 
-with Kx = k_xf + i w c_xf and Kt = k_thetaM + i w c_thetaM.  This is the
+with Kx = k_xf + i (w c_xf + h_xf) and Kt = k_thetaM + i (w c_thetaM + h_thetaM)
+(viscous damping c and a rate-independent, hysteretic loss h = eta k).  This is the
 elastic-coupling formula of :mod:`bayes_rcsa.model.assembly` multiplied
 through by Kx Kt so that each line needs a single real division; numpy would
 need about fifteen full-size temporaries for the same expression, which makes
@@ -34,7 +35,7 @@ def pack_coefficients(arrays: dict) -> np.ndarray:
 
 
 @njit(cache=True, fastmath=False, nogil=True, inline="always")
-def _fill_set(kx, kt, cx, ct, starts, omega, C, out, s):  # pragma: no cover - compiled
+def _fill_set(kx, kt, cx, ct, hx, ht, starts, omega, C, out, s):  # pragma: no cover - compiled
     """Lines of parameter set ``s`` (the shared inner loop of both kernels)."""
     n_cfg = kx.shape[1]
     for c in range(n_cfg):
@@ -42,9 +43,11 @@ def _fill_set(kx, kt, cx, ct, starts, omega, C, out, s):  # pragma: no cover - c
         ktr = kt[s, c]
         cxs = cx[s, c]
         cts = ct[s, c]
+        hxs = hx[s, c]
+        hts = ht[s, c]
         for j in range(starts[c], starts[c + 1]):
-            kxi = omega[j] * cxs
-            kti = omega[j] * cts
+            kxi = omega[j] * cxs + hxs
+            kti = omega[j] * cts + hts
             axr = C[2, j] * kxr - C[3, j] * kxi + 1.0
             axi = C[2, j] * kxi + C[3, j] * kxr
             btr = C[4, j] * ktr - C[5, j] * kti + 1.0
@@ -67,23 +70,24 @@ def _fill_set(kx, kt, cx, ct, starts, omega, C, out, s):  # pragma: no cover - c
 
 
 @njit(cache=True, fastmath=False, nogil=True)
-def tool_point_kernel(kx, kt, cx, ct, starts, omega, C, out):  # pragma: no cover - compiled
+def tool_point_kernel(kx, kt, cx, ct, hx, ht, starts, omega, C, out):  # pragma: no cover - compiled
     """Fill ``out`` (n_sets, n_lines) complex with the tool-point receptance.
 
     Parameters
     ----------
     kx, kt, cx, ct : (n_sets, n_configs) float64
+    hx, ht : (n_sets, n_configs) float64, hysteretic (rate-independent) loss stiffness, N/m and N m/rad
     starts : (n_configs + 1,) int64, first line of each configuration
     omega : (n_lines,) rad/s
     C : (14, n_lines) packed coefficients from :func:`pack_coefficients`
     out : (n_sets, n_lines) complex128
     """
     for s in range(kx.shape[0]):
-        _fill_set(kx, kt, cx, ct, starts, omega, C, out, s)
+        _fill_set(kx, kt, cx, ct, hx, ht, starts, omega, C, out, s)
 
 
 @njit(cache=True, fastmath=False, nogil=True)
-def tool_point_kernel_batched(kx, kt, cx, ct, starts, omega, CB, out):  # pragma: no cover - compiled
+def tool_point_kernel_batched(kx, kt, cx, ct, hx, ht, starts, omega, CB, out):  # pragma: no cover - compiled
     """:func:`tool_point_kernel` with coefficients per parameter set.
 
     ``CB`` is (B, 14, n_lines) with B = 1 (shared) or n_sets (a model term made
@@ -91,11 +95,11 @@ def tool_point_kernel_batched(kx, kt, cx, ct, starts, omega, CB, out):  # pragma
     """
     nb = CB.shape[0]
     for s in range(kx.shape[0]):
-        _fill_set(kx, kt, cx, ct, starts, omega, CB[s if nb > 1 else 0], out, s)
+        _fill_set(kx, kt, cx, ct, hx, ht, starts, omega, CB[s if nb > 1 else 0], out, s)
 
 
 @njit(cache=True, fastmath=False, nogil=True)
-def tool_point_kernel_tip(kx, kt, cx, ct, starts, omega, C, Z, out):  # pragma: no cover - compiled
+def tool_point_kernel_tip(kx, kt, cx, ct, hx, ht, starts, omega, C, Z, out):  # pragma: no cover - compiled
     """Tool-point receptance with a diagonal dynamic stiffness attached at the tool tip.
 
     With ``D = E + diag(1/Kx, 1/Kt)`` the full tool-point block without the
@@ -114,7 +118,7 @@ def tool_point_kernel_tip(kx, kt, cx, ct, starts, omega, C, Z, out):  # pragma: 
 
     Parameters
     ----------
-    kx, kt, cx, ct : (n_sets, n_configs) float64
+    kx, kt, cx, ct, hx, ht : (n_sets, n_configs) float64
     starts : (n_configs + 1,) int64
     omega : (n_lines,) rad/s
     C : (n_lines, 19) complex, from :func:`tip_coefficients`
@@ -127,8 +131,8 @@ def tool_point_kernel_tip(kx, kt, cx, ct, starts, omega, C, Z, out):  # pragma: 
         b = s if nb > 1 else 0
         for c in range(n_cfg):
             for j in range(starts[c], starts[c + 1]):
-                Kx = complex(kx[s, c], omega[j] * cx[s, c])
-                Kt = complex(kt[s, c], omega[j] * ct[s, c])
+                Kx = complex(kx[s, c], omega[j] * cx[s, c] + hx[s, c])
+                Kt = complex(kt[s, c], omega[j] * ct[s, c] + ht[s, c])
                 KK = Kx * Kt
                 d = C[j, 0] * KK + C[j, 1] * Kt + C[j, 2] * Kx + 1.0
                 g00 = C[j, 3] * d - C[j, 7] * KK - C[j, 11] * Kx - C[j, 15] * Kt

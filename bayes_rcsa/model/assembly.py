@@ -121,7 +121,7 @@ class CachedConfiguration:
     spindle: np.ndarray | None = None  # (n_freq, 2, 2) flange receptance of the spindle
     holder: TwoPort | None = None  # free-free holder with the clamped shank, end 1 flange, end 2 holder tip
 
-    def frf(self, k_xf, k_thetaM, c_xf=0.0, c_thetaM=0.0) -> np.ndarray:
+    def frf(self, k_xf, k_thetaM, c_xf=0.0, c_thetaM=0.0, h_xf=0.0, h_thetaM=0.0) -> np.ndarray:
         """Tool-point receptance h = u/F for a batch of contact parameters.
 
         Parameters
@@ -130,7 +130,10 @@ class CachedConfiguration:
         k_thetaM : (...) N m/rad
         c_xf : (...) N s/m
         c_thetaM : (...) N m s/rad
-            Broadcastable arrays, one value per parameter set.
+        h_xf : (...) N/m
+        h_thetaM : (...) N m/rad
+            Broadcastable arrays, one value per parameter set.  ``h`` is the
+            hysteretic loss stiffness: the joint is ``k + i (omega c + h)``.
 
         Returns
         -------
@@ -138,23 +141,28 @@ class CachedConfiguration:
         """
         return _fast_h(
             self.omega, self.t22, self.e00, self.e11, self.g, self.p, self.q, self.r,
-            *(np.asarray(v, dtype=float)[..., None] for v in (k_xf, k_thetaM, c_xf, c_thetaM)),
+            *(np.asarray(v, dtype=float)[..., None] for v in (k_xf, k_thetaM, c_xf, c_thetaM, h_xf, h_thetaM)),
         )
 
-    def block(self, k_xf, k_thetaM, c_xf=0.0, c_thetaM=0.0) -> np.ndarray:
+    def block(self, k_xf, k_thetaM, c_xf=0.0, c_thetaM=0.0, h_xf=0.0, h_thetaM=0.0) -> np.ndarray:
         """Full 2x2 tool-point receptance block, shape (..., n_freq, 2, 2).
 
         Slower general path (used for rotations at the tip and for checks);
         ``numpy.inf`` stiffness gives a rigid joint.
         """
-        comp = contact_compliance(self.omega, k_xf, k_thetaM, c_xf, c_thetaM)
+        comp = contact_compliance(self.omega, k_xf, k_thetaM, c_xf, c_thetaM, h_xf, h_thetaM)
         return attach(self.holder_tip, self.tool, comp)
 
 
-def _fast_h(omega, t22, e00, e11, g, p, q, r, kx, kt, cx, ct):
-    a = e00 + 1.0 / (kx + 1j * (omega * cx))
-    b = e11 + 1.0 / (kt + 1j * (omega * ct))
+def _fast_h(omega, t22, e00, e11, g, p, q, r, kx, kt, cx, ct, hx=0.0, ht=0.0):
+    a = e00 + 1.0 / (kx + 1j * (omega * cx + hx))
+    b = e11 + 1.0 / (kt + 1j * (omega * ct + ht))
     return t22 - (p * b + q * a - r) / (a * b - g)
+
+
+def _loss_like(kx: np.ndarray, h_xf, h_thetaM) -> tuple[np.ndarray, np.ndarray]:
+    """The hysteretic loss stiffnesses as contiguous arrays of ``kx``'s shape (scalars broadcast)."""
+    return tuple(np.ascontiguousarray(np.broadcast_to(np.asarray(h, dtype=float), kx.shape)) for h in (h_xf, h_thetaM))
 
 
 class ToolPointModel:
@@ -242,9 +250,10 @@ class ToolPointModel:
             holder=holder,
         )
 
-    def frf(self, configuration: Configuration, frequency_hz, k_xf, k_thetaM, c_xf=0.0, c_thetaM=0.0) -> np.ndarray:
+    def frf(self, configuration: Configuration, frequency_hz, k_xf, k_thetaM, c_xf=0.0, c_thetaM=0.0,
+            h_xf=0.0, h_thetaM=0.0) -> np.ndarray:
         """Convenience: precompute and evaluate once. Shape (..., n_freq), m/N."""
-        return self.precompute(configuration, frequency_hz).frf(k_xf, k_thetaM, c_xf, c_thetaM)
+        return self.precompute(configuration, frequency_hz).frf(k_xf, k_thetaM, c_xf, c_thetaM, h_xf, h_thetaM)
 
 
 class ConfigurationStack:
@@ -287,12 +296,12 @@ class ConfigurationStack:
     def n_lines(self) -> int:
         return self.index.size
 
-    def frf(self, k_xf, k_thetaM, c_xf=0.0, c_thetaM=0.0) -> np.ndarray:
+    def frf(self, k_xf, k_thetaM, c_xf=0.0, c_thetaM=0.0, h_xf=0.0, h_thetaM=0.0) -> np.ndarray:
         """Tool-point FRFs of all configurations for a batch of parameter sets.
 
         Parameters
         ----------
-        k_xf, k_thetaM, c_xf, c_thetaM : (n_sets, n_configs) or broadcastable
+        k_xf, k_thetaM, c_xf, c_thetaM, h_xf, h_thetaM : (n_sets, n_configs) or broadcastable
             Contact parameters per set and per configuration (SI units as
             :meth:`CachedConfiguration.frf`).  A 1-D array is read as one
             value per set, shared by all configurations.
@@ -303,23 +312,23 @@ class ConfigurationStack:
         """
         n_cfg = len(self.caches)
         params = []
-        for v in (k_xf, k_thetaM, c_xf, c_thetaM):
+        for v in (k_xf, k_thetaM, c_xf, c_thetaM, h_xf, h_thetaM):
             v = np.asarray(v, dtype=float)
             if v.ndim == 1:
                 v = v[:, None]
             params.append(v)
         n_sets = int(np.prod(np.broadcast_shapes(*(v.shape[:-1] if v.ndim else () for v in params)) or (1,)))
         shape = (n_sets, n_cfg)
-        kx, kt, cx, ct = (np.ascontiguousarray(np.broadcast_to(v, shape), dtype=float) for v in params)
+        kx, kt, cx, ct, hx, ht = (np.ascontiguousarray(np.broadcast_to(v, shape), dtype=float) for v in params)
         out = np.empty((n_sets, self.n_lines), dtype=complex)
-        tool_point_kernel(kx, kt, cx, ct, self._starts, self.omega, self._packed, out)
+        tool_point_kernel(kx, kt, cx, ct, hx, ht, self._starts, self.omega, self._packed, out)
         return out
 
-    def frf_numpy(self, k_xf, k_thetaM, c_xf=0.0, c_thetaM=0.0) -> np.ndarray:
+    def frf_numpy(self, k_xf, k_thetaM, c_xf=0.0, c_thetaM=0.0, h_xf=0.0, h_thetaM=0.0) -> np.ndarray:
         """Same as :meth:`frf` with plain numpy array operations (reference path)."""
         n_cfg = len(self.caches)
         per_line = []
-        for v in (k_xf, k_thetaM, c_xf, c_thetaM):
+        for v in (k_xf, k_thetaM, c_xf, c_thetaM, h_xf, h_thetaM):
             v = np.asarray(v, dtype=float)
             if v.ndim == 0:
                 per_line.append(v)
@@ -348,7 +357,8 @@ class ConfigurationStack:
             self._parts = (cat([c.spindle for c in self.caches]), two("holder"), two("tool"))
         return self._parts
 
-    def frf_with(self, coefficients: Mapping[str, np.ndarray], k_xf, k_thetaM, c_xf, c_thetaM) -> np.ndarray:
+    def frf_with(self, coefficients: Mapping[str, np.ndarray], k_xf, k_thetaM, c_xf, c_thetaM,
+                 h_xf=0.0, h_thetaM=0.0) -> np.ndarray:
         """Tool-point FRFs from batched coefficients (a term changed a substructure).
 
         Parameters
@@ -357,12 +367,14 @@ class ConfigurationStack:
             :func:`tool_point_coefficients` of the changed substructures on
             this stack's lines; ``B`` is 1 or ``n_sets``.
         k_xf, k_thetaM, c_xf, c_thetaM : (n_sets, n_configs)
+        h_xf, h_thetaM : (n_sets, n_configs) or scalar, hysteretic loss stiffness
 
         Returns
         -------
         (n_sets, n_lines) complex, m/N
         """
         kx, kt, cx, ct = (np.ascontiguousarray(v, dtype=float) for v in (k_xf, k_thetaM, c_xf, c_thetaM))
+        hx, ht = _loss_like(kx, h_xf, h_thetaM)
         n_sets = kx.shape[0]
         b = max(np.shape(coefficients[name])[0] for name in COEFFICIENT_NAMES)
         if b not in (1, n_sets):
@@ -373,10 +385,10 @@ class ConfigurationStack:
             packed[:, 2 * i] = c.real
             packed[:, 2 * i + 1] = c.imag
         out = np.empty((n_sets, self.n_lines), dtype=complex)
-        tool_point_kernel_batched(kx, kt, cx, ct, self._starts, self.omega, packed, out)
+        tool_point_kernel_batched(kx, kt, cx, ct, hx, ht, self._starts, self.omega, packed, out)
         return out
 
-    def frf_tip(self, tip: np.ndarray, k_xf, k_thetaM, c_xf, c_thetaM) -> np.ndarray:
+    def frf_tip(self, tip: np.ndarray, k_xf, k_thetaM, c_xf, c_thetaM, h_xf=0.0, h_thetaM=0.0) -> np.ndarray:
         """Tool-point FRFs with a diagonal dynamic stiffness attached at the tool tip.
 
         Parameters
@@ -385,6 +397,7 @@ class ConfigurationStack:
             ``(z_u, z_psi)`` per line (N/m, N m/rad), ``B`` 1 or ``n_sets``
             (real for an undamped attachment such as a mass).
         k_xf, k_thetaM, c_xf, c_thetaM : (n_sets, n_configs)
+        h_xf, h_thetaM : (n_sets, n_configs) or scalar, hysteretic loss stiffness
 
         Returns
         -------
@@ -395,13 +408,14 @@ class ConfigurationStack:
             self._tip_blocks = tip_coefficients(cat(lambda c: c.holder_tip + c.tool.r11), cat(lambda c: c.tool.r12),
                                                 cat(lambda c: c.tool.r21), cat(lambda c: c.tool.r22))
         kx, kt, cx, ct = (np.ascontiguousarray(v, dtype=float) for v in (k_xf, k_thetaM, c_xf, c_thetaM))
+        hx, ht = _loss_like(kx, h_xf, h_thetaM)
         z = np.ascontiguousarray(tip)
         if z.dtype not in (np.float64, np.complex128):
             z = z.astype(complex)
         if z.shape[0] not in (1, kx.shape[0]) or z.shape[1:] != (self.n_lines, 2):
             raise SetupError(f"tip impedance of shape {z.shape}: expected (1 or {kx.shape[0]}, {self.n_lines}, 2)")
         out = np.empty((kx.shape[0], self.n_lines), dtype=complex)
-        tool_point_kernel_tip(kx, kt, cx, ct, self._starts, self.omega, self._tip_blocks, z, out)
+        tool_point_kernel_tip(kx, kt, cx, ct, hx, ht, self._starts, self.omega, self._tip_blocks, z, out)
         return out
 
     def cache_digest(self) -> str:

@@ -47,20 +47,25 @@ def matmul2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def contact_compliance(omega, k_xf, k_thetaM, c_xf=0.0, c_thetaM=0.0) -> np.ndarray:
+def contact_compliance(omega, k_xf, k_thetaM, c_xf=0.0, c_thetaM=0.0, h_xf=0.0, h_thetaM=0.0) -> np.ndarray:
     """Compliance K^-1 of the diagonal contact stiffness, shape (..., n_freq, 2, 2).
 
     Parameters
     ----------
     omega : (n_freq,) rad/s
     k_xf : N/m, k_thetaM : N m/rad, c_xf : N s/m, c_thetaM : N m s/rad
+    h_xf : N/m, h_thetaM : N m/rad
+        Hysteretic (rate-independent) loss stiffness, ``eta k`` for a loss
+        factor ``eta``: the joint stiffness is ``k + i (omega c + h)``.
         Scalars or arrays broadcastable against ``(..., 1)`` (one value per
         parameter set, the frequency axis is appended).  ``numpy.inf``
         stiffness gives a rigid joint in that direction.
     """
     omega = np.asarray(omega, dtype=float)
-    kx = np.asarray(k_xf, dtype=float)[..., None] + 1j * omega * np.asarray(c_xf, dtype=float)[..., None]
-    kt = np.asarray(k_thetaM, dtype=float)[..., None] + 1j * omega * np.asarray(c_thetaM, dtype=float)[..., None]
+    kx = np.asarray(k_xf, dtype=float)[..., None] + 1j * (omega * np.asarray(c_xf, dtype=float)[..., None]
+                                                          + np.asarray(h_xf, dtype=float)[..., None])
+    kt = np.asarray(k_thetaM, dtype=float)[..., None] + 1j * (omega * np.asarray(c_thetaM, dtype=float)[..., None]
+                                                              + np.asarray(h_thetaM, dtype=float)[..., None])
     shape = np.broadcast_shapes(kx.shape, kt.shape)
     out = np.zeros(shape + (2, 2), dtype=complex)
     with np.errstate(divide="ignore"):

@@ -93,13 +93,15 @@ class ForwardModel:
         values : mapping name -> (n_sets,) physical values of every parameter
             (:meth:`ParameterModel.values`).
         """
-        kx, kt, cx, ct = self.contact(values)
-        cx = self._scalar_damping.get("c_xf", cx)
-        ct = self._scalar_damping.get("c_thetaM", ct)
+        contact = self.contact(values)
+        kx, kt = contact.k_xf, contact.k_thetaM
+        cx = self._scalar_damping.get("c_xf", contact.c_xf)
+        ct = self._scalar_damping.get("c_thetaM", contact.c_thetaM)
+        loss = (contact.h_xf, contact.h_thetaM)
         if self._spindle_terms or self._substructure_terms:
-            h = self._general(values, kx, kt, cx, ct)
+            h = self._general(values, kx, kt, cx, ct, loss)
         else:
-            h = self.stack.frf(kx, kt, cx, ct)
+            h = self.stack.frf(kx, kt, cx, ct, *loss)
         for t in self._frf_terms:
             h = t.frf(values, h, self.context)
         return h
@@ -118,7 +120,7 @@ class ForwardModel:
             subs = t.substructures(values, subs, self.context)
         return subs
 
-    def _general(self, values, kx, kt, cx, ct) -> np.ndarray:
+    def _general(self, values, kx, kt, cx, ct, loss=(0.0, 0.0)) -> np.ndarray:
         base_spindle, base_holder, base_tool = self.stack.substructures()
         subs = self.substructures(values)
         shape = kx.shape
@@ -126,10 +128,10 @@ class ForwardModel:
         ct = np.broadcast_to(np.asarray(ct, dtype=float), shape)
         same = subs.spindle is base_spindle and subs.holder is base_holder and subs.tool is base_tool
         if same and subs.tip is None:
-            return self.stack.frf(kx, kt, cx, ct)  # every term at its baseline
+            return self.stack.frf(kx, kt, cx, ct, *loss)  # every term at its baseline
         if same:
             # only something attached at the tip: the cached blocks stay shared by all sets
-            return self.stack.frf_tip(subs.tip, kx, kt, cx, ct)
+            return self.stack.frf_tip(subs.tip, kx, kt, cx, ct, *loss)
         tool = subs.tool
         if subs.tip is not None:
             tool = add_end_impedance(tool, subs.tip[..., 0], subs.tip[..., 1])
@@ -140,4 +142,4 @@ class ForwardModel:
             holder_tip = self._holder_tip
         else:
             holder_tip = attach(subs.spindle, subs.holder)
-        return self.stack.frf_with(tool_point_coefficients(holder_tip, tool), kx, kt, cx, ct)
+        return self.stack.frf_with(tool_point_coefficients(holder_tip, tool), kx, kt, cx, ct, *loss)

@@ -349,7 +349,7 @@ def _plots(study: Study, out: Path, rng: np.random.Generator) -> dict:
         rows = {n: {"label": f"{_mm(length)} mm", "fits": {}} for n in forest_k}
         for f in fits:
             d = f.draws.subset(2000, rng)
-            kx, kt, _, _ = d.contact([length])
+            kx, kt = d.contact([length])[:2]
             z = np.column_stack([np.log10(kx[:, 0]), np.log10(kt[:, 0])])
             data[f.spec.name] = z
             rows["k_xf"]["fits"][f.spec.name] = _q(z[:, 0])

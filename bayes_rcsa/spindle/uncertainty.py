@@ -309,7 +309,7 @@ def variant_stacks(model: ToolPointModel, samples: SpindleSamples, configuration
 
 
 def mixed_stack_frf(stacks: Sequence[ConfigurationStack], assignment: np.ndarray, k_xf, k_thetaM,
-                    c_xf=0.0, c_thetaM=0.0) -> np.ndarray:
+                    c_xf=0.0, c_thetaM=0.0, h_xf=0.0, h_thetaM=0.0) -> np.ndarray:
     """FRFs on a stack's lines for parameter sets that each use their own spindle variant.
 
     Parameters
@@ -318,7 +318,7 @@ def mixed_stack_frf(stacks: Sequence[ConfigurationStack], assignment: np.ndarray
         From :func:`variant_stacks`.
     assignment : (n_sets,) int
         Index into ``stacks`` per parameter set.
-    k_xf, k_thetaM, c_xf, c_thetaM : (n_sets, n_configs) or (n_sets,) or scalars
+    k_xf, k_thetaM, c_xf, c_thetaM, h_xf, h_thetaM : (n_sets, n_configs) or (n_sets,) or scalars
         As :meth:`ConfigurationStack.frf`.
 
     Returns
@@ -327,7 +327,7 @@ def mixed_stack_frf(stacks: Sequence[ConfigurationStack], assignment: np.ndarray
     """
     assignment = np.asarray(assignment, dtype=int)
     n = assignment.size
-    params = _contact_arrays(n, k_xf, k_thetaM, c_xf, c_thetaM)
+    params = _contact_arrays(n, k_xf, k_thetaM, c_xf, c_thetaM, h_xf, h_thetaM)
     out = np.empty((n, stacks[0].n_lines), dtype=complex)
     for j in np.unique(assignment):
         sel = assignment == j

@@ -65,7 +65,8 @@ def true_contact(config: BenchConfig, clamping_length: float) -> dict[str, float
 
     Returns
     -------
-    dict with k_xf (N/m), k_thetaM (N m/rad), c_xf (N s/m), c_thetaM (N m s/rad)
+    dict with k_xf (N/m), k_thetaM (N m/rad), c_xf (N s/m), c_thetaM (N m s/rad) and the joint's
+    hysteretic loss factor ``eta`` (1; 0 unless the ``joint_loss_factor`` effect is hidden)
     """
     s = config.hidden_effects.get("nonlinear_stiffness_law", 0.0)
     g_theta = config.growth if config.growth_thetaM is None else config.growth_thetaM
@@ -83,6 +84,7 @@ def true_contact(config: BenchConfig, clamping_length: float) -> dict[str, float
         "k_thetaM": config.k_thetaM * ft,
         "c_xf": config.c_xf * damp,
         "c_thetaM": config.c_thetaM * damp,
+        "eta": config.hidden_effects.get("joint_loss_factor", 0.0),
     }
 
 
@@ -188,6 +190,8 @@ def build_assembly(config: BenchConfig, configuration: Configuration) -> tuple[F
     )
 
     c = true_contact(config, cl)
+    # a hysteretic joint is a complex stiffness: the assembled stiffness matrix is complex anyway
+    loss = 1.0 + 1j * c["eta"]
     joints = bearing_joints(config.spindle, OUTER, configuration.direction)
     if distributed:
         zc = z_tool[z_tool <= Lh + 1e-12]
@@ -198,11 +202,12 @@ def build_assembly(config: BenchConfig, configuration: Configuration) -> tuple[F
         w /= w.sum()
         joints += [
             Joint(NodeRef(OUTER, z), NodeRef(TOOL, z),
-                  wi * c["k_xf"], wi * c["c_xf"], wi * c["k_thetaM"], wi * c["c_thetaM"])
+                  wi * c["k_xf"] * loss, wi * c["c_xf"], wi * c["k_thetaM"] * loss, wi * c["c_thetaM"])
             for z, wi in zip(zc, w)
         ]
     else:
-        joints.append(Joint(NodeRef(OUTER, Lh), NodeRef(TOOL, Lh), c["k_xf"], c["c_xf"], c["k_thetaM"], c["c_thetaM"]))
+        joints.append(Joint(NodeRef(OUTER, Lh), NodeRef(TOOL, Lh), c["k_xf"] * loss, c["c_xf"], c["k_thetaM"] * loss,
+                            c["c_thetaM"]))
 
     masses = []
     if "tip_mass" in config.hidden_effects:

@@ -9,6 +9,7 @@ same names) and a scalar magnitude with a documented meaning:
 name                       unit        magnitude
 =========================  ==========  =====================================================
 contact_damping            factor      true contact damping = magnitude x assumed damping
+joint_loss_factor          1           the joint also dissipates rate-independently: k (1 + i magnitude)
 tip_mass                   kg          point mass at the tool tip (rotary inertia m r_g^2)
 fluted_section             1           relative reduction of the fluted effective diameter
 extra_mode                 kg          mass of a resonator hung on the spindle/holder side
@@ -55,6 +56,12 @@ HIDDEN_EFFECTS: dict[str, EffectInfo] = {
         EffectInfo(
             "contact_damping", 5.0, "factor",
             "tool-holder joint damping (c_xf, c_thetaM) is `magnitude` times the value the user assumes",
+        ),
+        EffectInfo(
+            "joint_loss_factor", 0.05, "1",
+            "the tool-holder joint also dissipates independently of frequency (micro-slip): its stiffness is "
+            "k (1 + i magnitude) besides the assumed viscous damping",
+            max_magnitude=1.0,
         ),
         EffectInfo(
             "tip_mass", 0.002, "kg",

@@ -45,8 +45,8 @@ def known_terms() -> tuple[str, ...]:
 
 
 # Built-in terms, one module each (each registers itself on import).
-_BUILTIN: tuple[str, ...] = ("tip_mass", "contact_damping", "extra_mode", "fluted_section", "nonlinear_stiffness_law",
-                              "stiffness_step",
+_BUILTIN: tuple[str, ...] = ("tip_mass", "contact_damping", "joint_loss_factor", "extra_mode", "fluted_section",
+                              "nonlinear_stiffness_law", "stiffness_step",
                               "spindle_error", "spindle_rotation_omitted", "statistical_discrepancy",
                               "law_shape_uncertainty")
 

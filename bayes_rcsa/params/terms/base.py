@@ -46,13 +46,18 @@ KINDS = ("spindle", "substructure", "joint", "frf")
 class Contact(NamedTuple):
     """Contact parameters per parameter set and configuration, each (n_sets, n_cfg).
 
-    ``k_xf`` N/m, ``k_thetaM`` N m/rad, ``c_xf`` N s/m, ``c_thetaM`` N m s/rad.
+    ``k_xf`` N/m, ``k_thetaM`` N m/rad, ``c_xf`` N s/m, ``c_thetaM`` N m s/rad;
+    ``h_xf`` N/m and ``h_thetaM`` N m/rad the hysteretic (rate-independent)
+    loss stiffness, 0 unless a joint term sets it: the joint's complex
+    stiffness is ``k + i (omega c + h)``.
     """
 
     k_xf: np.ndarray
     k_thetaM: np.ndarray
     c_xf: np.ndarray
     c_thetaM: np.ndarray
+    h_xf: np.ndarray | float = 0.0
+    h_thetaM: np.ndarray | float = 0.0
 
 
 @dataclass(frozen=True)
@@ -224,4 +229,4 @@ def bend_growth_law(term: str, values, contact: Contact, lengths, l_a: float, l_
     delta = shape(x) - x
     kx = np.asarray(contact.k_xf) + (np.asarray(values["k_xf"]) * np.asarray(values["g_xf"]))[:, None] * delta
     kt = np.asarray(contact.k_thetaM) + (np.asarray(values["k_thetaM"]) * np.asarray(values["g_thetaM"]))[:, None] * delta
-    return Contact(kx, kt, contact.c_xf, contact.c_thetaM)
+    return contact._replace(k_xf=kx, k_thetaM=kt)

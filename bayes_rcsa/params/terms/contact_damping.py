@@ -58,4 +58,4 @@ class ContactDamping(ModelTerm):
         Contact, fields (n_sets, n_cfg); at factor 1 the dampings are the input's bit for bit.
         """
         f = np.asarray(values["contact_damping_factor"], dtype=float)[:, None]
-        return Contact(contact.k_xf, contact.k_thetaM, np.asarray(contact.c_xf) * f, np.asarray(contact.c_thetaM) * f)
+        return contact._replace(c_xf=np.asarray(contact.c_xf) * f, c_thetaM=np.asarray(contact.c_thetaM) * f)
