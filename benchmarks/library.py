@@ -97,7 +97,7 @@ def big_type(root: Path, n: int, campaigns: int) -> dict:
         bad = [r["name"] for r in rows if r.get("outlier")]
         counts["false flag"][0] += bool(bad)
         counts["false flag"][1] += 1
-        counts["false flag"][2].append(f"{tag}: {', '.join(bad) or 'none'}")
+        counts["false flag"][2].append(f"{tag}: {', '.join(_named(rows)) or 'none'}")
         print(f"big clean {tag}: flagged {bad or 'none'}", flush=True)
         for label, special in (("3x softer", {"softer": 3.0}), ("tip mass 2 g", {"hidden_effects": {"tip_mass": True}})):
             stag = f"{tag}.{'soft' if 'softer' in special else 'mass'}{k}"
@@ -105,11 +105,10 @@ def big_type(root: Path, n: int, campaigns: int) -> dict:
             name = load_manifest(sman)[k].name
             rows = _flags(special_stage1(root, stag, tag, sman, name), sman, seed + 1)
             row = next(r for r in rows if r["name"] == name)
-            others = [r["name"] for r in rows if r.get("outlier") and r["name"] != name]
+            others = _named(rows, name)
             counts[label][0] += bool(row.get("outlier"))
             counts[label][1] += 1
-            counts[label][2].append(f"{name} {_p(row)}"
-                                    + (f" (+{others})" if others else ""))
+            counts[label][2].append(_special(row, others))
             print(f"big {label} {stag}: {name} flagged {row.get('outlier')} (p = {row.get('p_value')}); others "
                   f"{others}", flush=True)
     return {f"{label}, one ER32 library of {n}": (k_, n_, "; ".join(d)) for label, (k_, n_, d) in counts.items()}
@@ -262,24 +261,46 @@ def _case_star(a):
 
 
 def _flags(stage1_dir: Path, manifest: Path, seed: int) -> list[dict]:
-    """The library's outlier rows, with both leave-one-out p-values (``p_shift``, ``p_omnibus``) beside the combined
-    ``p_value``: ``fit_library``'s check, called on the same generator in the same order."""
+    """The library's outlier rows, with the components' p-values (``p_shift``, ``p_omnibus``, ``p_adequacy``)
+    beside the combined ``p_value``: ``fit_library``'s check (:func:`bayes_rcsa.library.workflow.outlier_check`,
+    the adequacy component from the stage-1 summaries in ``stage1_dir``), on the same generator in the same
+    order (so the contact statistics are those of the two-statistic runs)."""
     from bayes_rcsa.batch.manifest import load_manifest
-    from bayes_rcsa.library.outliers import flag_outliers, loo_p_values
     from bayes_rcsa.library.stage1 import collect
-    from bayes_rcsa.library.workflow import fit_library
+    from bayes_rcsa.library.workflow import fit_library, outlier_check
 
     rng = np.random.default_rng(seed)
-    fit = fit_library(collect(load_manifest(manifest), stage1_dir), rng, outliers=False)
-    rows, _ = flag_outliers(loo_p_values(fit.stage2.fit, fit.stage2.hyper, rng), len(fit.setups))
+    st1 = collect(load_manifest(manifest), stage1_dir)
+    fit = fit_library(st1, rng, outliers=False)
+    rows, _ = outlier_check(fit.stage2, st1, stage1_dir, rng)
     return rows
 
 
+def _by(row: dict) -> str:
+    """Which component flagged a row: ``contact``, ``adequacy`` or ``contact + adequacy``."""
+    reason = row.get("outlier_reason") or ""
+    return " + ".join(w for w, key in (("contact", "contact disagrees"), ("adequacy", "not reproduced"))
+                      if key in reason)
+
+
+def _named(rows: list[dict], skip: str | None = None) -> list[str]:
+    """Flagged rows other than ``skip``: ``NAME [component] p = ...``."""
+    return [f"{r['name']} [{_by(r)}] {_p(r)}" for r in rows if r.get("outlier") and r["name"] != skip]
+
+
+def _special(row: dict, others: list[str]) -> str:
+    """One campaign's detail: the special combination's verdict and p-values, other flags."""
+    verdict = f"[{_by(row)}]" if row.get("outlier") else "[missed]"
+    return f"{row['name']} {verdict} {_p(row)}" + (f" (+ {'; '.join(others)})" if others else "")
+
+
 def _p(row: dict) -> str:
-    """``p = 3.1e-04 (shift 1.5e-04, omnibus 2.0e-02)``."""
+    """``p = 3.1e-04 (shift 1.5e-04, omnibus 2.0e-02, adequacy 1.0e+00 at tau 1.0)``."""
     def f(v):
         return "-" if v is None else f"{v:.1e}"
-    return f"p = {f(row.get('p_value'))} (shift {f(row.get('p_shift'))}, omnibus {f(row.get('p_omnibus'))})"
+    tau = row.get("residual_correlation_lines")
+    return (f"p = {f(row.get('p_value'))} (shift {f(row.get('p_shift'))}, omnibus {f(row.get('p_omnibus'))}, "
+            f"adequacy {f(row.get('p_adequacy'))}" + ("" if tau is None else f" at tau {tau:.1f}") + ")")
 
 
 def special_stage1(root: Path, tag: str, base_tag: str, manifest: Path, special: str) -> Path:
@@ -315,7 +336,7 @@ def outliers(root: Path, libs: list[tuple[str, Path]], n_campaigns: int) -> dict
         rows = _flags(root / f"{tag}.stage1", manifest, SEED0 + i)
         bad = [r["name"] for r in rows if r.get("outlier")]
         clean_flags += bool(bad)
-        clean_detail.append(f"{tag}: {', '.join(bad) or 'none'}")
+        clean_detail.append(f"{tag}: {', '.join(_named(rows)) or 'none'}")
         print(f"clean {tag}: flagged {bad or 'none'}", flush=True)
     res["clean libraries with a false flag"] = (clean_flags, len(libs), "; ".join(clean_detail))
     for kind, special in (("3x softer contact", {"softer": 3.0}), ("hidden tip mass 2 g", {"hidden_effects":
@@ -332,9 +353,9 @@ def outliers(root: Path, libs: list[tuple[str, Path]], n_campaigns: int) -> dict
             name = load_manifest(manifest)[k].name
             rows = _flags(special_stage1(root, tag, base_tag, manifest, name), manifest, SEED0 + 100 + i)
             row = next(r for r in rows if r["name"] == name)
-            others = [r["name"] for r in rows if r.get("outlier") and r["name"] != name]
+            others = _named(rows, name)
             hits += bool(row.get("outlier"))
-            detail.append(f"{name} {_p(row)}" + (f" (+{others})" if others else ""))
+            detail.append(_special(row, others))
             print(f"{kind} {tag}: {name} flagged {row.get('outlier')} (p = {row.get('p_value')}); others {others}",
                   flush=True)
         res[kind] = (hits, n_campaigns, "; ".join(detail))
@@ -384,10 +405,12 @@ def render(s1: dict, transfer: dict, flags: dict, n_cases: int, seconds: float) 
             continue
         lines.append(f"| {names[key]} | {t['median_abs_error_pct']:.2f} % | {t['p90_abs_error_pct']:.2f} % | "
                      f"{_cov(t['coverage'])} | {_cov(t['coverage_45mm'])} | {t['median_width_pct']:.2f} % |")
-    lines += ["", "**Outliers** (`bayes_rcsa.library.workflow.fit_library` with its leave-one-out check: flagged when "
-              "p = 2 min(p_shift, p_omnibus) < 0.05 / number of combinations, Bonferroni over the two statistics and "
-              "the library; the special combination's flag and its p-values (contact shift, omnibus distance) per "
-              "campaign, any flag in a clean library):", "",
+    lines += ["", "**Outliers** (`bayes_rcsa.library.workflow.fit_library` with its outlier check: flagged when "
+              "p = min(p_shift / 0.45, p_omnibus / 0.45, p_adequacy / 0.1) < 0.05 / number of combinations, weighted "
+              "Bonferroni over the three components and the library; the special combination's flag and its "
+              "p-values (contact shift, omnibus distance, model adequacy at the residual correlation length tau of "
+              "its stage-1 optimum, lines) per campaign, any flag in a clean library with the flagging component):",
+              "",
               "| case | flagged | 95 % interval | detail |", "|---|---|---|---|"]
     for key, (k, n, detail) in flags.items():
         lo, hi = clopper_pearson(k, n) if n else (float("nan"), float("nan"))
