@@ -311,7 +311,8 @@ def adequacy_rows(summaries: dict, n_setups: int, rng: np.random.Generator, alph
     """
     n_max = adequacy_n_max(n_setups, alpha) if n_max is None else int(n_max)
     warns = []
-    if ADEQUACY_WEIGHT * alpha / max(1, n_setups) <= 1.0 / (n_max + 1):
+    known = any(v is not None for v in summaries.values())
+    if known and ADEQUACY_WEIGHT * alpha / max(1, n_setups) <= 1.0 / (n_max + 1):
         warns.append(f"the model-adequacy component cannot flag a setup on its own in a library of {n_setups}: "
                      f"its smallest p-value 1/{n_max + 1} (simulations) is not below its share "
                      f"{ADEQUACY_WEIGHT:g} x {alpha:g} / {n_setups} of the threshold")

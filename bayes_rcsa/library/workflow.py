@@ -15,7 +15,8 @@ from .predictive import Population
 from .stage1 import Stage1
 from .stage2 import ESS_MIN, Stage2Result, Stage2Settings, fit_population
 
-__all__ = ["LibraryFit", "fit_library", "outlier_check", "stage1_summaries", "write_library", "pooling_summary", "OUTPUT_FILES"]
+__all__ = ["LibraryFit", "fit_library", "outlier_check", "stage1_summaries", "write_library", "pooling_summary",
+           "OUTPUT_FILES"]
 
 #: Files ``bayes-rcsa library`` writes beside the stage-1 folder ``setups/``.
 OUTPUT_FILES = ("population.nc", "laws.json", "laws.csv", "library.json", "shrinkage.png")
