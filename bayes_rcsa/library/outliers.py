@@ -378,7 +378,8 @@ def flag_outliers(p_rows: list[dict], n_setups: int, alpha: float = ALPHA,
     rows = []
     for r in p_rows:
         a = (adequacy or {}).get(r["name"], {"p_adequacy": None, "residual_correlation_lines": None,
-                                              "adequacy_skipped": "not checked"})
+                                              "adequacy_skipped": "not checked (no stage-1 summaries "
+                                                                    "given, e.g. synthetic stage-1 draws)"})
         row = {**r, **a, "p_contact": r["p_value"], "threshold": threshold}
         p = combine(r.get("p_shift"), r.get("p_omnibus"), a.get("p_adequacy"))
         flagged = p is not None and p < threshold
