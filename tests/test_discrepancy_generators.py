@@ -135,3 +135,12 @@ def test_hysteretic_joint_is_named_as_a_joint_loss_not_as_viscous_damping(tmp_pa
     # the viscous damping the user assumed stays in the model, so the fitted loss factor is below the bench's
     # 0.05 (noise-free fit: 0.032), and clearly off the prior's lower bound
     assert 0.01 < eta["q50"] < 0.06, eta
+    # a named model's modes are corrected by the bias learned from each measured mode's whole resonance, which
+    # pins the measured mode far better than its noisy peak line (docs/discrepancy.md, "The mode bias of a named
+    # model")
+    assert r["mode_bias"]["applied"] and r["mode_bias"]["observation"] == "resonance"
+    for m in r["measurements_after"]:
+        for md in m["modes"]:
+            assert 0 < md["measured_fit_sd_hz"] < 0.25 * md["predictive_sd_hz"], md
+            if m["fitted"]:
+                assert "bias_hz" in md and md["uncorrected_model_interval"] != md["model_interval"]

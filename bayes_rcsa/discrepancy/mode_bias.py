@@ -1,4 +1,4 @@
-"""Mode-frequency bias of an unexplained remainder, learned at the fitted lengths (Kennedy & O'Hagan 2001).
+"""Mode-frequency bias of the final model, learned at the fitted lengths (Kennedy & O'Hagan 2001).
 
 When no known effect explains the data, the remainder model (a smooth
 statistical discrepancy on the FRF and the law's bend marginalised) widens
@@ -48,6 +48,14 @@ posterior at ``l`` (including the uncertainty of ``beta``): at a fitted
 length they sit on the measured frequency within its noise; between fitted
 lengths they widen with the bias's variation.  Only mode frequencies are
 corrected; the FRF, gap and stiffness are not.
+
+A named physical model (or an adequate baseline) gets the same correction,
+but its bias is a fraction of a line, below what the measured *peak* can
+show; for it the observation is the measured mode's frequency from its whole
+resonance (:mod:`.mode_shift`, ``observation="resonance"``), about ten times
+more precise.  The remainder keeps the peak (``observation="peak"``): its
+bias can be many lines, and its predictive interval at a fitted length must
+contain the measured peak itself.
 """
 
 from __future__ import annotations
@@ -58,13 +66,14 @@ import numpy as np
 
 __all__ = ["correct_mode_frequencies", "BIAS_RULE"]
 
-BIAS_RULE = ("remainder mode-frequency bias: per direction and mode order, a Gaussian process over clamping "
+BIAS_RULE = ("mode-frequency bias of the final model: per direction and mode order, a Gaussian process over clamping "
              "length with an unknown straight-line mean (flat prior; universal kriging; a constant with one "
              "fitted length), squared-exponential kernel, amplitude^2 = residual variance of the posterior-median "
-             "bias about its line over the fitted lengths but at least the measured peak's noise variance (one "
+             "bias about its line over the fitted lengths but at least the observation's noise variance (one "
              "fitted length: bias^2 + noise variance), length scale = half the fitted span, conditioned per "
-             "posterior draw on measured - model frequency at the fitted lengths; its posterior mean (per draw) "
-             "and variance are added to the model's draws")
+             "posterior draw on measured - model frequency at the fitted lengths (the measured peak for the "
+             "unexplained remainder, the measured mode from its whole resonance for a physical model); its "
+             "posterior mean (per draw) and variance are added to the model's draws")
 
 
 def _quantiles(x: np.ndarray) -> dict:
@@ -145,7 +154,8 @@ def _amplitude2(x: np.ndarray, y: np.ndarray, noise_var: np.ndarray, degree: int
     return max(float(np.sum(res**2) / dof), nv)
 
 
-def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Generator) -> list:
+def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Generator,
+                             observation: str = "peak") -> list:
     """Bias-corrected mode-frequency intervals of every matched mode, in place; returns notes.
 
     Parameters
@@ -158,6 +168,13 @@ def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Gen
     draws : list of (model, predictive) arrays, (n_draws, n_modes_of_that_measurement) Hz
         Tracked mode frequencies in the order of each measurement's ``modes``.
     rng : numpy.random.Generator
+    observation : {"peak", "resonance"}
+        What the bias is measured against at a fitted length.  ``"peak"``: the measured peak
+        (``measured_hz``, noise variance from the tracked predictive draws); the corrected predictive interval
+        there then contains the measured peak, as the unexplained remainder's must (those data were given to
+        it), whatever its bias.  ``"resonance"``: the measured mode's frequency from its whole resonance
+        (``measured_fit_hz`` / ``measured_fit_sd_hz``, :mod:`.mode_shift`), about ten times more precise, which
+        is what a physical model's sub-line bias needs; the peak where that estimate is missing.
 
     Returns
     -------
@@ -176,16 +193,21 @@ def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Gen
         xl, cols, nv = [], [], []
         for j, i in fitted:
             fd, fp = draws[j][0][:, i], draws[j][1][:, i]
+            md = measurements[j]["modes"][i]
             xl.append(measurements[j]["clamping_length"])
+            # the measured mode's frequency from its whole resonance (mode_shift.py), known about ten times
+            # better than its peak line; the peak where the resonance is too narrow or too far off for that
+            f_obs, sd_obs = md.get("measured_fit_hz", math.nan), md.get("measured_fit_sd_hz", math.nan)
+            whole = observation == "resonance" and math.isfinite(f_obs) and math.isfinite(sd_obs) and sd_obs > 0
             # the bias *of each draw*: a draw whose contact is stiffer sits higher at every length, and its
             # bias is correspondingly lower, so the parameter spread shared by all lengths cancels (K&O'H)
-            b = measurements[j]["modes"][i]["measured_hz"] - fd
+            b = (f_obs if whole else md["measured_hz"]) - fd
             cols.append(np.where(np.isfinite(b), b, np.nanmedian(b)))
             # the measured peak's noise: predictive minus model draw *of the same draw* (the noise's effect on
             # the peak alone; a difference of the two spreads is swamped by the parameter spread), from its
             # central 90 % range: a few noisy draws whose tracked peak jumps to a noise spike at the edge of the
             # mode's window would otherwise set the variance of every draw
-            nv.append(_robust_var(fp - fd))
+            nv.append(sd_obs**2 if whole else _robust_var(fp - fd))
         y, nv = np.column_stack(cols), np.array(nv)  # (n_draws, n_fitted), (n_fitted,)
         amp2 = _amplitude2(np.array(xl), y, nv)
         span = max(xl) - min(xl)
