@@ -42,7 +42,7 @@ from bayes_rcsa.discrepancy import DiscrepancyOptions, run_discrepancy
 from bayes_rcsa.io.setup import load_setup
 from bayes_rcsa.synthetic import HIDDEN_EFFECTS, default_bench_config, generate_campaign, write_campaign
 
-EFFECTS = tuple(HIDDEN_EFFECTS)  # the seven canonical names of issue #11
+EFFECTS = tuple(HIDDEN_EFFECTS)  # the seven canonical names of issue #11 and joint_loss_factor (issue #19)
 DOCS = Path(__file__).resolve().parent.parent / "docs" / "discrepancy.md"
 
 
@@ -89,12 +89,12 @@ def timing(n: int, root: Path) -> None:
         print(f"  {key:16s} {statistics.median(s[key] for s in splits):7.2f} s")
 
 
-def naming(seeds: int, clean_seeds: int, root: Path, write_docs: bool) -> str:
+def naming(seeds: int, clean_seeds: int, root: Path, write_docs: bool, offset: int = 0) -> str:
     rows = []
     all_ok = all_n = 0
     for effect in EFFECTS:
         hits, halved, n, named_as = 0, 0, 0, []
-        for seed in range(seeds):
+        for seed in range(offset, offset + seeds):
             setup, _, _ = campaign({effect: True}, seed, root)
             t0 = time.perf_counter()
             r = run_discrepancy(setup, DiscrepancyOptions(lengths=lengths_for(effect), seed=seed)).report
@@ -110,7 +110,7 @@ def naming(seeds: int, clean_seeds: int, root: Path, write_docs: bool) -> str:
         lo, hi = clopper_pearson(hits, n)
         rows.append(f"| `{effect}` | {hits}/{n} | [{lo:.2f}, {hi:.2f}] | {halved}/{hits} | {', '.join(named_as)} |")
     null = 0
-    for seed in range(clean_seeds):
+    for seed in range(offset, offset + clean_seeds):
         setup, _, _ = campaign({}, 100 + seed, root)
         r = run_discrepancy(setup, DiscrepancyOptions(lengths=(0.025, 0.040), seed=seed)).report
         null += r["named_effect"] is None
@@ -201,6 +201,8 @@ def main() -> None:
     ap.add_argument("--clean-seeds", type=int, default=2)
     ap.add_argument("--coverage", type=int, default=0)
     ap.add_argument("--coverage-seed", type=int, default=200, help="first campaign seed of the coverage rows")
+    ap.add_argument("--seed-offset", type=int, default=0,
+                    help="first seed of the naming rows (clean campaigns from offset + 100): fresh table seeds")
     ap.add_argument("--write-docs", action="store_true")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
@@ -208,7 +210,7 @@ def main() -> None:
         if args.timing:
             timing(args.timing, root)
         if args.seeds or args.clean_seeds:
-            naming(args.seeds, args.clean_seeds, root, args.write_docs)
+            naming(args.seeds, args.clean_seeds, root, args.write_docs, args.seed_offset)
         if args.coverage:
             coverage(args.coverage, root, args.write_docs, args.coverage_seed)
 

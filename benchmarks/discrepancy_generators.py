@@ -188,11 +188,12 @@ def naming(gen: Generator, n: int, n_clean: int, root: Path, times: list, only=N
 
 
 def out_of_library(gen: Generator, n: int, root: Path, times: list, cases=OUT_OF_LIBRARY, base: int = 1200) -> list[str]:
-    rows = ["| effect | named with confidence | partial or remainder reported | not usable | fitted: model vs truth "
-            "| fitted: predictive vs measured | held out: model vs truth | held out: predictive vs measured |",
-            "|---|---|---|---|---|---|---|---|"]
+    rows = ["| effect | named with confidence | named, confounded | partial or remainder reported | not usable "
+            "| fitted: model vs truth | fitted: predictive vs measured | held out: model vs truth "
+            "| held out: predictive vs measured |",
+            "|---|---|---|---|---|---|---|---|---|"]
     for k, effect in enumerate(cases):
-        named = reported = unusable = 0
+        named = confounded = reported = unusable = 0
         tot = {key: [0, 0] for key in ("fit_model", "fit_pred", "held_model", "held_pred")}
         for s in range(n):
             seed = SEED_OFFSET + base + 20 * k + s
@@ -201,7 +202,10 @@ def out_of_library(gen: Generator, n: int, root: Path, times: list, cases=OUT_OF
             res, t = run(setup, seed)
             times.append(t)
             r = res.report
-            named += r["named_effect"] is not None
+            # a name the report itself calls confounded with another candidate (within the margin of
+            # LN_BF_CONFOUNDED) is not a confident one: the report says it cannot tell them apart
+            named += r["named_effect"] is not None and not r["confounded_with"]
+            confounded += r["named_effect"] is not None and bool(r["confounded_with"])
             reported += bool(r["partially_explained_by"]) or r["final_model"] == "statistical_discrepancy"
             usable = r["usable_for_prediction"]
             unusable += not usable
@@ -210,9 +214,10 @@ def out_of_library(gen: Generator, n: int, root: Path, times: list, cases=OUT_OF
                 for key in tot:
                     tot[key][0] += c[key][0]
                     tot[key][1] += c[key][1]
-            print(f"[{gen.name}] {effect} seed {seed}: named {r['named_effect']}, final {r['final_model']}, usable "
+            print(f"[{gen.name}] {effect} seed {seed}: named {r['named_effect']} (confounded {r['confounded_with']}), "
+                  f"final {r['final_model']}, usable "
                   f"{usable}, coverage {c} ({t:.1f} s)", flush=True)
-        rows.append(f"| `{effect}` | {named}/{n} | {reported}/{n} | {unusable}/{n} | "
+        rows.append(f"| `{effect}` | {named}/{n} | {confounded}/{n} | {reported}/{n} | {unusable}/{n} | "
                     + " | ".join(frac(*tot[key]) for key in ("fit_model", "fit_pred", "held_model", "held_pred")) + " |")
     return rows
 
