@@ -152,3 +152,32 @@ def test_independent_runs_are_pooled_and_give_a_between_run_error(library):
     assert pool_runs(runs[:2])["types"][0].shape[0] == 2 * 40 * 64
     with pytest.raises(ValueError, match="two runs"):
         run_spread(pool_runs(runs[:1]), lambda d: np.median(d["tau_b"]))
+
+
+def test_nuisance_parameters_reach_their_setup_and_laws_start_at_given_rows(library):
+    # a real fit's likelihood has parameters of its own (noise scales): sampled along, passed to its callable only
+    exact, _ = library
+    lls = [gaussian_log_likelihood(m, C) for m, C in exact]
+
+    def with_noise(k):
+        g = lls[k]
+        return lambda z, v: g(z) + stats.norm.logpdf(v, 0.1 * k, 0.5).sum(axis=1)
+
+    nuisance = [1, 0, 2, 0]
+    plain = JointModel(lls, TYPES, X, HYPER, centred=True)
+    model = JointModel([with_noise(k) if nuisance[k] else lls[k] for k in range(4)], TYPES, X, HYPER, centred=True,
+                       nuisance=nuisance)
+    assert model.ndim == plain.ndim + 3
+    rng = np.random.default_rng(8)
+    laws = [np.column_stack([m + 0.01 * rng.standard_normal((50, 2)), rng.standard_normal((50, k))])
+            for (m, _), k in zip(exact, nuisance)]
+    theta = model.start(rng, 10, laws)
+    z = model.blocks(theta)[7]
+    v = model.nuisance_of(theta)
+    for k in range(4):  # each walker's law and nuisance come from one row of that setup's given draws
+        rows = laws[k]
+        both = np.column_stack([z[:, k, :], v[k]])
+        assert all(np.any(np.all(rows == r, axis=1)) for r in both)
+    expect = plain.log_prob(theta[:, :plain.ndim]) + sum(
+        stats.norm.logpdf(v[k], 0.1 * k, 0.5).sum(axis=1) for k in range(4) if nuisance[k])
+    np.testing.assert_allclose(model.log_prob(theta), expect, rtol=0, atol=1e-9)

@@ -51,19 +51,23 @@ class JointModel:
     """The joint log posterior of a library's hierarchical model, every quantity explicit.
 
     Sampler coordinates (W, ndim), in this order: ``a`` (T, d), ``delta`` (T, d), ``b0`` (d), ``tau_b`` (d),
-    ``ln sigma0`` (d), ``tau_s`` (d), ``eta`` (T, d) and per setup (n, d) either ``eps`` (non-centred) or ``z``
-    (centred); units those of the population coordinates (docs/theory.md, "Tool-library population").
+    ``ln sigma0`` (d), ``tau_s`` (d), ``eta`` (T, d), per setup (n, d) either ``eps`` (non-centred) or ``z``
+    (centred), and last each setup's nuisance parameters (``nuisance[s]`` of them, e.g. a real fit's noise
+    scales); units those of the population coordinates (docs/theory.md, "Tool-library population").
 
     Parameters
     ----------
-    log_likelihoods : sequence of callables, (n,), ``f(z) -> (W,)`` for z (W, d)
+    log_likelihoods : sequence of callables, (n,)
+        ``f(z) -> (W,)`` for z (W, d); with nuisance parameters ``f(z, v) -> (W,)``, v (W, nuisance[s]), the
+        callable's value including their prior (and ``-inf`` outside the setup's support).
     types : (n,) int, holder type index 0..T-1 of each setup
     x : (n,) covariate ln(d / 10 mm)
     hyper : Hyperprior
-    centred : bool, the last block is the laws ``z`` themselves (else their standardised deviations ``eps``)
+    centred : bool, the setups' block is the laws ``z`` themselves (else their standardised deviations ``eps``)
+    nuisance : (n,) int or None, nuisance parameters per setup (none by default)
     """
 
-    def __init__(self, log_likelihoods, types, x, hyper: Hyperprior, centred: bool = False) -> None:
+    def __init__(self, log_likelihoods, types, x, hyper: Hyperprior, centred: bool = False, nuisance=None) -> None:
         self.log_likelihoods = list(log_likelihoods)
         self.types = np.asarray(types, dtype=int)
         self.x = np.asarray(x, dtype=float)
@@ -71,14 +75,22 @@ class JointModel:
         self.centred = bool(centred)
         d, n, T = hyper.ndim, len(self.log_likelihoods), int(self.types.max()) + 1
         self.d, self.n, self.T = d, n, T
+        self.nuisance = [0] * n if nuisance is None else [int(k) for k in nuisance]
         self.sizes = [T * d, T * d, d, d, d, d, T * d, n * d]
         self.edges = np.cumsum([0] + self.sizes)
-        self.ndim = int(self.edges[-1])
+        self.v_edges = int(self.edges[-1]) + np.cumsum([0] + self.nuisance)
+        self.ndim = int(self.v_edges[-1])
 
-    def pack(self, a, delta, b0, tau_b, ls0, tau_s, eta, last) -> np.ndarray:
-        """Sampler coordinates (W, ndim) of the blocks (each with a leading walker axis W)."""
+    def pack(self, a, delta, b0, tau_b, ls0, tau_s, eta, last, nuisance=()) -> np.ndarray:
+        """Sampler coordinates (W, ndim) of the blocks (each with a leading walker axis W; ``nuisance`` a list
+        of (W, nuisance[s]) arrays of the setups that have some)."""
         W = np.shape(a)[0]
-        return np.concatenate([np.reshape(v, (W, -1)) for v in (a, delta, b0, tau_b, ls0, tau_s, eta, last)], axis=1)
+        return np.concatenate([np.reshape(v, (W, -1)) for v in (a, delta, b0, tau_b, ls0, tau_s, eta, last)]
+                              + [np.reshape(v, (W, -1)) for v in nuisance], axis=1)
+
+    def nuisance_of(self, theta: np.ndarray) -> list:
+        """Per setup (W, nuisance[s]) nuisance parameters of (W, ndim) coordinates."""
+        return [theta[:, self.v_edges[k]:self.v_edges[k + 1]] for k in range(self.n)]
 
     def blocks(self, theta: np.ndarray) -> list:
         """The eight blocks of :meth:`pack` of (W, ndim) coordinates."""
@@ -127,13 +139,19 @@ class JointModel:
         lp = lp - 0.5 * (self.n * self.d + self.d * self.T) * np.log(2 * np.pi)  # normal constants of eta, eps/z
         lp = lp - 0.5 * (2 * self.T * self.d + 2 * self.d) * np.log(2 * np.pi) - np.sum(np.log(hyper.a_sd)) * self.T \
             - np.sum(np.log(hyper.b_sd)) - self.d * np.log(hyper.ls_sd)  # of a, delta, b0, ln sigma0
+        v = self.nuisance_of(theta)
         for k, f in enumerate(self.log_likelihoods):
-            lp = lp + np.where(ok, f(np.where(ok[:, None], z[:, k, :], 0.0)), 0.0)
+            zk = np.where(ok[:, None], z[:, k, :], 0.0)
+            lp = lp + np.where(ok, f(zk, v[k]) if self.nuisance[k] else f(zk), 0.0)
         return np.where(ok, lp, -np.inf)
 
-    def start(self, rng: np.random.Generator, n_walkers: int) -> np.ndarray:
+    def start(self, rng: np.random.Generator, n_walkers: int, laws=None) -> np.ndarray:
         """Over-dispersed start (n_walkers, ndim): spreads, slopes and laws drawn from the prior, type means
-        within a tenth of their prior width, so that independent runs start apart."""
+        within a tenth of their prior width, so that independent runs start apart.
+
+        ``laws`` (one (N_s, d + nuisance[s]) array per setup, e.g. its stage-1 draws) starts each setup's law
+        and nuisance parameters at random rows instead: a real fit's likelihood is far narrower than the
+        population and would take a prior start long to find."""
         hyper, T, d, n, W = self.hyper, self.T, self.d, self.n, n_walkers
         a0 = hyper.a_mean + hyper.a_sd * 0.1 * rng.standard_normal((W, T, d))
         dl0 = rng.standard_normal((W, T, d))
@@ -143,24 +161,35 @@ class JointModel:
         ts0 = np.abs(hyper.ts_scale * rng.standard_normal((W, d)))
         eta0 = rng.standard_normal((W, T, d))
         last0 = rng.standard_normal((W, n, d))
-        if self.centred:
+        nu = [np.zeros((W, k)) for k in self.nuisance if k]
+        if laws is not None:
+            rows = [np.asarray(v)[rng.integers(0, len(v), W)] for v in laws]
+            z0 = np.stack([r[:, :d] for r in rows], axis=1)
+            nu = [r[:, d:] for r, k in zip(rows, self.nuisance) if k]
+            if self.centred:
+                last0 = z0
+            else:
+                b = b00[:, None, :] + tb0[:, None, :] * dl0
+                mu = a0[:, self.types, :] + b[:, self.types, :] * self.x[None, :, None]
+                last0 = (z0 - mu) / np.exp(ls00[:, None, :] + ts0[:, None, :] * eta0)[:, self.types, :]
+        elif self.centred:
             # the same draws as laws: z = a + b x + sigma eps
             last0 = JointModel(self.log_likelihoods, self.types, self.x, hyper, False).laws(
                 self.pack(a0, dl0, b00, tb0, ls00, ts0, eta0, last0))[3]
-        return self.pack(a0, dl0, b00, tb0, ls00, ts0, eta0, last0)
+        return self.pack(a0, dl0, b00, tb0, ls00, ts0, eta0, last0, nu)
 
 
-def _one_run(model: JointModel, rng, n_steps, n_burn, n_walkers) -> dict:
+def _one_run(model: JointModel, rng, n_steps, n_burn, n_walkers, laws=None, thin=1) -> dict:
     """One emcee ensemble of the joint posterior from an over-dispersed start; see :func:`sample_joint`."""
     import emcee
 
     sampler = emcee.EnsembleSampler(n_walkers, model.ndim, model.log_prob, vectorize=True,
                                     moves=[(emcee.moves.StretchMove(), 1.0)])
-    start = model.start(rng, n_walkers)
+    start = model.start(rng, n_walkers, laws)
     rstate = np.random.RandomState(int(rng.integers(0, 2**32 - 1))).get_state()
     state = sampler.run_mcmc(emcee.State(start, random_state=rstate), n_burn, progress=False)
     sampler.reset()
-    sampler.run_mcmc(state, n_steps, progress=False)
+    sampler.run_mcmc(state, n_steps, thin_by=thin, progress=False)
     flat = sampler.get_chain(flat=True)  # step-major: n_steps x n_walkers rows
     a, b, ls, _ = model.laws(flat)
     s = np.exp(ls)
@@ -171,7 +200,8 @@ def _one_run(model: JointModel, rng, n_steps, n_burn, n_walkers) -> dict:
 
 def sample_joint(log_likelihoods: Sequence[Callable[[np.ndarray], np.ndarray]], types: Sequence[int], x: np.ndarray,
                  hyper: Hyperprior, rng: np.random.Generator, n_steps: int = 6000, n_burn: int = 3000,
-                 n_walkers: int = 64, n_runs: int = 1, centred: bool = False) -> dict:
+                 n_walkers: int = 64, n_runs: int = 1, centred: bool = False, nuisance=None,
+                 start_laws=None, thin: int = 1) -> dict:
     """Joint emcee of hyperparameters and setup laws of a library, in ``n_runs`` independent ensembles.
 
     Parameters
@@ -182,9 +212,12 @@ def sample_joint(log_likelihoods: Sequence[Callable[[np.ndarray], np.ndarray]], 
     x : (n,) covariate ln(d / 10 mm)
     hyper : Hyperprior
     rng : numpy Generator
-    n_steps, n_burn, n_walkers : int, per run
+    n_steps, n_burn, n_walkers : int, per run (kept draws, burn-in steps, walkers)
     n_runs : int, independent ensembles (each from its own over-dispersed start)
     centred : bool, sample the setups' laws ``z_s`` themselves instead of their standardised deviations
+    nuisance : (n,) int or None, nuisance parameters per setup (see :class:`JointModel`)
+    start_laws : list of (N_s, d + nuisance[s]) arrays or None, rows to start the laws from (:meth:`JointModel.start`)
+    thin : int, steps per kept draw (``n_steps x thin`` steps are run; bounds the memory of long chains)
 
     Returns
     -------
@@ -192,8 +225,8 @@ def sample_joint(log_likelihoods: Sequence[Callable[[np.ndarray], np.ndarray]], 
     runs (each run's draws in step-major emcee order, ``n_steps x n_walkers`` rows); ``runs`` the same per run,
     with its ``acceptance``
     """
-    model = JointModel(log_likelihoods, types, x, hyper, centred)
-    return pool_runs([_one_run(model, rng, n_steps, n_burn, n_walkers) for _ in range(n_runs)])
+    model = JointModel(log_likelihoods, types, x, hyper, centred, nuisance)
+    return pool_runs([_one_run(model, rng, n_steps, n_burn, n_walkers, start_laws, thin) for _ in range(n_runs)])
 
 
 def pool_runs(runs: Sequence[dict]) -> dict:
