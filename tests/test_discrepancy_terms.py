@@ -330,3 +330,49 @@ def test_law_shape_uncertainty_spans_the_two_spring_laws_and_keeps_the_ends():
     np.testing.assert_allclose(out.k_xf[:, [0, -1]], lin_k[:, [0, -1]], rtol=1e-12)  # the ends are kept
     np.testing.assert_allclose(out.k_xf[1], 1e7 * (1 + 0.4 * two_spring_limit(x, l_b / l_a)), rtol=1e-12)
     assert np.all(out.k_xf[2, 1:-1] < lin_k[2, 1:-1]) and np.all(out.k_thetaM[1, 1:-1] > lin_r[1, 1:-1])
+
+
+def _flute_profile(n_flutes: int, core: float, gap: float, grid: int = 401):
+    """Area and mean second moment (of both axes; ``J / 2``) of a unit-radius section with ``n_flutes`` flutes,
+    as ratios to the solid disc's, on a grid.  Each flute removes a disc that cuts the rim at ``+-gap pi / n``
+    around its axis and reaches radius ``core`` on it: centre at ``d = (1 - core^2) / (2 (cos h - core))``,
+    radius ``d - core``.  ``None`` where no such disc exists (``cos h <= core``: the flute would be wider
+    than deep)."""
+    x, y = np.meshgrid(np.linspace(-1, 1, grid), np.linspace(-1, 1, grid))
+    inside = np.hypot(x, y) <= 1.0
+    for k in range(n_flutes):
+        h = gap * np.pi / n_flutes
+        if np.cos(h) <= core:
+            return None
+        d = (1 - core**2) / (2 * (np.cos(h) - core))
+        c = 2 * np.pi * k / n_flutes
+        inside &= np.hypot(x - d * np.cos(c), y - d * np.sin(c)) >= d - core
+    cell = (2.0 / (grid - 1)) ** 2
+    area = inside.sum() * cell
+    inertia = 0.5 * ((x**2 + y**2) * inside).sum() * cell
+    return area / np.pi, inertia / (np.pi / 4)
+
+
+@pytest.mark.parametrize("n_flutes", [2, 3, 4, 6])
+def test_flute_profiles_are_never_below_the_equal_area_circle_and_lie_in_the_excess_prior(clean, n_flutes):
+    """The term's ``q = i / a^2 >= 1`` (the disc minimises the polar moment for its area): every profile of the
+    docstring's family (2-6 flutes, core 0.5-0.8, flute width 0.4-0.7 of the pitch) has its mean second moment
+    above the equal-area circle's and its excess inside the prior [1, 2]; an effective circle is exactly 1."""
+    from bayes_rcsa.params.terms.fluted_section import EXCESS_RANGE
+
+    prior = make_term("fluted_section").parameters(clean[1])
+    q_param = next(p for p in prior if p.name == "flute_inertia_excess")
+    assert q_param.prior.bounds == EXCESS_RANGE and q_param.baseline == EXCESS_RANGE[0] == 1.0
+    checked = 0
+    for core in (0.5, 0.65, 0.8):  # the documented core ratios (q up to 1.46 here; 2.2 at a core of 0.3)
+        for gap in (0.3, 0.4, 0.55, 0.7):
+            profile = _flute_profile(n_flutes, core, gap)
+            if profile is None:
+                continue
+            a, i = profile
+            q = i / a**2
+            assert 1.0 <= q <= EXCESS_RANGE[1], (n_flutes, core, gap, a, i, q)
+            checked += 1
+    assert checked >= 4
+    a, i = _flute_profile(0, 0.0, 0.0)  # no flute: the full disc, q = 1 within the grid's error
+    assert abs(i / a**2 - 1.0) < 0.01
