@@ -393,6 +393,7 @@ def test_decision_rules_confounding_partial_and_separating_tests(monkeypatch):
     from bayes_rcsa.discrepancy import select
 
     monkeypatch.setattr(select, "edge_parameters", lambda fit, effect: [])  # no fit on a prior edge here
+    monkeypatch.setattr(select, "implausible_reasons", lambda fit, effect: [])  # nor a physically impossible one
     base_sys = {"gap": 0.05, "at_noise_floor": False}
 
     def refit(effect, criterion, gap=0.02, sys_gap=0.005):
@@ -456,3 +457,22 @@ def test_law_shape_terms_are_default_candidates_only_with_three_or_more_fitted_l
     # named explicitly they stay (the user's choice)
     named, _, _ = validate(setup, DiscrepancyOptions(lengths=(0.025, 0.040), candidates=("stiffness_step",)))
     assert named == ("stiffness_step",)
+
+
+def test_a_physically_impossible_best_fit_is_not_named(monkeypatch):
+    """A candidate whose MAP its own term calls impossible (ModelTerm.implausible: a flute section with less
+    bending stiffness than the circle of its area) is a stand-in for another effect: the next supported
+    candidate is named, and the reason is kept for the report."""
+    from types import SimpleNamespace
+
+    from bayes_rcsa.discrepancy import select
+
+    monkeypatch.setattr(select, "edge_parameters", lambda fit, effect: [])
+    why = ["flute_inertia_ratio / flute_area_ratio^2 = 0.84 < 0.95"]
+    monkeypatch.setattr(select, "implausible_reasons", lambda fit, effect: why if effect == "fluted_section" else [])
+    refits = [select.Refit(e, SimpleNamespace(statistic=1.0), None, c, 0.02, {"gap": 0.005})
+              for e, c in (("fluted_section", 30.0), ("tip_mass", 20.0))]
+    d = select.decide(refits, 0.03, {"gap": 0.05, "at_noise_floor": False})
+    assert d["named"] == "tip_mass" and d["confounded_with"] == []
+    assert d["implausible"]["fluted_section"] == why and d["implausible"]["tip_mass"] == []
+

@@ -22,7 +22,10 @@ Decision
   other than its baseline (:func:`edge_parameters`: then the term is used
   as a surrogate outside its physical range, e.g. a resonator at the edge
   of the frequency range with the largest damping allowed standing in for
-  a broadband spindle change).
+  a broadband spindle change), nor is its MAP physically impossible by the
+  term's own check (:func:`implausible_reasons`, e.g. a flute section with
+  less bending stiffness than the circle of its area standing in for a
+  tool modulus error).
 * The winner is the supported candidate with the largest criterion; the
   runner-up and the margin (difference of criteria) are reported.
 * Candidates whose criterion is within ``LN_BF_CONFOUNDED`` (= ln 10) of
@@ -41,7 +44,7 @@ import numpy as np
 from .fit import ModelFit, fit_variant
 from .screen import ScoreResult, embed_baseline
 
-__all__ = ["systematic_gap_change", "LN_BF_NAME", "LN_BF_CONFOUNDED", "MIN_GAP_REDUCTION", "Refit", "refit_candidate", "decide", "edge_parameters",
+__all__ = ["systematic_gap_change", "LN_BF_NAME", "LN_BF_CONFOUNDED", "MIN_GAP_REDUCTION", "Refit", "refit_candidate", "decide", "edge_parameters", "implausible_reasons",
            "separating_test", "gap", "systematic_gap", "fitted_systematic_gap", "GAP_LAGS", "MIN_SYSTEMATIC_REDUCTION",
            "bound_warnings"]
 
@@ -239,6 +242,15 @@ def edge_parameters(fit: ModelFit, effect: str, rel: float = 0.01) -> list[str]:
     return out
 
 
+def implausible_reasons(fit: ModelFit, effect: str) -> list[str]:
+    """The term's own physical-plausibility check (:meth:`ModelTerm.implausible`) at the fit's MAP."""
+    from ..params.terms import get_term
+
+    pm = fit.problem.parameters
+    values = {n: float(v[0]) for n, v in pm.values(fit.theta[None]).items()}
+    return get_term(effect)().implausible(values)
+
+
 def bound_warnings(fit: ModelFit, rel: float = 0.01) -> list[str]:
     """One warning per non-noise parameter whose MAP lies on a finite prior bound.
 
@@ -291,27 +303,30 @@ def decide(refits: list[Refit], gap_before: float, systematic_before: dict | Non
     """
     ranked = sorted(refits, key=lambda r: -r.criterion)
     edges = {r.effect: edge_parameters(r.fit, r.effect) for r in ranked}
+    implausible = {r.effect: implausible_reasons(r.fit, r.effect) for r in ranked}
     check = systematic_before is not None and not systematic_before["at_noise_floor"] and systematic_before["gap"] > 0
 
     def ratio(r: Refit) -> float | None:
         return r.systematic["gap"] / systematic_before["gap"] if check and r.systematic else None
 
     decisive = [r for r in ranked if r.criterion > LN_BF_NAME and r.gap <= (1 - MIN_GAP_REDUCTION) * gap_before
-                and not edges[r.effect]]
+                and not edges[r.effect] and not implausible[r.effect]]
     supported = [r for r in decisive if ratio(r) is None or ratio(r) <= 1 - MIN_SYSTEMATIC_REDUCTION]
     partial = [{"effect": r.effect, "criterion": r.criterion, "systematic_gap_ratio": ratio(r)}
                for r in decisive if r not in supported]
     if not supported:
         best = ranked[0] if ranked else None
         return {"named": None, "runner_up": best.effect if best else None,
-                "margin": None, "confounded_with": [], "ranked": ranked, "edge_parameters": edges, "partial": partial}
+                "margin": None, "confounded_with": [], "ranked": ranked, "edge_parameters": edges,
+                "implausible": implausible, "partial": partial}
     win = supported[0]
     others = [r for r in ranked if r is not win]
     runner = others[0] if others else None
     confounded = [r.effect for r in supported[1:] if win.criterion - r.criterion < LN_BF_CONFOUNDED]
     return {"named": win.effect, "runner_up": runner.effect if runner else None,
             "margin": (win.criterion - runner.criterion) if runner else None,
-            "confounded_with": confounded, "ranked": ranked, "edge_parameters": edges, "partial": partial}
+            "confounded_with": confounded, "ranked": ranked, "edge_parameters": edges, "implausible": implausible,
+            "partial": partial}
 
 
 #: What separates two kinds of explanation (by the kinds of the two terms).

@@ -698,6 +698,7 @@ def build_report(res: DiscrepancyResult) -> dict:
         cands.append({"effect": r.effect, "score": r.score.statistic, "criterion": r.criterion,
                       "parameters": {n: _quantiles(vals[n]) for n in pm.names if pm[n].term == r.effect},
                       "parameters_on_prior_edge": dec["edge_parameters"].get(r.effect, []),
+                      "implausible": dec.get("implausible", {}).get(r.effect, []),
                       "gap_fitted_lines": r.gap, "systematic_gap_fitted_lines": r.systematic.get("gap"),
                       "score_p_value": r.score.p_value, "description": get_term(r.effect).description})
     for s in res.scores:  # screened but not refitted: score only

@@ -157,6 +157,19 @@ class ModelTerm:
         """The term's parameters with default priors and baselines for this model."""
         raise NotImplementedError
 
+    def implausible(self, values: Mapping[str, float]) -> list[str]:
+        """Why a fitted set of this term's parameters is physically impossible (empty: it is possible).
+
+        For constraints between parameters that a box prior cannot express (e.g. a flute's second moment
+        can never fall below that of the circle of the same area).  The discrepancy workflow does not name
+        a candidate whose best fit is implausible: the term is then a stand-in for another effect.
+
+        Parameters
+        ----------
+        values : mapping name -> float, physical values of (at least) the term's parameters
+        """
+        return []
+
     # -- hooks: implement the one of the term's kind -------------------------
 
     def spindle(self, values: Mapping[str, np.ndarray], spindle: np.ndarray, ctx: TermContext) -> np.ndarray:
