@@ -7,20 +7,24 @@ not the physics.  Seeds 5000+ (the development seeds were 0-99).
 
     python3 benchmarks/library_scale.py [N_COMBINATIONS] [REPEATS]
     python3 benchmarks/library_scale.py joint [REPLICATES] [RUNS] [STEPS] [SEED]
+    python3 benchmarks/library_scale.py joint-real LIBRARY STAGE1 NAME,NAME,NAME,NAME [RUNS] [STEPS] [THIN] [SEED]
 
 Prints one line per repeat and the median; the table goes to docs/library.md ("Scale").  ``joint`` checks
 stage 2 against joint emcee on 4-combination stand-ins (two holder types of two, two pooled coordinates,
 exactly Gaussian stage-1 likelihoods): per replicate the largest |median difference| / posterior sd and the
 largest difference of a 90 % interval end / the joint interval's width over the 14 hyperparameters (a, b, sigma
-per type and coordinate, tau_b per coordinate; docs/library.md, "Stage 2").
+per type and coordinate, tau_b per coordinate; docs/library.md, "Stage 2").  ``joint-real`` does the same
+with four real identify posteriors of a ``benchmarks/library.py`` library and their tempered FRF likelihoods.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import statistics
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -77,12 +81,45 @@ def main(n: int = 1000, repeats: int = 3) -> None:
     print(f"median: stage 2 {statistics.median(times):.1f} s, outlier check {statistics.median(loo_times):.1f} s")
 
 
+def _target_quantiles(groups, hyper: Hyperprior, theta: np.ndarray, rng: np.random.Generator, n: int = 400_000):
+    """Quantiles (0.05, 0.5, 0.95) of every sigma_tj and tau_b,j under stage 2's own target, by importance sampling.
+
+    Proposal: a Student-t (5 degrees of freedom, covariance 1.5^2 x the chain's) on (ln sigma, ln tau_b) fitted to
+    stage 2's draws ``theta``; the weights are ``log_posterior`` (with the Jacobian of ln tau_b) over the proposal
+    density.  Independent of the chain's Monte Carlo error in the tails.  Returns (3, T d + d) in the sampler's
+    order (ln sigma per type and coordinate, then tau_b) and the weights' effective sample size."""
+    from scipy.stats import multivariate_t
+
+    from bayes_rcsa.library.hierarchy import log_posterior
+
+    k = theta.shape[1] - hyper.ndim  # number of ln sigma columns
+    y0 = np.concatenate([theta[:, :k], np.log(theta[:, k:])], axis=1)
+    prop = multivariate_t(y0.mean(axis=0), 2.25 * np.cov(y0, rowvar=False), df=5)
+    ys, lws = [], []
+    for _ in range(n // 50_000):
+        y = prop.rvs(50_000, random_state=rng)
+        th = np.concatenate([y[:, :k], np.exp(y[:, k:])], axis=1)
+        lws.append(log_posterior(th, groups, hyper) + np.sum(y[:, k:], axis=1) - prop.logpdf(y))
+        ys.append(np.concatenate([np.exp(y[:, :k]), np.exp(y[:, k:])], axis=1))
+    v, lw = np.concatenate(ys), np.concatenate(lws)
+    w = np.exp(lw - lw.max())
+    w /= w.sum()
+    q = np.empty((3, v.shape[1]))
+    for j in range(v.shape[1]):
+        o = np.argsort(v[:, j])
+        q[:, j] = np.interp([0.05, 0.5, 0.95], np.cumsum(w[o]) - 0.5 * w[o], v[o, j])
+    return q, float(1.0 / np.sum(w * w))
+
+
 def joint_check(replicates: int = 5, runs: int = 4, steps: int = 48000, seed: int = 5200) -> None:
     """Two holder types of two combinations each (4 in all), two pooled coordinates: per type (a, b, sigma) of
     both coordinates and the slopes' spread tau_b, 14 hyperparameters.  Stage 2 runs to an ESS of 12,000; the
     joint reference is ``runs`` independent emcee ensembles (64 walkers x ``steps`` after 8,000 of burn-in
     from over-dispersed prior starts; half with the setups' laws non-centred, half centred), pooled, and the
-    between-run spread of each interval end is its Monte Carlo standard error."""
+    between-run spread of each interval end is its Monte Carlo standard error.  Stage 2's own target is also
+    computed by importance sampling (:func:`_target_quantiles`, for the spreads and tau_b, whose upper ends are the
+    hard ones): "target vs joint" is the comparison without stage 2's chain noise, "chain vs target" that noise.
+    ``runs = 0`` skips the joint reference (stage 2 and its target only)."""
     names = ("k_xf", "g_xf")
     box = np.array([[4.0, 10.0], [0.0, 1.5]])
     hyper = Hyperprior.from_box(names, box, 1.5)
@@ -94,7 +131,8 @@ def joint_check(replicates: int = 5, runs: int = 4, steps: int = 48000, seed: in
     worst = []
     print(f"seeds {seed}-{seed + replicates - 1}; {runs} joint runs of 64 walkers x {steps} steps per replicate")
     print("replicate  max |d median| / sd  max |d end| / width  worst end (stage 2, joint +- MC se)  "
-          "ends > 10 %: of them beyond 2 se")
+          "ends > 10 %: of them beyond 2 se  | spreads and tau_b, max |d end| / width: target vs joint, chain vs "
+          "target [IS ESS]")
     for r in range(replicates):
         t0 = time.perf_counter()
         rng = np.random.default_rng(seed + r)
@@ -115,6 +153,16 @@ def joint_check(replicates: int = 5, runs: int = 4, steps: int = 48000, seed: in
             groups.append(Group(f"T{t}", tuple(f"s{i}" for i in idx), x[idx], np.array([v[0] for v in sur]),
                                 np.array([v[1] for v in sur])))
         fit = fit_hyper(groups, hyper, rng, Stage2Settings(ess_target=12000))
+        sel = [4, 5, 10, 11, 12, 13]  # sigma of both coordinates per type, tau_b: the sampler's order
+        q2 = np.quantile(np.concatenate([fit.types["T0"].flat, fit.types["T1"].flat, fit.tau_b], axis=1),
+                         [0.05, 0.5, 0.95], axis=0)
+        qt, is_ess = _target_quantiles(groups, hyper, fit.theta, np.random.default_rng([seed + r, 1]))
+        chain_vs_target = float(np.max(np.abs(q2[[0, 2]][:, sel] - qt[[0, 2]]) / (qt[2] - qt[0])))
+        if runs == 0:
+            ends = ", ".join(f"{labels[c]} {q2[2, c]:.3f} / {qt[2, i]:.3f}" for i, c in enumerate(sel))
+            print(f"{r:9d}  chain vs target {chain_vs_target:.3f} [IS ESS {is_ess:.0f}]; upper ends, chain / "
+                  f"target: {ends}", flush=True)
+            continue
         lls = [gaussian_log_likelihood(m, C) for m, C in exact]
         half = [sample_joint(lls, types, x, hyper, rng, n_steps=steps, n_burn=8000, n_runs=k, centred=c)["runs"]
                 for k, c in ((runs - runs // 2, False), (runs // 2, True)) if k]
@@ -134,17 +182,115 @@ def joint_check(replicates: int = 5, runs: int = 4, steps: int = 48000, seed: in
         k = np.unravel_index(np.argmax(de), de.shape)
         over = de > 0.10
         n_beyond = int(np.sum(over & (de > 2 * se_e)))  # joint Monte Carlo error only
+        target_vs_joint = float(np.max(np.abs(qt[[0, 2]] - qj[[0, 2]][:, sel]) / width[sel]))
         worst.append((float(dm.max()), float(de.max())))
         end = ("q05", "q95")[k[0]]
         print(f"{r:9d}  {dm.max():20.3f}  {de.max():19.3f}  {labels[k[1]]} {end}: {q2[2 * k[0], k[1]]:.3f}, "
               f"{qj[2 * k[0], k[1]]:.3f} +- {se[2 * k[0], k[1]]:.3f} ({se_e[k]:.3f} of the width)  "
-              f"{int(over.sum())}: {n_beyond}   [{time.perf_counter() - t0:.0f} s]", flush=True)
-    print(f"largest: {max(w[0] for w in worst):.3f} sd, {max(w[1] for w in worst):.3f} of the width "
-          "(acceptance: 0.2 sd, 0.10)")
+              f"{int(over.sum())}: {n_beyond}  | {target_vs_joint:.3f}, {chain_vs_target:.3f} [{is_ess:.0f}]   "
+              f"[{time.perf_counter() - t0:.0f} s]", flush=True)
+    if worst:
+        print(f"largest: {max(w[0] for w in worst):.3f} sd, {max(w[1] for w in worst):.3f} of the width "
+              "(acceptance: 0.2 sd, 0.10)")
+
+
+def joint_real(library: str, stage1: str, picks: str, runs: int = 4, steps: int = 6000, thin: int = 4,
+               seed: int = 5300) -> None:
+    """Stage 2 against the joint model with REAL identify posteriors: four combinations (``picks``, comma-separated
+    names of two holder types) of a ``benchmarks/library.py`` library (``library``: its folder with
+    ``manifest.toml``; ``stage1``: its finished ``bayes-rcsa batch`` folder).
+
+    Stage 2 as ``bayes-rcsa library`` runs it (surrogates of the stored draws, ESS target 12,000).  The joint
+    model samples every hyperparameter, every setup's contact law (centred, in population coordinates) and its
+    noise scales, with each setup's own tempered FRF likelihood and stage-1 prior box (the stage-1 log posterior
+    that identify sampled, rebuilt from the setup file and checked against the stored ``lp`` of its draws), in
+    ``runs`` independent ensembles of ``2 ndim + 8`` walkers, ``steps x thin`` steps after ``steps`` of burn-in,
+    the laws and noise scales starting at random stage-1 draws."""
+    import arviz as az
+
+    from bayes_rcsa.batch.manifest import load_manifest
+    from bayes_rcsa.inference.posterior import LogPosterior
+    from bayes_rcsa.inference.problem import IdentificationOptions, build_problem_from_setup
+    from bayes_rcsa.io.setup import load_setup
+    from bayes_rcsa.library.joint import JointModel
+    from bayes_rcsa.library.stage1 import collect
+
+    lib, s1 = Path(library), Path(stage1)
+    pick = picks.split(",")
+    jobs = [j for j in load_manifest(lib / "manifest.toml") if j.name in pick]
+    st1 = collect(jobs, s1)
+    names, d = st1.names, len(st1.names)
+    hyper = Hyperprior.from_box(names, st1.box, st1.growth[2])
+    groups = sorted({s.holder_type for s in st1.setups})
+    lls, laws, nuisance, types, x = [], [], [], [], []
+    for s in st1.setups:
+        if np.any(s.prior_precision):
+            raise SystemExit(f"{s.name}: a Gaussian stage-1 prior; this check assumes the default flat ones")
+        job = next(j for j in jobs if j.name == s.name)
+        setup = load_setup(job.setup_file)
+        folder = s1 / "setups" / s.name / "identify"
+        summary = json.loads((folder / "summary.json").read_text())
+        problem = build_problem_from_setup(setup, IdentificationOptions.from_setup(
+            setup.extra, method=summary["method"], lengths=None, band=None))
+        lp = LogPosterior(problem.priors, problem.likelihood.with_tempering(summary["likelihood"]["tempering"]))
+        pn = problem.priors.names
+        iz = [pn.index(n) for n in names]
+        iv = [i for i in range(len(pn)) if i not in iz]
+        post = az.from_netcdf(folder / "posterior.nc")
+        th = np.column_stack([np.asarray(problem.priors.priors[n].to_sampling(post.posterior[n].values.ravel()), float)
+                              for n in pn])
+        gap = float(np.max(np.abs(lp(th) - post.sample_stats["lp"].values.ravel())))
+        if gap > 1e-6 or np.max(np.abs(th[:, iz] - s.z)) > 1e-9:
+            raise SystemExit(f"{s.name}: the rebuilt stage-1 log posterior differs from the stored one by {gap:g}")
+
+        def f(z, v, lp=lp, iz=iz, iv=iv, k=len(pn)):
+            theta = np.empty((z.shape[0], k))
+            theta[:, iz], theta[:, iv] = z, v
+            return lp(theta)
+
+        lls.append(f)
+        laws.append(np.column_stack([th[:, iz], th[:, iv]]))
+        nuisance.append(len(iv))
+        types.append(groups.index(s.holder_type))
+        x.append(float(covariate(s.diameter)))
+        print(f"{s.name}: {s.holder_type}, {s.diameter * 1e3:.0f} mm, tempering {summary['likelihood']['tempering']:.3f}, "
+              f"{len(pn)} parameters, {th.shape[0]} stage-1 draws", flush=True)
+    rng = np.random.default_rng(seed)
+    t0 = time.perf_counter()
+    fit = fit_population(st1.setups, hyper, rng, Stage2Settings(ess_target=12000)).fit
+    print(f"stage 2: {time.perf_counter() - t0:.0f} s, ESS {fit.ess:.0f}, {fit.n_steps} steps", flush=True)
+    model = JointModel(lls, types, x, hyper, True, nuisance)
+    W = 2 * model.ndim + 8
+    t0 = time.perf_counter()
+    joint = sample_joint(lls, types, x, hyper, rng, n_steps=steps, n_burn=steps, n_walkers=W, n_runs=runs,
+                         centred=True, nuisance=nuisance, start_laws=laws, thin=thin)
+    print(f"joint: {model.ndim} dimensions, {runs} runs of {W} walkers x {steps * thin} steps, "
+          f"{time.perf_counter() - t0:.0f} s, acceptance {[round(r['acceptance'], 3) for r in joint['runs']]}",
+          flush=True)
+    labels = [f"{p}_{n}[{g}]" for g in groups for p in ("a", "b", "sigma") for n in names] + \
+        [f"tau_b_{n}" for n in names]
+
+    def columns(dd):
+        return np.concatenate(list(dd["types"]) + [dd["tau_b"]], axis=1)
+
+    two = columns({"types": [fit.types[g].flat for g in groups], "tau_b": fit.tau_b})
+    qj, se = run_spread(joint, lambda dd: np.quantile(columns(dd), [0.05, 0.5, 0.95], axis=0))
+    q2 = np.quantile(two, [0.05, 0.5, 0.95], axis=0)
+    sd, width = np.std(columns(joint), axis=0), qj[2] - qj[0]
+    dm = np.abs(q2[1] - qj[1]) / sd
+    de = np.max(np.abs(q2[[0, 2]] - qj[[0, 2]]), axis=0) / width
+    for i, label in enumerate(labels):
+        print(f"{label:24s} stage 2 {q2[0, i]:9.4f} {q2[1, i]:9.4f} {q2[2, i]:9.4f} | joint {qj[0, i]:9.4f} "
+              f"{qj[1, i]:9.4f} {qj[2, i]:9.4f} | median {dm[i]:.3f} sd, ends {de[i]:.3f} of the width "
+              f"(MC se {np.max(se[[0, 2], i]) / width[i]:.3f})")
+    print(f"largest: {dm.max():.3f} sd ({labels[int(dm.argmax())]}), {de.max():.3f} of the width "
+          f"({labels[int(de.argmax())]}) (acceptance: 0.2 sd, 0.10)")
 
 
 if __name__ == "__main__":
     if sys.argv[1:2] == ["joint"]:
         joint_check(*(int(v) for v in sys.argv[2:6]))
+    elif sys.argv[1:2] == ["joint-real"]:
+        joint_real(*sys.argv[2:5], *(int(v) for v in sys.argv[5:9]))
     else:
         main(*(int(v) for v in sys.argv[1:3]))
