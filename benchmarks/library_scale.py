@@ -7,7 +7,7 @@ not the physics.  Seeds 5000+ (the development seeds were 0-99).
 
     python3 benchmarks/library_scale.py [N_COMBINATIONS] [REPEATS]
     python3 benchmarks/library_scale.py joint [REPLICATES] [RUNS] [STEPS] [SEED]
-    python3 benchmarks/library_scale.py joint-real LIBRARY STAGE1 NAME,NAME,NAME,NAME [RUNS] [STEPS] [THIN] [SEED]
+    python3 benchmarks/library_scale.py joint-real LIBRARY STAGE1 NAME,NAME,NAME,NAME [RUNS] [STEPS] [THIN] [SEED] [real|surrogate]
 
 Prints one line per repeat and the median; the table goes to docs/library.md ("Scale").  ``joint`` checks
 stage 2 against joint emcee on 4-combination stand-ins (two holder types of two, two pooled coordinates,
@@ -195,7 +195,7 @@ def joint_check(replicates: int = 5, runs: int = 4, steps: int = 48000, seed: in
 
 
 def joint_real(library: str, stage1: str, picks: str, runs: int = 4, steps: int = 6000, thin: int = 4,
-               seed: int = 5300) -> None:
+               seed: int = 5300, likelihood: str = "real") -> None:
     """Stage 2 against the joint model with REAL identify posteriors: four combinations (``picks``, comma-separated
     names of two holder types) of a ``benchmarks/library.py`` library (``library``: its folder with
     ``manifest.toml``; ``stage1``: its finished ``bayes-rcsa batch`` folder).
@@ -205,7 +205,10 @@ def joint_real(library: str, stage1: str, picks: str, runs: int = 4, steps: int 
     noise scales, with each setup's own tempered FRF likelihood and stage-1 prior box (the stage-1 log posterior
     that identify sampled, rebuilt from the setup file and checked against the stored ``lp`` of its draws), in
     ``runs`` independent ensembles of ``2 ndim + 8`` walkers, ``steps x thin`` steps after ``steps`` of burn-in,
-    the laws and noise scales starting at random stage-1 draws."""
+    the laws and noise scales starting at random stage-1 draws.
+
+    ``likelihood = "surrogate"`` is the control: the same library, each setup's Gaussian surrogate as its exact
+    likelihood (no noise scales), where stage 2's target is exact; a gap there is the joint sampler's."""
     import arviz as az
 
     from bayes_rcsa.batch.manifest import load_manifest
@@ -255,6 +258,9 @@ def joint_real(library: str, stage1: str, picks: str, runs: int = 4, steps: int 
         x.append(float(covariate(s.diameter)))
         print(f"{s.name}: {s.holder_type}, {s.diameter * 1e3:.0f} mm, tempering {summary['likelihood']['tempering']:.3f}, "
               f"{len(pn)} parameters, {th.shape[0]} stage-1 draws", flush=True)
+    if likelihood == "surrogate":
+        lls = [gaussian_log_likelihood(*surrogate(s)[:2]) for s in st1.setups]
+        laws, nuisance = [s.z for s in st1.setups], None
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
     fit = fit_population(st1.setups, hyper, rng, Stage2Settings(ess_target=12000)).fit
@@ -291,6 +297,6 @@ if __name__ == "__main__":
     if sys.argv[1:2] == ["joint"]:
         joint_check(*(int(v) for v in sys.argv[2:6]))
     elif sys.argv[1:2] == ["joint-real"]:
-        joint_real(*sys.argv[2:5], *(int(v) for v in sys.argv[5:9]))
+        joint_real(*sys.argv[2:5], *(int(v) for v in sys.argv[5:9]), *sys.argv[9:10])
     else:
         main(*(int(v) for v in sys.argv[1:3]))

@@ -21,6 +21,12 @@ sampler runs ``n_runs`` independent ensembles from over-dispersed prior
 starts and returns each run's draws with the pooled ones; the between-run
 spread of a statistic is its Monte Carlo error (:func:`run_spread`).  Cheap
 for a handful of setups only (docs/library.md).
+
+Where a setup's likelihood is far narrower than the population spread (real
+identify fits pin the stiffness to ~1e-3 decades) the stretch move mixes too
+slowly and under-samples small spreads, even with exactly Gaussian
+likelihoods: the sampler is a valid reference for the stand-ins of the
+benchmark, not there (docs/library.md, "With real identify posteriors").
 """
 
 from __future__ import annotations
