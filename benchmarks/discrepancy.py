@@ -121,7 +121,7 @@ def naming(seeds: int, clean_seeds: int, root: Path, write_docs: bool, offset: i
         "| hidden effect | named (or confounded) | 95 % interval | gap halved when named | named as (per seed) |",
         "|---|---|---|---|---|",
         *rows,
-        f"| **all seven** | **{all_ok}/{all_n}** | [{lo:.2f}, {hi:.2f}] | | |",
+        f"| **all effects** | **{all_ok}/{all_n}** | [{lo:.2f}, {hi:.2f}] | | |",
         f"| clean data (null expected) | {null}/{clean_seeds} null | [{nlo:.2f}, {nhi:.2f}] | | |",
     ])
     print(table)

@@ -80,24 +80,31 @@ def test_clean_rotor_campaign_names_nothing(clean):
         assert m["unmatched_measured_hz"] == [] and not m["prominent_mode_differs"] and len(m["modes"]) >= 1
 
 
-def test_out_of_library_effect_is_not_named_and_fitted_intervals_are_honest(modulus):
+def test_out_of_library_effect_is_not_named_with_confidence_and_fitted_intervals_are_honest(modulus):
     res, cfg = modulus
     r = res.report
-    assert r["named_effect"] is None
-    # the decisive first-round candidate was refused because it makes the unfitted lengths worse
-    part = r["partially_explained_by"][0]
-    assert part["held_out_gap_grew"] and r["held_out_transfer"]["grew"]
-    assert r["held_out_transfer"]["named"] > r["held_out_transfer"]["baseline"]
+    # the best-fitting stand-in, a flute with less bending stiffness than the circle of its area (a modulus
+    # change over the fluted length), is refused as physically impossible (ModelTerm.implausible)
+    flute = next(c for c in r["candidates"] if c["effect"] == "fluted_section")
+    assert flute["implausible"] and r["named_effect"] != "fluted_section"
+    # not named with confidence: nothing, or a name the report itself says it cannot tell from another
+    # (the rate over campaigns, at most 2 of 10 confident names, is the benchmark's table)
+    assert r["named_effect"] is None or r["confounded_with"], (r["named_effect"], r["confounded_with"])
     assert r["usable_for_prediction"], r["usable_for_prediction_reasons"]
     if r["final_model"] == "statistical_discrepancy":
         assert r["mode_bias"]["applied"]
-    # at the fitted lengths the data were given to the model: every mode's predictive interval covers the
-    # measured mode, and the model interval covers the noise-free true mode
-    for m in r["measurements_after"]:
-        if m["fitted"]:
-            assert all(md["covered_predictive_90"] for md in m["modes"]), m["modes"]
     hit, n = _truth_coverage(res, cfg, fitted=True)
-    assert n >= 4 and hit == n
+    if r["final_model"] == "statistical_discrepancy":
+        # the remainder was given the fitted lengths' data: every mode's predictive interval covers the measured
+        # mode, and the model interval covers the noise-free true mode (issue #19)
+        for m in r["measurements_after"]:
+            if m["fitted"]:
+                assert all(md["covered_predictive_90"] for md in m["modes"]), m["modes"]
+        assert n >= 4 and hit == n
+    else:
+        # a named physical model's 90 % intervals miss one fitted mode in ten by chance (usable_for_prediction
+        # above already excludes gross misses); of four modes, two or more missed has probability 0.05
+        assert n >= 4 and hit >= n - 1, (hit, n)
 
 
 def test_summary_of_an_unusable_result_writes_no_trustworthy_interval(modulus):
