@@ -260,6 +260,8 @@ def main() -> None:
                     help="campaigns of the named-model coverage rows (default: a third of --coverage, at least 3)")
     ap.add_argument("--rows", default=None, help="comma-separated naming-row labels (substrings) to run; default all")
     ap.add_argument("--seed-offset", type=int, default=0, help="added to every campaign seed (fresh table seeds)")
+    ap.add_argument("--cases", default=None,
+                    help="comma-separated out-of-library cases to run (default all: " + ", ".join(OUT_OF_LIBRARY) + ")")
     ap.add_argument("--write-docs", action="store_true")
     a = ap.parse_args()
     global SEED_OFFSET
@@ -276,7 +278,8 @@ def main() -> None:
                                                                                       only) + [""]
         if "library" in parts and a.generator == "rotor":
             out += ["Out-of-library effects (coverage pooled over the in-band modes of the usable campaigns):", ""]
-            out += out_of_library(gen, a.coverage, root, times) + [""]
+            cases = tuple(c for c in OUT_OF_LIBRARY if c in a.cases.split(",")) if a.cases else OUT_OF_LIBRARY
+            out += out_of_library(gen, a.coverage, root, times, cases) + [""]
         if "named" in parts and a.generator == "rotor":
             n_named = a.named_coverage if a.named_coverage is not None else max(3, a.coverage // 3)
             out += ["A hysteretic joint, in the library since `joint_loss_factor` (the named model's intervals):", ""]

@@ -471,8 +471,32 @@ def test_a_physically_impossible_best_fit_is_not_named(monkeypatch):
     why = ["flute_inertia_ratio / flute_area_ratio^2 = 0.84 < 0.95"]
     monkeypatch.setattr(select, "implausible_reasons", lambda fit, effect: why if effect == "fluted_section" else [])
     refits = [select.Refit(e, SimpleNamespace(statistic=1.0), None, c, 0.02, {"gap": 0.005})
-              for e, c in (("fluted_section", 30.0), ("tip_mass", 20.0))]
+              for e, c in (("fluted_section", 22.0), ("tip_mass", 20.0))]
     d = select.decide(refits, 0.03, {"gap": 0.05, "at_noise_floor": False})
     assert d["named"] == "tip_mass" and d["confounded_with"] == []
     assert d["implausible"]["fluted_section"] == why and d["implausible"]["tip_mass"] == []
 
+
+
+def test_an_impossible_fit_far_better_than_every_possible_one_leaves_nothing_named(monkeypatch):
+    """When the implausible candidate beats the best supported one by more than ln 100, the data hold an effect
+    outside the library: nothing is named and the supported candidate is reported as partial."""
+    from types import SimpleNamespace
+
+    from bayes_rcsa.discrepancy import select
+
+    monkeypatch.setattr(select, "edge_parameters", lambda fit, effect: [])
+    monkeypatch.setattr(select, "implausible_reasons",
+                        lambda fit, effect: ["q < 0.95"] if effect == "fluted_section" else [])
+    base = {"gap": 0.05, "at_noise_floor": False}
+
+    def refits(flute, spindle):
+        return [select.Refit(e, SimpleNamespace(statistic=1.0), None, c, 0.02, {"gap": 0.005})
+                for e, c in (("fluted_section", flute), ("spindle_error", spindle))]
+
+    d = select.decide(refits(32.0, 12.7), 0.03, base)  # the rotor bench's tool-modulus campaign, seed 21
+    assert d["named"] is None
+    assert d["partial"][0]["effect"] == "spindle_error"
+    assert d["partial"][0]["outranked_by_implausible"] == "fluted_section"
+    d = select.decide(refits(15.0, 12.7), 0.03, base)  # within ln 100: the possible candidate is named
+    assert d["named"] == "spindle_error"

@@ -25,7 +25,10 @@ Decision
   a broadband spindle change), nor is its MAP physically impossible by the
   term's own check (:func:`implausible_reasons`, e.g. a flute section with
   less bending stiffness than the circle of its area standing in for a
-  tool modulus error).
+  tool modulus error).  When such an impossible fit beats every supported
+  candidate by more than ``LN_BF_NAME``, the data hold an effect outside the
+  library: nothing is named, and the supported candidates are reported as
+  partial (``outranked_by_implausible``).
 * The winner is the supported candidate with the largest criterion; the
   runner-up and the margin (difference of criteria) are reported.
 * Candidates whose criterion is within ``LN_BF_CONFOUNDED`` (= ln 10) of
@@ -314,6 +317,13 @@ def decide(refits: list[Refit], gap_before: float, systematic_before: dict | Non
     supported = [r for r in decisive if ratio(r) is None or ratio(r) <= 1 - MIN_SYSTEMATIC_REDUCTION]
     partial = [{"effect": r.effect, "criterion": r.criterion, "systematic_gap_ratio": ratio(r)}
                for r in decisive if r not in supported]
+    # a physically impossible fit that explains the data decisively better than every possible one says that
+    # the data hold an effect outside the library; the possible candidates are then partial explanations only
+    impossible = [r for r in ranked if implausible[r.effect]]
+    if supported and impossible and impossible[0].criterion - supported[0].criterion > LN_BF_NAME:
+        partial = [{"effect": r.effect, "criterion": r.criterion, "systematic_gap_ratio": ratio(r),
+                    "outranked_by_implausible": impossible[0].effect} for r in supported] + partial
+        supported = []
     if not supported:
         best = ranked[0] if ranked else None
         return {"named": None, "runner_up": best.effect if best else None,
