@@ -8,6 +8,7 @@ not the physics.  Seeds 5000+ (the development seeds were 0-99).
     python3 benchmarks/library_scale.py [N_COMBINATIONS] [REPEATS]
     python3 benchmarks/library_scale.py joint [REPLICATES] [RUNS] [STEPS] [SEED]
     python3 benchmarks/library_scale.py joint-real LIBRARY STAGE1 NAME,NAME,NAME,NAME [RUNS] [STEPS] [THIN] [SEED] [real|surrogate]
+        [emcee|gibbs]
 
 Prints one line per repeat and the median; the table goes to docs/library.md ("Scale").  ``joint`` checks
 stage 2 against joint emcee on 4-combination stand-ins (two holder types of two, two pooled coordinates,
@@ -29,7 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from bayes_rcsa.library.hierarchy import Group, fit_hyper
-from bayes_rcsa.library.joint import gaussian_log_likelihood, pool_runs, run_spread, sample_joint
+from bayes_rcsa.library.joint import (chain_diagnostics, gaussian_log_likelihood, pool_runs, run_spread,
+                                     sample_gibbs, sample_joint)
 from bayes_rcsa.library.outliers import flag_outliers, loo_p_values
 from bayes_rcsa.library.population import COORDINATES, Hyperprior, covariate
 from bayes_rcsa.library.stage2 import SetupDraws, Stage2Settings, fit_population, surrogate
@@ -195,7 +197,7 @@ def joint_check(replicates: int = 5, runs: int = 4, steps: int = 48000, seed: in
 
 
 def joint_real(library: str, stage1: str, picks: str, runs: int = 4, steps: int = 6000, thin: int = 4,
-               seed: int = 5300, likelihood: str = "real") -> None:
+               seed: int = 5300, likelihood: str = "real", sampler: str = "emcee") -> None:
     """Stage 2 against the joint model with REAL identify posteriors: four combinations (``picks``, comma-separated
     names of two holder types) of a ``benchmarks/library.py`` library (``library``: its folder with
     ``manifest.toml``; ``stage1``: its finished ``bayes-rcsa batch`` folder).
@@ -208,7 +210,14 @@ def joint_real(library: str, stage1: str, picks: str, runs: int = 4, steps: int 
     the laws and noise scales starting at random stage-1 draws.
 
     ``likelihood = "surrogate"`` is the control: the same library, each setup's Gaussian surrogate as its exact
-    likelihood (no noise scales), where stage 2's target is exact; a gap there is the joint sampler's."""
+    likelihood (no noise scales), where stage 2's target is exact; a gap there is the joint sampler's.
+
+    ``sampler = "gibbs"``: the joint model by Metropolis-within-Gibbs (:func:`~bayes_rcsa.library.joint.sample_gibbs`)
+    instead of emcee, ``runs`` independent chains of ``steps`` kept iterations (every ``thin``-th) after
+    ``max(500, steps / 4)`` of burn-in; R-hat and bulk/tail ESS per hyperparameter over the chains, and the
+    Monte Carlo error of each end from the spread between four groups of chains.  Stage 2's own target is also
+    importance-sampled for the spreads and tau_b (the "IS" columns; with ``surrogate`` the joint model's exact
+    answer)."""
     import arviz as az
 
     from bayes_rcsa.batch.manifest import load_manifest
@@ -266,13 +275,27 @@ def joint_real(library: str, stage1: str, picks: str, runs: int = 4, steps: int 
     fit = fit_population(st1.setups, hyper, rng, Stage2Settings(ess_target=12000)).fit
     print(f"stage 2: {time.perf_counter() - t0:.0f} s, ESS {fit.ess:.0f}, {fit.n_steps} steps", flush=True)
     model = JointModel(lls, types, x, hyper, True, nuisance)
-    W = 2 * model.ndim + 8
     t0 = time.perf_counter()
-    joint = sample_joint(lls, types, x, hyper, rng, n_steps=steps, n_burn=steps, n_walkers=W, n_runs=runs,
-                         centred=True, nuisance=nuisance, start_laws=laws, thin=thin)
-    print(f"joint: {model.ndim} dimensions, {runs} runs of {W} walkers x {steps * thin} steps, "
-          f"{time.perf_counter() - t0:.0f} s, acceptance {[round(r['acceptance'], 3) for r in joint['runs']]}",
-          flush=True)
+    if sampler == "gibbs":
+        n_burn = max(500, steps // 4)
+        joint = sample_gibbs(lls, types, x, hyper, rng, laws, n_iter=steps, n_burn=n_burn, n_chains=runs,
+                             nuisance=nuisance, thin=thin)
+        diag = chain_diagnostics(joint["chains"])
+        print(f"joint (Gibbs): {model.ndim} dimensions, {runs} chains x {steps * thin} iterations after {n_burn}, "
+              f"{time.perf_counter() - t0:.0f} s, law acceptance {np.round(joint['law_acceptance'], 3).tolist()}, "
+              f"slice updates at the shrinkage limit {joint['stuck']}", flush=True)
+    else:
+        W = 2 * model.ndim + 8
+        joint = sample_joint(lls, types, x, hyper, rng, n_steps=steps, n_burn=steps, n_walkers=W, n_runs=runs,
+                             centred=True, nuisance=nuisance, start_laws=laws, thin=thin)
+        diag = None
+        print(f"joint: {model.ndim} dimensions, {runs} runs of {W} walkers x {steps * thin} steps, "
+              f"{time.perf_counter() - t0:.0f} s, acceptance {[round(r['acceptance'], 3) for r in joint['runs']]}",
+              flush=True)
+    T, dd = len(groups), len(names)
+    sel = [t * 3 * dd + 2 * dd + j for t in range(T) for j in range(dd)] + [T * 3 * dd + j for j in range(dd)]
+    qt, is_ess = _target_quantiles(fit.groups, hyper, fit.theta, np.random.default_rng([seed, 1]), n=1_000_000)
+    print(f"stage 2's target by importance sampling: ESS {is_ess:.0f}", flush=True)
     labels = [f"{p}_{n}[{g}]" for g in groups for p in ("a", "b", "sigma") for n in names] + \
         [f"tau_b_{n}" for n in names]
 
@@ -286,17 +309,28 @@ def joint_real(library: str, stage1: str, picks: str, runs: int = 4, steps: int 
     dm = np.abs(q2[1] - qj[1]) / sd
     de = np.max(np.abs(q2[[0, 2]] - qj[[0, 2]]), axis=0) / width
     for i, label in enumerate(labels):
+        extra = ""
+        if i in sel:
+            k = sel.index(i)
+            extra += (f" | IS {qt[0, k]:.4f} {qt[1, k]:.4f} {qt[2, k]:.4f}: joint vs IS ends "
+                      f"{np.max(np.abs(qt[[0, 2], k] - qj[[0, 2], i])) / width[i]:.3f}")
+        if diag is not None:
+            extra += (f" | R-hat {diag['rhat'][i]:.3f}, ESS bulk {diag['ess_bulk'][i]:.0f}, "
+                      f"tail {diag['ess_tail'][i]:.0f}")
         print(f"{label:24s} stage 2 {q2[0, i]:9.4f} {q2[1, i]:9.4f} {q2[2, i]:9.4f} | joint {qj[0, i]:9.4f} "
               f"{qj[1, i]:9.4f} {qj[2, i]:9.4f} | median {dm[i]:.3f} sd, ends {de[i]:.3f} of the width "
-              f"(MC se {np.max(se[[0, 2], i]) / width[i]:.3f})")
+              f"(MC se {np.max(se[[0, 2], i]) / width[i]:.3f}){extra}")
     print(f"largest: {dm.max():.3f} sd ({labels[int(dm.argmax())]}), {de.max():.3f} of the width "
           f"({labels[int(de.argmax())]}) (acceptance: 0.2 sd, 0.10)")
+    if diag is not None:
+        print(f"R-hat at most {diag['rhat'].max():.3f}, ESS bulk at least {diag['ess_bulk'].min():.0f}, "
+              f"tail at least {diag['ess_tail'].min():.0f}")
 
 
 if __name__ == "__main__":
     if sys.argv[1:2] == ["joint"]:
         joint_check(*(int(v) for v in sys.argv[2:6]))
     elif sys.argv[1:2] == ["joint-real"]:
-        joint_real(*sys.argv[2:5], *(int(v) for v in sys.argv[5:9]), *sys.argv[9:10])
+        joint_real(*sys.argv[2:5], *(int(v) for v in sys.argv[5:9]), *sys.argv[9:11])
     else:
         main(*(int(v) for v in sys.argv[1:3]))

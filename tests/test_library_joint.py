@@ -7,6 +7,10 @@ the log-spread prior integrated by adaptive quadrature), and the joint sampler's
 model written out with scipy.stats in both of its parametrisations.  A prior or Jacobian mismatch between
 joint.py and stage 2 fails here in milliseconds; the sampling comparison is benchmarks/library_scale.py joint
 (docs/library.md, "Stage 2").
+
+The Metropolis-within-Gibbs reference (``GibbsJoint``): each of its conditionals is checked against the joint
+density (Bayes' identity ``p(x, y) = p(x) p(y | x)`` at many points), and a short run on a one-coordinate
+stand-in against stage 2's target integrated on a grid.
 """
 
 from __future__ import annotations
@@ -18,7 +22,8 @@ import pytest
 from scipy import integrate, stats
 
 from bayes_rcsa.library.hierarchy import Group, log_posterior
-from bayes_rcsa.library.joint import JointModel, gaussian_log_likelihood, pool_runs, run_spread, sample_joint
+from bayes_rcsa.library.joint import (GibbsJoint, JointModel, gaussian_log_likelihood, pool_runs, run_spread,
+                                     sample_gibbs, sample_joint, slice_step)
 from bayes_rcsa.library.population import Hyperprior, covariate
 
 NAMES = ("k_xf", "g_xf")
@@ -181,3 +186,132 @@ def test_nuisance_parameters_reach_their_setup_and_laws_start_at_given_rows(libr
     expect = plain.log_prob(theta[:, :plain.ndim]) + sum(
         stats.norm.logpdf(v[k], 0.1 * k, 0.5).sum(axis=1) for k in range(4) if nuisance[k])
     np.testing.assert_allclose(model.log_prob(theta), expect, rtol=0, atol=1e-9)
+
+
+# ---------------------------------------------------------------- Metropolis-within-Gibbs (GibbsJoint) ----------
+
+
+def _gibbs_state(g: GibbsJoint, exact, rng, C: int) -> dict:
+    st = g.start(rng, C, [m + 0.1 * rng.standard_normal((50, 2)) for m, _ in exact])
+    st["u"] = HYPER.ls_mean + rng.normal(0.0, 1.0, (C, 2, 2))
+    st["tau_b"] = np.abs(rng.normal(0.0, 1.0, (C, 2))) * HYPER.tb_scale
+    st["a"], st["delta"], st["b0"] = rng.normal(7.0, 0.5, (C, 2, 2)), rng.normal(0, 1, (C, 2, 2)), rng.normal(0, 1, (C, 2))
+    st["tau_s"], st["ls0"] = rng.uniform(0.1, 1.1, (C, 2)), rng.normal(-1.0, 1.0, (C, 2))
+    return st
+
+
+def _joint_lp_centred(jm: JointModel, st: dict) -> np.ndarray:
+    """The joint log density in Gibbs' coordinates (u = ln sigma instead of eta: Jacobian 1 / tau_s per type)."""
+    eta = (st["u"] - st["ls0"][:, None, :]) / st["tau_s"][:, None, :]
+    th = jm.pack(st["a"], st["delta"], st["b0"], st["tau_b"], st["ls0"], st["tau_s"], eta, st["z"],
+                 [w[:, 2:] for w, k in zip(st["w"], jm.nuisance) if k])
+    return jm.log_prob(th) - jm.T * np.sum(np.log(st["tau_s"]), axis=1)
+
+
+def _fix(st: dict, keys) -> None:
+    """Every chain takes chain 0's value of ``keys`` (the conditioning variables of an identity check)."""
+    for k in keys:
+        st[k] = np.broadcast_to(st[k][:1], st[k].shape).copy()
+
+
+def test_gibbs_conditionals_are_those_of_the_joint_density(library):
+    exact, _ = library
+    lls = [gaussian_log_likelihood(m, C) for m, C in exact]
+    jm, g = JointModel(lls, TYPES, X, HYPER, centred=True), GibbsJoint(lls, TYPES, X, HYPER, [C for _, C in exact])
+    rng = np.random.default_rng(21)
+    # (u, tau_b, beta) given the laws, ls0, tau_s: ln p(joint) = collapsed(u, tau_b) + ln N(beta; conditional) + c
+    st = _gibbs_state(g, exact, rng, 8)
+    _fix(st, ("z", "ls0", "tau_s"))
+    mean, Lp = g.beta_conditional(st["z"], st["u"], st["tau_b"])
+    beta = np.concatenate([np.swapaxes(st["a"], 1, 2), np.swapaxes(st["delta"], 1, 2), st["b0"][..., None]], axis=2)
+    r = np.einsum("cjlk,cjl->cjk", Lp, beta - mean)  # Lp^T (beta - mean), Lp the precision's factor
+    ln_beta = (-0.5 * np.sum(r * r, axis=-1) + np.sum(np.log(np.diagonal(Lp, axis1=-2, axis2=-1)), axis=-1)
+               - 0.5 * g.K * np.log(2 * np.pi))
+    prior = (np.sum(stats.halfnorm.logpdf(st["tau_b"], scale=HYPER.tb_scale), axis=1)
+             + np.sum(stats.norm.logpdf(st["u"], st["ls0"][:, None, :], st["tau_s"][:, None, :]), axis=(1, 2)))
+    gap = _joint_lp_centred(jm, st) - (np.sum(g.collapsed(st["z"], st["u"], st["tau_b"]) + ln_beta, axis=1) + prior)
+    # exact identities evaluated in floating point: 1e-8 in ln p
+    np.testing.assert_allclose(gap - gap[0], 0.0, atol=1e-8)
+    # (tau_s, ls0) given u and the rest: ln p(joint) = ls_collapsed(tau_s) + ln N(ls0; conditional) + c
+    st = _gibbs_state(g, exact, rng, 8)
+    _fix(st, ("z", "u", "a", "delta", "b0", "tau_b"))
+    m, s = g.ls0_conditional(st["u"], st["tau_s"])
+    gap = _joint_lp_centred(jm, st) - np.sum(g.ls_collapsed(st["u"], st["tau_s"]) + stats.norm.logpdf(st["ls0"], m, s),
+                                             axis=1)
+    np.testing.assert_allclose(gap - gap[0], 0.0, atol=1e-8)
+
+
+def test_gibbs_law_target_is_the_joint_density_in_that_law(library):
+    # setup k's Metropolis target (own likelihood with its nuisance parameters x population density) against the
+    # joint density as the law and nuisance parameters of setup k vary, everything else fixed
+    exact, _ = library
+    base = [gaussian_log_likelihood(m, C) for m, C in exact]
+    nuisance = [1, 0, 2, 0]
+    lls = [(lambda z, v, f=base[k], k=k: f(z) + stats.norm.logpdf(v, 0.1 * k, 0.5).sum(axis=1)) if nuisance[k]
+           else base[k] for k in range(4)]
+    jm = JointModel(lls, TYPES, X, HYPER, centred=True, nuisance=nuisance)
+    g = GibbsJoint(lls, TYPES, X, HYPER, [np.eye(2 + k) for k in nuisance], nuisance)
+    rng = np.random.default_rng(22)
+    st = g.start(rng, 8, [np.column_stack([m + 0.05 * rng.standard_normal((50, 2)), rng.standard_normal((50, k))])
+                          for (m, _), k in zip(exact, nuisance)])
+    for k in range(4):
+        fixed = g.start(np.random.default_rng(23), 8, [w[:1] for w in st["w"]])  # one state in every chain...
+        fixed["w"][k] = st["w"][k]  # ...except setup k's law and nuisance parameters
+        fixed["z"] = np.stack([w[:, :2] for w in fixed["w"]], axis=1)
+        _fix(fixed, ("a", "delta", "b0", "tau_b", "u", "ls0", "tau_s"))
+        t = TYPES[k]
+        mu = fixed["a"][:, t] + (fixed["b0"] + fixed["tau_b"] * fixed["delta"][:, t]) * X[k]
+        got = g.law_log_target(k, fixed["w"][k], mu, np.exp(fixed["u"][:, t]))
+        gap = _joint_lp_centred(jm, fixed) - got
+        np.testing.assert_allclose(gap - gap[0], 0.0, atol=1e-8)
+
+
+def test_slice_step_samples_its_target():
+    # 4000 independent half-normal(2) targets in ln v (with the Jacobian), from a far start: after 25 updates the
+    # draws are the target's (quantiles within 4 binomial standard errors at these sizes: ~0.03 in probability)
+    rng = np.random.default_rng(24)
+
+    def f(y):
+        return stats.halfnorm.logpdf(np.exp(y), scale=2.0) + y
+
+    y = np.full(4000, 3.0)
+    for _ in range(25):
+        y, stuck = slice_step(y, f, 1.0, rng)
+        assert stuck == 0
+    p = stats.halfnorm.cdf(np.exp(y), scale=2.0)
+    for q in (0.05, 0.5, 0.95):
+        assert abs(np.mean(p < q) - q) < 4 * np.sqrt(q * (1 - q) / 4000)
+
+
+def test_gibbs_chain_reproduces_stage2_target_on_a_small_library():
+    """One coordinate, two types of two setups with exact Gaussian likelihoods: stage 2's target is exact here (the
+    test above) and three-dimensional, (ln sigma_1, ln sigma_2, ln tau_b), so it is integrated on a grid."""
+    hyper = Hyperprior.from_box(("k_xf",), np.array([[4.0, 10.0]]), 1.5)
+    rng = np.random.default_rng(11)
+    m = 7.0 + 0.2 * TYPES + 1.5 * X + 0.15 * rng.standard_normal(4)
+    var = (0.1 * rng.uniform(0.7, 1.4, 4)) ** 2
+    groups = [Group(f"T{t}", tuple(f"s{i}" for i in np.flatnonzero(TYPES == t)), X[TYPES == t], m[TYPES == t, None],
+                    var[TYPES == t, None, None]) for t in (0, 1)]
+    q = np.array([0.05, 0.5, 0.95])
+    N, lo, hi, ylo, yhi = 40, -7.0, 1.0, -8.0, 1.0  # grid mass within one cell of its edges: 2e-4
+    u, y = lo + (np.arange(N) + 0.5) * (hi - lo) / N, ylo + (np.arange(N) + 0.5) * (yhi - ylo) / N
+    U1, U2, Y = np.meshgrid(u, u, y, indexing="ij")
+    lp = log_posterior(np.column_stack([U1.ravel(), U2.ravel(), np.exp(Y.ravel())]), groups, hyper) + Y.ravel()
+    w = np.exp(lp - lp.max()).reshape(N, N, N)
+    target = []
+    for ax, grid in enumerate((u, u, y)):  # each marginal's CDF at the cell edges, interpolated: ln of the quantile
+        marg = w.sum(axis=tuple(i for i in range(3) if i != ax))
+        h = grid[1] - grid[0]
+        target.append(np.interp(q, np.concatenate([[0.0], np.cumsum(marg) / marg.sum()]),
+                                np.concatenate([[grid[0] - h / 2], grid + h / 2])))
+    lls = [gaussian_log_likelihood(m[i:i + 1], var[i] * np.eye(1)) for i in range(4)]
+    laws = [m[i] + np.sqrt(var[i]) * rng.standard_normal((500, 1)) for i in range(4)]
+    out = sample_gibbs(lls, TYPES, X, hyper, np.random.default_rng(12), laws, n_iter=300, n_burn=100, n_chains=32,
+                       law_steps=2)
+    assert out["stuck"] == 0 and np.all(np.abs(out["law_acceptance"] - 0.3) < 0.1)
+    ch = np.log(out["chains"][:, :, [2, 5, 6]])  # ln sigma of both types, ln tau_b
+    got = np.quantile(ch.reshape(-1, 3), q, axis=0).T
+    se = np.quantile(ch.reshape(8, -1, 3), q, axis=1).std(axis=1, ddof=1).T / np.sqrt(8)  # 8 groups of 4 chains
+    # Monte Carlo error (4 se, from independent groups of chains) plus the grid's error (a 40-point grid moves
+    # these quantiles by <= 0.03 in ln against a 100-point one)
+    assert np.all(np.abs(got - np.array(target)) < 4 * se + 0.03), (got, np.array(target), se)
