@@ -6,7 +6,7 @@ coupled emcee fit of all holder types, per-setup importance ESS and pooled estim
 not the physics.  Seeds 5000+ (the development seeds were 0-99).
 
     python3 benchmarks/library_scale.py [N_COMBINATIONS] [REPEATS]
-    python3 benchmarks/library_scale.py joint [REPLICATES] [RUNS] [STEPS] [SEED]
+    python3 benchmarks/library_scale.py joint [REPLICATES] [RUNS] [STEPS] [SEED] [emcee|gibbs]
     python3 benchmarks/library_scale.py joint-real LIBRARY STAGE1 NAME,NAME,NAME,NAME [RUNS] [STEPS] [THIN] [SEED] [real|surrogate]
         [emcee|gibbs]
 
@@ -113,7 +113,7 @@ def _target_quantiles(groups, hyper: Hyperprior, theta: np.ndarray, rng: np.rand
     return q, float(1.0 / np.sum(w * w))
 
 
-def joint_check(replicates: int = 5, runs: int = 4, steps: int = 48000, seed: int = 5200) -> None:
+def joint_check(replicates: int = 5, runs: int = 4, steps: int = 48000, seed: int = 5200, sampler: str = "emcee") -> None:
     """Two holder types of two combinations each (4 in all), two pooled coordinates: per type (a, b, sigma) of
     both coordinates and the slopes' spread tau_b, 14 hyperparameters.  Stage 2 runs to an ESS of 12,000; the
     joint reference is ``runs`` independent emcee ensembles (64 walkers x ``steps`` after 8,000 of burn-in
@@ -121,7 +121,9 @@ def joint_check(replicates: int = 5, runs: int = 4, steps: int = 48000, seed: in
     between-run spread of each interval end is its Monte Carlo standard error.  Stage 2's own target is also
     computed by importance sampling (:func:`_target_quantiles`, for the spreads and tau_b, whose upper ends are the
     hard ones): "target vs joint" is the comparison without stage 2's chain noise, "chain vs target" that noise.
-    ``runs = 0`` skips the joint reference (stage 2 and its target only)."""
+    ``runs = 0`` skips the joint reference (stage 2 and its target only).  ``sampler = "gibbs"``: the joint
+    reference is Metropolis-within-Gibbs instead, ``runs`` chains of ``steps`` iterations after ``steps / 4``
+    (the laws starting at the stage-1 draws); its R-hat and ESS (over the chains) are printed too."""
     names = ("k_xf", "g_xf")
     box = np.array([[4.0, 10.0], [0.0, 1.5]])
     hyper = Hyperprior.from_box(names, box, 1.5)
@@ -131,7 +133,9 @@ def joint_check(replicates: int = 5, runs: int = 4, steps: int = 48000, seed: in
     labels = [f"{p}_{n}[T{t}]" for t in (0, 1) for p in ("a", "b", "sigma") for n in names] + \
         [f"tau_b_{n}" for n in names]
     worst = []
-    print(f"seeds {seed}-{seed + replicates - 1}; {runs} joint runs of 64 walkers x {steps} steps per replicate")
+    ref = (f"Gibbs, {runs} chains x {steps} iterations" if sampler == "gibbs" else
+           f"{runs} emcee runs of 64 walkers x {steps} steps")
+    print(f"seeds {seed}-{seed + replicates - 1}; joint reference: {ref} per replicate")
     print("replicate  max |d median| / sd  max |d end| / width  worst end (stage 2, joint +- MC se)  "
           "ends > 10 %: of them beyond 2 se  | spreads and tau_b, max |d end| / width: target vs joint, chain vs "
           "target [IS ESS]")
@@ -143,13 +147,13 @@ def joint_check(replicates: int = 5, runs: int = 4, steps: int = 48000, seed: in
             z = np.array([7.0 + 0.2 * types[i] + 1.5 * x[i], 0.6]) + np.array([0.15, 0.1]) * rng.standard_normal(2)
             C = np.array([[0.04, 0.015], [0.015, 0.02]]) * rng.uniform(0.5, 2.0)
             exact.append((z + np.linalg.cholesky(C) @ rng.standard_normal(2), C))
-        groups = []
+        groups, stage1 = [], {}
         for t in (0, 1):
             idx = np.flatnonzero(types == t)
             sur = []
             for i in idx:  # stage-1 draws of the exact likelihood under a flat prior, and their surrogate
                 m, C = exact[i]
-                draws = m + rng.standard_normal((4000, 2)) @ np.linalg.cholesky(C).T
+                draws = stage1[i] = m + rng.standard_normal((4000, 2)) @ np.linalg.cholesky(C).T
                 sur.append(surrogate(SetupDraws(f"s{i}", f"T{t}", dia[i], draws, np.zeros(2), np.zeros((2, 2)),
                                                 np.array([[-50.0, 50.0], [-50.0, 50.0]])))[:2])
             groups.append(Group(f"T{t}", tuple(f"s{i}" for i in idx), x[idx], np.array([v[0] for v in sur]),
@@ -166,9 +170,17 @@ def joint_check(replicates: int = 5, runs: int = 4, steps: int = 48000, seed: in
                   f"target: {ends}", flush=True)
             continue
         lls = [gaussian_log_likelihood(m, C) for m, C in exact]
-        half = [sample_joint(lls, types, x, hyper, rng, n_steps=steps, n_burn=8000, n_runs=k, centred=c)["runs"]
-                for k, c in ((runs - runs // 2, False), (runs // 2, True)) if k]
-        joint = pool_runs(half[0] + (half[1] if len(half) > 1 else []))
+        mixing = ""
+        if sampler == "gibbs":
+            joint = sample_gibbs(lls, types, x, hyper, rng, [stage1[i] for i in range(4)], n_iter=steps,
+                                 n_burn=steps // 4, n_chains=runs)
+            dg = chain_diagnostics(joint["chains"])
+            mixing = (f"  R-hat <= {dg['rhat'].max():.3f}, ESS bulk >= {dg['ess_bulk'].min():.0f}, tail >= "
+                      f"{dg['ess_tail'].min():.0f}")
+        else:
+            half = [sample_joint(lls, types, x, hyper, rng, n_steps=steps, n_burn=8000, n_runs=k, centred=c)["runs"]
+                    for k, c in ((runs - runs // 2, False), (runs // 2, True)) if k]
+            joint = pool_runs(half[0] + (half[1] if len(half) > 1 else []))
 
         def columns(d):  # (N, 14) hyperparameter draws in the order of ``labels``
             return np.concatenate([d["types"][0], d["types"][1], d["tau_b"]], axis=1)
@@ -190,7 +202,7 @@ def joint_check(replicates: int = 5, runs: int = 4, steps: int = 48000, seed: in
         print(f"{r:9d}  {dm.max():20.3f}  {de.max():19.3f}  {labels[k[1]]} {end}: {q2[2 * k[0], k[1]]:.3f}, "
               f"{qj[2 * k[0], k[1]]:.3f} +- {se[2 * k[0], k[1]]:.3f} ({se_e[k]:.3f} of the width)  "
               f"{int(over.sum())}: {n_beyond}  | {target_vs_joint:.3f}, {chain_vs_target:.3f} [{is_ess:.0f}]   "
-              f"[{time.perf_counter() - t0:.0f} s]", flush=True)
+              f"[{time.perf_counter() - t0:.0f} s]{mixing}", flush=True)
     if worst:
         print(f"largest: {max(w[0] for w in worst):.3f} sd, {max(w[1] for w in worst):.3f} of the width "
               "(acceptance: 0.2 sd, 0.10)")
@@ -329,7 +341,7 @@ def joint_real(library: str, stage1: str, picks: str, runs: int = 4, steps: int 
 
 if __name__ == "__main__":
     if sys.argv[1:2] == ["joint"]:
-        joint_check(*(int(v) for v in sys.argv[2:6]))
+        joint_check(*(int(v) for v in sys.argv[2:6]), *sys.argv[6:7])
     elif sys.argv[1:2] == ["joint-real"]:
         joint_real(*sys.argv[2:5], *(int(v) for v in sys.argv[5:9]), *sys.argv[9:11])
     else:

@@ -1,4 +1,8 @@
-"""The joint hierarchical posterior of a library, sampled directly with emcee: the check of stage 2.
+"""The joint hierarchical posterior of a library, sampled directly: the check of stage 2.
+
+Two samplers of the same model: emcee (:func:`sample_joint`, the stretch move on everything at once) and
+Metropolis-within-Gibbs (:func:`sample_gibbs`, :class:`GibbsJoint`), the reference where real identify fits
+pin the setups' laws (see the last paragraph).
 
 Everything of the model of :mod:`.hierarchy` is sampled at once: per type the
 mean ``a_t`` and slope deviation ``delta_t``, the common slope ``b0``, the
@@ -23,10 +27,19 @@ spread of a statistic is its Monte Carlo error (:func:`run_spread`).  Cheap
 for a handful of setups only (docs/library.md).
 
 Where a setup's likelihood is far narrower than the population spread (real
-identify fits pin the stiffness to ~1e-3 decades) the stretch move mixes too
-slowly and under-samples small spreads, even with exactly Gaussian
-likelihoods: the sampler is a valid reference for the stand-ins of the
-benchmark, not there (docs/library.md, "With real identify posteriors").
+identify fits pin the stiffness to ~3e-4 decades against a spread of ~0.06)
+the stretch move mixes too slowly and over-states the spreads, even with
+exactly Gaussian likelihoods (acceptance ~0.09): emcee is a valid reference
+for the benchmark's stand-ins, not there.  The Gibbs sampler is: given the
+laws, the means, slopes and common slope are drawn from their exact
+conditional normal and the log spreads, ``tau_b`` and ``tau_s`` are
+slice-sampled with the linear hyperparameters (resp. ``ln sigma0``)
+integrated out, so the narrow laws never have to move together with the
+hyperparameters; each law moves by random-walk Metropolis under its own
+likelihood, shaped by its stage-1 covariance (docs/library.md, "With real
+identify posteriors").  Independent chains run as one batch through each
+likelihood; R-hat and ESS over the chains (:func:`chain_diagnostics`) say
+how far a run can be trusted.
 """
 
 from __future__ import annotations
