@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from bayes_rcsa.errors import ModelError
 from bayes_rcsa.io.setup import load_setup
 from bayes_rcsa.model.assembly import Configuration
 from bayes_rcsa.model.coupling import attach, contact_compliance
@@ -305,31 +306,43 @@ def test_spindle_error_moves_the_file_towards_the_true_spindle(tmp_path_factory)
     assert -0.18 < fit.x[1] < -0.10
 
 
-def test_law_shape_uncertainty_spans_the_two_spring_laws_and_keeps_the_ends():
-    # Two springs in series, k(l) = k1 c l / (k1 + c l): for every stiffness ratio the normalised shape lies
-    # between the linear law (u = 0) and the term's limit (u = 1), so u in [0, 1] covers the two-spring family
-    # and the prior's mirror [-1, 0] the same bend the other way.
-    from bayes_rcsa.params.terms.law_shape_uncertainty import two_spring_limit
+def test_law_shape_uncertainty_spans_the_parallel_and_series_laws_through_the_same_ends():
+    # The two published interface laws, written from their physics (not from the term): distributed contact in
+    # parallel (stiffness affine in l) and two springs in series (1/k = 1/k1 + 1/(c l)).  For a series interface
+    # of any collet-to-contact ratio, the term at u = 1 with the ends and growth of that interface must be that
+    # interface's law at every length, inside the range and beyond it; u = 0 must be the affine law.
+    from bayes_rcsa.params.terms.law_shape_uncertainty import series_law_shape
 
     l_a, l_b = 0.025, 0.040
-    lengths = np.linspace(l_a, l_b, 7)
+    lengths = np.array([0.020, 0.025, 0.030, 0.035, 0.040, 0.045])  # beyond the fitted range on both sides
     x = (lengths - l_a) / (l_b - l_a)
-    for k1_over_c in (1e-4, 0.01, 0.03, 0.1, 10.0):  # m: from contact-dominated to collet-dominated
-        k = lengths / (k1_over_c + lengths)
-        shape = (k - k[0]) / (k[-1] - k[0])
-        assert np.all(shape >= x - 1e-12) and np.all(shape <= two_spring_limit(x, l_b / l_a) + 1e-12)
     term = make_term("law_shape_uncertainty")
     assert term.role == "discrepancy" and term.min_clamping_lengths == 2
-    vals = {"k_xf": np.array([1e7, 1e7, 1e7]), "k_thetaM": np.array([1e5] * 3), "g_xf": np.array([0.4] * 3),
-            "g_thetaM": np.array([0.2] * 3), "law_shape_bend": np.array([0.0, 1.0, -1.0])}
-    lin_k = vals["k_xf"][:, None] * (1 + 0.4 * x[None, :])
-    lin_r = vals["k_thetaM"][:, None] * (1 + 0.2 * x[None, :])
+    assert term.parameters(None)[0].prior.bounds == (0.0, 1.0)
+    k1_over_c = np.array([1e-4, 0.01, 0.03, 0.1, 10.0])  # m: from contact-dominated to collet-dominated
+    k_series = 1.0 / (1.0 / 2e7 + k1_over_c[:, None] / (2e7 * lengths[None, :]))  # k1 = 2e7 N/m, c = k1 / ratio
+    k_a = k_series[:, 1]
+    g = k_series[:, 4] / k_a - 1.0
+    assert np.all((g > 0) & (g < l_b / l_a - 1))  # a series interface grows less than in proportion to l
+    n = len(k1_over_c)
+    vals = {"k_xf": k_a, "k_thetaM": np.full(n, 1e5), "g_xf": g, "g_thetaM": np.full(n, 0.2),
+            "law_shape_bend": np.ones(n)}
+    lin_k = k_a[:, None] * (1 + g[:, None] * x[None, :])
+    lin_r = 1e5 * (1 + 0.2 * x[None, :]) * np.ones((n, 1))
     zeros = np.zeros_like(lin_k)
     out = term.joint(vals, Contact(lin_k, lin_r, zeros, zeros), lengths, l_a, l_b)
-    assert np.array_equal(out.k_xf[0], lin_k[0])  # u = 0: exactly the linear law
-    np.testing.assert_allclose(out.k_xf[:, [0, -1]], lin_k[:, [0, -1]], rtol=1e-12)  # the ends are kept
-    np.testing.assert_allclose(out.k_xf[1], 1e7 * (1 + 0.4 * two_spring_limit(x, l_b / l_a)), rtol=1e-12)
-    assert np.all(out.k_xf[2, 1:-1] < lin_k[2, 1:-1]) and np.all(out.k_thetaM[1, 1:-1] > lin_r[1, 1:-1])
+    np.testing.assert_allclose(out.k_xf, k_series, rtol=1e-10)  # u = 1: exactly the series interface
+    # the rotation has its own growth, hence its own series law (concave, below the affine one inside)
+    assert np.all(out.k_thetaM[:, 2:4] > lin_r[:, 2:4])
+    out0 = term.joint({**vals, "law_shape_bend": np.zeros(n)}, Contact(lin_k, lin_r, zeros, zeros), lengths, l_a, l_b)
+    assert np.array_equal(out0.k_xf, lin_k) and np.array_equal(out0.k_thetaM, lin_r)  # u = 0: the affine law
+    # the two laws coincide for a proportional contact (k1 infinite: g = L - 1) and differ most for a stiff one
+    assert np.allclose(series_law_shape(x[None, :], l_b / l_a, np.array([[l_b / l_a - 1]])), x, atol=1e-12)
+    mid = series_law_shape(np.array([[0.5]]), l_b / l_a, np.array([[0.05], [0.45]]))[:, 0] - 0.5
+    assert mid[0] > 3 * mid[1] > 0
+    # beyond the range, a growth faster than proportional has no finite series law far out: refused, not clipped
+    with pytest.raises(ModelError, match="series"):
+        series_law_shape(np.array([[40.0]]), l_b / l_a, np.array([[5.0]]))
 
 
 def _flute_profile(n_flutes: int, core: float, gap: float, grid: int = 401):
