@@ -239,6 +239,10 @@ def test_gibbs_conditionals_are_those_of_the_joint_density(library):
     gap = _joint_lp_centred(jm, st) - np.sum(g.ls_collapsed(st["u"], st["tau_s"]) + stats.norm.logpdf(st["ls0"], m, s),
                                              axis=1)
     np.testing.assert_allclose(gap - gap[0], 0.0, atol=1e-8)
+    # the slice sampler's stepping out reaches tau_s ~ e^-60 and u ~ -50, where the dense covariances are singular
+    # in floating point: a density (finite or -inf), never an exception
+    assert not np.any(np.isnan(g.ls_collapsed(st["u"], np.full((8, 2), np.exp(-60.0)))))
+    assert not np.any(np.isnan(g.collapsed(st["z"], np.full((8, 2, 2), -49.0), st["tau_b"])))
 
 
 def test_gibbs_law_target_is_the_joint_density_in_that_law(library):

@@ -337,6 +337,21 @@ def _step_out(edge: np.ndarray, step: np.ndarray, budget: np.ndarray, logf, ly: 
         budget = np.where(go, budget - 1, 0)
 
 
+def _cholesky(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Batched Cholesky factors of (..., k, k) and a mask (...) of the matrices that are not positive definite in
+    floating point (their factor is the identity, the caller's density ``-inf``)."""
+    try:
+        return np.linalg.cholesky(A), np.zeros(A.shape[:-2], dtype=bool)
+    except np.linalg.LinAlgError:
+        L, bad = np.zeros_like(A), np.zeros(A.shape[:-2], dtype=bool)
+        for i in np.ndindex(*A.shape[:-2]):
+            try:
+                L[i] = np.linalg.cholesky(A[i])
+            except np.linalg.LinAlgError:
+                L[i], bad[i] = np.eye(A.shape[-1]), True
+        return L, bad
+
+
 def _ln_half_normal(v: np.ndarray, scale) -> np.ndarray:
     return 0.5 * np.log(2.0 / np.pi) - np.log(scale) - 0.5 * (v / scale) ** 2
 
@@ -406,10 +421,10 @@ class GibbsJoint:
         Sig = np.einsum("cjnk,jk,cjmk->cjnm", X, self.var0, X)
         Sig[..., np.arange(self.n), np.arange(self.n)] += np.swapaxes(D, 1, 2)
         r = np.swapaxes(z, 1, 2) - np.einsum("cjnk,jk->cjn", X, self.mu0)
-        L = np.linalg.cholesky(Sig)
+        L, bad = _cholesky(Sig)
         y = np.linalg.solve(L, r[..., None])[..., 0]
         logdet = 2.0 * np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), axis=-1)
-        return -0.5 * (np.sum(y * y, axis=-1) + logdet + self.n * np.log(2 * np.pi))
+        return np.where(bad, -np.inf, -0.5 * (np.sum(y * y, axis=-1) + logdet + self.n * np.log(2 * np.pi)))
 
     def beta_conditional(self, z: np.ndarray, u: np.ndarray, tau_b: np.ndarray):
         """Conditional normal of beta given laws, spreads and tau_b: mean (C, d, K) and the Cholesky factor
@@ -426,14 +441,18 @@ class GibbsJoint:
     # -- the log spreads' level and spread ---------------------------------------------------------------------
     def ls_collapsed(self, u: np.ndarray, tau_s: np.ndarray) -> np.ndarray:
         """``ln HalfNormal(tau_s) + ln p(u_.j | tau_s)`` (C, d) with ``ls0`` integrated out: per coordinate
-        ``u_.j ~ N(ls_mean_j 1, tau_s^2 I + ls_sd^2 1 1^T)`` (dense T x T)."""
+        ``u_.j ~ N(ls_mean_j 1, tau_s^2 I + ls_sd^2 1 1^T)``.
+
+        Written with the deviations from the types' mean ``ubar`` (exact, and stable for tau_s -> 0, where the
+        dense matrix is singular in floating point): the quadratic form is ``sum_t (u_t - ubar)^2 / tau_s^2 +
+        T (ubar - ls_mean)^2 / (tau_s^2 + T ls_sd^2)``, the determinant ``tau_s^(2 (T - 1)) (tau_s^2 + T ls_sd^2)``."""
         T, h = self.T, self.hyper
-        Sig = h.ls_sd ** 2 * np.ones((T, T)) + (tau_s ** 2)[..., None, None] * np.eye(T)  # (C, d, T, T)
-        r = np.swapaxes(u, 1, 2) - h.ls_mean[:, None]
-        L = np.linalg.cholesky(Sig)
-        y = np.linalg.solve(L, r[..., None])[..., 0]
-        logdet = 2.0 * np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), axis=-1)
-        return _ln_half_normal(tau_s, h.ts_scale) - 0.5 * (np.sum(y * y, axis=-1) + logdet + T * np.log(2 * np.pi))
+        t2, c = tau_s ** 2, h.ls_sd ** 2
+        ubar = np.mean(u, axis=1)
+        with np.errstate(divide="ignore"):
+            q = np.sum((u - ubar[:, None, :]) ** 2, axis=1) / t2 + T * (ubar - h.ls_mean) ** 2 / (t2 + T * c)
+            logdet = (T - 1) * np.log(t2) + np.log(t2 + T * c)
+        return _ln_half_normal(tau_s, h.ts_scale) - 0.5 * (q + logdet + T * np.log(2 * np.pi))
 
     def ls0_conditional(self, u: np.ndarray, tau_s: np.ndarray):
         """Mean and sd (C, d) of ``ls0`` given the log spreads u (C, T, d) and tau_s (C, d)."""
