@@ -212,7 +212,8 @@ def test_unexplained_effect_gets_the_statistical_discrepancy_and_wider_intervals
     r = res.report
     assert r["adequate"] is False and r["named_effect"] is None
     assert r["final_model"] == "statistical_discrepancy"
-    # the remainder: a smooth FRF discrepancy, the law's bend between 25 and 40 mm within the two-spring range,
+    # the remainder: a smooth FRF discrepancy, the law between 25 and 40 mm anywhere between the parallel and
+    # the series (two-spring) interface law through the fitted ends,
     # and the mode-frequency bias learned at the fitted lengths carried to the held-out ones
     assert r["final_terms"] == ["statistical_discrepancy", "law_shape_uncertainty"] and r["mode_bias"]["applied"]
     width = lambda q: q["q95"] - q["q05"]  # noqa: E731
