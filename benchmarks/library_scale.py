@@ -284,8 +284,10 @@ def joint_real(library: str, stage1: str, picks: str, runs: int = 4, steps: int 
         laws, nuisance = [s.z for s in st1.setups], None
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
-    fit = fit_population(st1.setups, hyper, rng, Stage2Settings(ess_target=12000)).fit
-    print(f"stage 2: {time.perf_counter() - t0:.0f} s, ESS {fit.ess:.0f}, {fit.n_steps} steps", flush=True)
+    res = fit_population(st1.setups, hyper, rng, Stage2Settings(ess_target=12000))
+    fit = res.fit
+    print(f"stage 2: {time.perf_counter() - t0:.0f} s, ESS {fit.ess:.0f}, {fit.n_steps} steps; per-setup importance "
+          f"ESS of the re-weighted stage-1 draws {[round(r['ess']) for r in res.setups]}", flush=True)
     model = JointModel(lls, types, x, hyper, True, nuisance)
     t0 = time.perf_counter()
     if sampler == "gibbs":
