@@ -9,6 +9,7 @@ not the physics.  Seeds 5000+ (the development seeds were 0-99).
     python3 benchmarks/library_scale.py joint [REPLICATES] [RUNS] [STEPS] [SEED] [emcee|gibbs]
     python3 benchmarks/library_scale.py joint-real LIBRARY STAGE1 NAME,NAME,NAME,NAME [RUNS] [STEPS] [THIN] [SEED] [real|surrogate]
         [emcee|gibbs]
+    python3 benchmarks/library_scale.py two-stage LIBRARY STAGE1 NAME,NAME,NAME,NAME [SEED]
 
 Prints one line per repeat and the median; the table goes to docs/library.md ("Scale").  ``joint`` checks
 stage 2 against joint emcee on 4-combination stand-ins (two holder types of two, two pooled coordinates,
@@ -16,6 +17,9 @@ exactly Gaussian stage-1 likelihoods): per replicate the largest |median differe
 largest difference of a 90 % interval end / the joint interval's width over the 14 hyperparameters (a, b, sigma
 per type and coordinate, tau_b per coordinate; docs/library.md, "Stage 2").  ``joint-real`` does the same
 with four real identify posteriors of a ``benchmarks/library.py`` library and their tempered FRF likelihoods.
+``two-stage`` is a cheap check of the Gaussian surrogates alone (seconds, no joint sampler): stage 2's draws
+re-weighted to the exact two-stage target in which each setup's stage-1 draws are its likelihood
+(:func:`two_stage_log_weights`).
 """
 
 from __future__ import annotations
@@ -341,10 +345,71 @@ def joint_real(library: str, stage1: str, picks: str, runs: int = 4, steps: int 
               f"tail at least {diag['ess_tail'].min():.0f}")
 
 
+def two_stage_log_weights(fit, setups, hyper: Hyperprior, max_draws: int = 3000) -> np.ndarray:
+    """Log importance weights (H,) of stage 2's hyperparameter draws for the exact two-stage target.
+
+    Stage 2 replaces each setup's stage-1 posterior ``p_s(z) ~ L_s(z) 1_box(z)`` by the Gaussian ``N(m_s, C_s)``,
+    so its hyperparameter posterior has the factor ``N(m_s; mu_s, C_s + Sigma)`` where the joint model (stage-1
+    box included, as :mod:`bayes_rcsa.library.joint` samples it) has ``int N(z; mu_s, Sigma) p_s(z) / pi_s(z) dz``;
+    the latter is estimated by the average of ``N(z_i; mu_s, Sigma) / pi_s(z_i)`` over the stage-1 draws (Lunn et
+    al. 2013).  The weight of a draw ``(a_t, b_t, sigma_t)`` is the product of the ratios over the setups.
+    Trustworthy where the weights' ESS is large and the target's tails lie within the draws' (not where the
+    stage-1 draws themselves misrepresent their posterior's tails)."""
+    d = hyper.ndim
+    lw = 0.0
+    for s in setups:
+        tf = fit.types[s.holder_type]
+        th = tf.flat
+        a, b, sg = th[:, :d], th[:, d:2 * d], th[:, 2 * d:]
+        mu = a + b * float(covariate(s.diameter))
+        z = s.z[::max(1, s.z.shape[0] // max_draws)]
+        ln_s = np.empty(th.shape[0])
+        for lo in range(0, th.shape[0], 500):  # bounded memory: 500 x draws x d
+            r = (z[None] - mu[lo:lo + 500, None]) / sg[lo:lo + 500, None]
+            lp = -0.5 * np.sum(r * r, -1) - np.sum(np.log(sg[lo:lo + 500]), -1)[:, None] - s.ln_prior(z)[None]
+            top = lp.max(1)
+            ln_s[lo:lo + 500] = top + np.log(np.mean(np.exp(lp - top[:, None]), 1))
+        i = list(tf.names).index(s.name)
+        V = tf.C[i][None] + sg[:, None, :] ** 2 * np.eye(d)[None]
+        rr = tf.m[i][None] - mu
+        ln_n = -0.5 * np.sum(rr * np.linalg.solve(V, rr[..., None])[..., 0], -1) - 0.5 * np.linalg.slogdet(V)[1]
+        lw = lw + ln_s - ln_n
+    return lw
+
+
+def two_stage(library: str, stage1: str, picks: str, seed: int = 11) -> None:
+    """Stage 2 of four real identify posteriors against its own draws re-weighted to the exact two-stage target
+    (:func:`two_stage_log_weights`): per type and coordinate the 90 % ends of the means and slopes."""
+    from bayes_rcsa.batch.manifest import load_manifest
+    from bayes_rcsa.library.stage1 import collect
+
+    lib = Path(library)
+    st1 = collect([j for j in load_manifest(lib / "manifest.toml") if j.name in picks.split(",")], Path(stage1))
+    hyper = Hyperprior.from_box(st1.names, st1.box, st1.growth[2])
+    res = fit_population(st1.setups, hyper, np.random.default_rng(seed), Stage2Settings(ess_target=3000))
+    lw = two_stage_log_weights(res.fit, st1.setups, hyper)
+    w = np.exp(lw - lw.max())
+    w /= w.sum()
+    print(f"stage 2 ESS {res.fit.ess:.0f}; two-stage weights: ESS {1 / np.sum(w * w):.0f} of {w.size}")
+    d = hyper.ndim
+    for t, tf in sorted(res.fit.types.items()):
+        for k, lab in enumerate([f"{p}_{n}" for p in "ab" for n in st1.names]):
+            v = tf.flat[:, k]
+            o = np.argsort(v)
+            cw = np.cumsum(w[o])
+            qt = np.interp([0.05, 0.5, 0.95], cw - 0.5 * w[o], v[o])
+            q2 = np.quantile(v, [0.05, 0.5, 0.95])
+            print(f"{t:12s} {lab:12s} stage 2 {q2[0]:8.3f} {q2[1]:8.3f} {q2[2]:8.3f} | two-stage {qt[0]:8.3f} "
+                  f"{qt[1]:8.3f} {qt[2]:8.3f} | ends {np.max(np.abs(q2[[0, 2]] - qt[[0, 2]])) / (qt[2] - qt[0]):.3f}"
+                  " of the width")
+
+
 if __name__ == "__main__":
     if sys.argv[1:2] == ["joint"]:
         joint_check(*(int(v) for v in sys.argv[2:6]), *sys.argv[6:7])
     elif sys.argv[1:2] == ["joint-real"]:
         joint_real(*sys.argv[2:5], *(int(v) for v in sys.argv[5:9]), *sys.argv[9:11])
+    elif sys.argv[1:2] == ["two-stage"]:
+        two_stage(*sys.argv[2:5], *(int(v) for v in sys.argv[5:6]))
     else:
         main(*(int(v) for v in sys.argv[1:3]))
