@@ -124,6 +124,23 @@ def test_mode_entries_report_every_mode_with_consistent_intervals():
     assert not top[0]["most_prominent_model"]
 
 
+def test_mode_entries_with_several_noise_realisations_per_draw_pair_each_with_its_own_draw():
+    # evaluate() passes r noise realisations per draw in np.repeat order; the tracked model draws come back
+    # repeated the same way, so predictive - model of a row is that draw's noise alone (the bias's observation
+    # variance), never the difference of two draws' parameters
+    rng = np.random.default_rng(5)
+    hd = _draws(rng, n=40, spread=0.01)  # a parameter spread (~15 Hz) far above the noise's peak scatter
+    rep = np.repeat(hd, 4, axis=0)
+    noise = 0.002 * np.abs(rep) / np.sqrt(2) * (rng.standard_normal(rep.shape) + 1j * rng.standard_normal(rep.shape))
+    fd, fp = mode_entries(F, MEASURED, MODEL, hd, rep + noise)["tracked"]
+    assert fd.shape == fp.shape == (160, 2)
+    # each model draw appears four times in a row, and each prediction sits next to its own draw: at 0.2 %
+    # noise the peak moves by well under a line (2 Hz) while the draws differ by ~15 Hz
+    assert np.array_equal(fd[::4], fd[3::4]) and np.nanmax(np.abs(fp - fd)) < 2.0 < np.nanstd(fd[:, 0])
+    with pytest.raises(ModelError, match="whole number of replicates"):
+        mode_entries(F, MEASURED, MODEL, hd, rep[:-1] + noise[:-1])
+
+
 def test_mode_bookkeeping_error_is_caught_before_any_plot():
     # draws of a *different* structure (both modes 5 % lower): the MAP lies outside its own interval
     rng = np.random.default_rng(4)
