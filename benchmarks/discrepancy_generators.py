@@ -196,8 +196,9 @@ def out_of_library(gen: Generator, n: int, root: Path, times: list, cases=OUT_OF
         named = confounded = reported = unusable = 0
         tot = {key: [0, 0] for key in ("fit_model", "fit_pred", "held_model", "held_pred")}
         for s in range(n):
-            # seeds by the case's place in OUT_OF_LIBRARY, not in the selection: a row run alone keeps its seeds
-            seed = SEED_OFFSET + base + 20 * OUT_OF_LIBRARY.index(effect) + s
+            # seeds by the case's place in its full list, not in the selection: a row run alone keeps its seeds
+            order = OUT_OF_LIBRARY if effect in OUT_OF_LIBRARY else NAMED_COVERAGE
+            seed = SEED_OFFSET + base + 20 * order.index(effect) + s
             effects = {e: True for e in effect.split("+")}
             setup, cfg = gen.campaign(effects, seed, root)
             res, t = run(setup, seed)
