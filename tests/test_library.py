@@ -170,6 +170,11 @@ def test_per_setup_ess_is_reported_and_a_degenerate_reweighting_refused(clean_fi
     row = next(r for r in res2.setups if r["name"] == "bad")
     assert row["refused"] is not None and "importance ESS" in row["refused"] and "k_xf_pooled" not in row, row
     assert any("setup bad" in w for w in res2.warnings)
+    # its growth draws fill the stage-1 box (contraction ~0): named as barely identified, once, with the setup; its
+    # stiffness (sd 1 decade in a 6-decade box: contraction 0.67) and every well-determined setup are not
+    weak = [w for w in res2.warnings if "barely identified" in w]
+    assert len(weak) == 1 and weak[0].startswith("coordinate g_xf:") and "1 of 5 setups (bad:" in weak[0], weak
+    assert not any("barely identified" in w for w in res.warnings)
 
 
 #: Three holder types shaped like the bench's (docs/library.md): mean at 10 mm and slope of (k_xf, k_thetaM) in

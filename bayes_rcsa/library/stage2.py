@@ -36,7 +36,8 @@ from ..errors import ConvergenceError, SetupError
 from .hierarchy import Group, HyperFit, Stage2Settings, TypeFit, _factor, _forward, fit_hyper
 from .population import Hyperprior
 
-__all__ = ["SetupDraws", "Stage2Settings", "TypeFit", "Stage2Result", "surrogate", "fit_population", "pooled_weights",
+__all__ = ["SetupDraws", "Stage2Settings", "TypeFit", "Stage2Result", "surrogate", "weakly_identified", "WEAK_CONTRACTION",
+           "fit_population", "pooled_weights",
            "ESS_MIN"]
 
 #: Smallest importance ESS of a setup's re-weighted stage-1 draws for its pooled estimate to be reported.
@@ -73,6 +74,26 @@ class SetupDraws:
         lp = -0.5 * np.einsum("...i,ij,...j->...", r, self.prior_precision, r)
         inside = np.all((z >= self.box[:, 0]) & (z <= self.box[:, 1]), axis=-1)
         return np.where(inside, lp, -np.inf)
+
+
+#: A pooled coordinate whose stage-1 posterior keeps more than this fraction of its flat stage-1 prior's variance
+#: (the box's width^2 / 12) is barely identified by that setup's taps: a posterior contraction below 1/2
+#: (Betancourt 2018, "Calibrating model-based inferences and decisions").
+WEAK_CONTRACTION = 0.5
+
+
+def weakly_identified(s: SetupDraws) -> list[int]:
+    """Coordinates (column indices) of ``s`` that its taps barely identify.
+
+    Only coordinates with a flat stage-1 prior on a finite box are judged: the contraction
+    ``1 - var(draws) / (width^2 / 12)`` below :data:`WEAK_CONTRACTION`.  Such a posterior is mostly the box, and
+    a Gaussian fitted to its draws claims a finite variance the likelihood does not have (docs/library.md).
+    """
+    width = s.box[:, 1] - s.box[:, 0]
+    flat = (np.diag(np.atleast_2d(s.prior_precision)) == 0) & np.isfinite(width) & (width > 0)
+    prior_var = np.where(flat, width, 1.0) ** 2 / 12.0
+    contraction = 1.0 - np.var(s.z, axis=0) / prior_var
+    return [int(j) for j in np.flatnonzero(flat & (contraction < WEAK_CONTRACTION))]
 
 
 def surrogate(s: SetupDraws) -> tuple[np.ndarray, np.ndarray, list[str]]:
@@ -208,10 +229,18 @@ def fit_population(setups, hyper: Hyperprior, rng: np.random.Generator, settings
     names = hyper.names
     warns: list[str] = []
     surr = {}
+    weak: dict[int, list[str]] = {}
     for s in setups:
         m, C, notes = surrogate(s)
         surr[s.name] = (m, C)
         warns += notes
+        for j in weakly_identified(s):
+            weak.setdefault(j, []).append(s.name)
+    for j, who in sorted(weak.items()):
+        warns.append(f"coordinate {names[j]}: barely identified by the taps of {len(who)} of {len(setups)} setups "
+                     f"({', '.join(who)}: stage-1 posterior variance more than {1 - WEAK_CONTRACTION:.0%} of the flat "
+                     f"stage-1 prior's); their Gaussian surrogates claim more than those data carry, and the "
+                     f"population of {names[j]} leans on the stage-1 box")
     groups = []
     for t in sorted({s.holder_type for s in setups}):
         group = [s for s in setups if s.holder_type == t]
