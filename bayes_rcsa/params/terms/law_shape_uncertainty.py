@@ -68,6 +68,7 @@ from typing import Mapping
 
 import numpy as np
 
+from ...errors import ModelError
 from ..parameter import Parameter
 from ..priors import Uniform
 from . import register_term
@@ -111,8 +112,6 @@ def series_law_shape(x: np.ndarray, ratio: float, growth: np.ndarray) -> np.ndar
         Where the series law has no finite stiffness (``1 + g (1 - S_L) <= 0``: a growth faster than
         proportional, extrapolated far beyond ``l_b``).
     """
-    from ...errors import ModelError
-
     s = two_spring_limit(x, ratio)
     den = 1.0 + growth * (1.0 - s)
     if np.any(den <= 0.0):
@@ -150,8 +149,6 @@ class LawShapeUncertainty(ModelTerm):
         lengths : (n_cfg,) m
         l_a, l_b : m, the growth law's range
         """
-        from ...errors import ModelError
-
         if not l_b > l_a:
             return contact  # one clamping length: no law between lengths to bend
         missing = [n for n in ("law_shape_bend", "k_xf", "k_thetaM", "g_xf", "g_thetaM") if n not in values]
