@@ -8,7 +8,7 @@ not the physics.  Seeds 5000+ (the development seeds were 0-99).
     python3 benchmarks/library_scale.py [N_COMBINATIONS] [REPEATS]
     python3 benchmarks/library_scale.py joint [REPLICATES] [RUNS] [STEPS] [SEED] [emcee|gibbs]
     python3 benchmarks/library_scale.py joint-real LIBRARY STAGE1 NAME,NAME,NAME,NAME [RUNS] [STEPS] [THIN] [SEED] [real|surrogate]
-        [emcee|gibbs]
+        [emcee|gibbs] [CACHE.json]
     python3 benchmarks/library_scale.py two-stage LIBRARY STAGE1 NAME,NAME,NAME,NAME [SEED]
 
 Prints one line per repeat and the median; the table goes to docs/library.md ("Scale").  ``joint`` checks
@@ -19,7 +19,7 @@ per type and coordinate, tau_b per coordinate; docs/library.md, "Stage 2").  ``j
 with four real identify posteriors of a ``benchmarks/library.py`` library and their tempered FRF likelihoods.
 ``two-stage`` is a cheap check of the Gaussian surrogates alone (seconds, no joint sampler): stage 2's draws
 re-weighted to the exact two-stage target in which each setup's stage-1 draws are its likelihood
-(:func:`two_stage_log_weights`).
+(:func:`bayes_rcsa.library.exact.two_stage_log_weights`).
 """
 
 from __future__ import annotations
@@ -38,6 +38,7 @@ from bayes_rcsa.library.joint import (chain_diagnostics, gaussian_log_likelihood
                                      sample_gibbs, sample_joint)
 from bayes_rcsa.library.outliers import flag_outliers, loo_p_values
 from bayes_rcsa.library.population import COORDINATES, Hyperprior, covariate
+from bayes_rcsa.library.exact import reweight_exact, two_stage_log_weights
 from bayes_rcsa.library.stage2 import SetupDraws, Stage2Settings, fit_population, surrogate
 
 BOX = np.array([[5.0, 9.0], [3.0, 8.0], [0.0, 1.5], [0.0, 1.5], [0.0, 4.0], [-6.0, 0.0]])
@@ -213,7 +214,7 @@ def joint_check(replicates: int = 5, runs: int = 4, steps: int = 48000, seed: in
 
 
 def joint_real(library: str, stage1: str, picks: str, runs: int = 4, steps: int = 6000, thin: int = 4,
-               seed: int = 5300, likelihood: str = "real", sampler: str = "emcee") -> None:
+               seed: int = 5300, likelihood: str = "real", sampler: str = "emcee", cache: str = "") -> None:
     """Stage 2 against the joint model with REAL identify posteriors: four combinations (``picks``, comma-separated
     names of two holder types) of a ``benchmarks/library.py`` library (``library``: its folder with
     ``manifest.toml``; ``stage1``: its finished ``bayes-rcsa batch`` folder).
@@ -233,7 +234,13 @@ def joint_real(library: str, stage1: str, picks: str, runs: int = 4, steps: int 
     ``max(500, steps / 4)`` of burn-in; R-hat and bulk/tail ESS per hyperparameter over the chains, and the
     Monte Carlo error of each end from the spread between four groups of chains.  Stage 2's own target is also
     importance-sampled for the spreads and tau_b (the "IS" columns; with ``surrogate`` the joint model's exact
-    answer)."""
+    answer).
+
+    Stage 2 is compared twice, with the same chain: as the Gaussian surrogates give it (``exact=False``) and
+    re-weighted to the exact two-stage target (:func:`bayes_rcsa.library.exact.reweight_exact`, forced on; its
+    weight ESS is printed).  The joint reference draws from its own stream (``[seed, 3]``); ``cache`` (a JSON
+    path) keeps its quantiles, standard errors and diagnostics, and a later call with the same arguments reads
+    them instead of sampling again."""
     import arviz as az
 
     from bayes_rcsa.batch.manifest import load_manifest
@@ -288,44 +295,65 @@ def joint_real(library: str, stage1: str, picks: str, runs: int = 4, steps: int 
         laws, nuisance = [s.z for s in st1.setups], None
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
-    res = fit_population(st1.setups, hyper, rng, Stage2Settings(ess_target=12000))
+    res = fit_population(st1.setups, hyper, rng, Stage2Settings(ess_target=12000), exact=False)
     fit = res.fit
     print(f"stage 2: {time.perf_counter() - t0:.0f} s, ESS {fit.ess:.0f}, {fit.n_steps} steps; per-setup importance "
           f"ESS of the re-weighted stage-1 draws {[round(r['ess']) for r in res.setups]}", flush=True)
-    model = JointModel(lls, types, x, hyper, True, nuisance)
     t0 = time.perf_counter()
-    if sampler == "gibbs":
-        n_burn = max(500, steps // 4)
-        joint = sample_gibbs(lls, types, x, hyper, rng, laws, n_iter=steps, n_burn=n_burn, n_chains=runs,
-                             nuisance=nuisance, thin=thin)
-        diag = chain_diagnostics(joint["chains"])
-        print(f"joint (Gibbs): {model.ndim} dimensions, {runs} chains x {steps * thin} iterations after {n_burn}, "
-              f"{time.perf_counter() - t0:.0f} s, law acceptance {np.round(joint['law_acceptance'], 3).tolist()}, "
-              f"slice updates at the shrinkage limit {joint['stuck']}", flush=True)
-    else:
-        W = 2 * model.ndim + 8
-        joint = sample_joint(lls, types, x, hyper, rng, n_steps=steps, n_burn=steps, n_walkers=W, n_runs=runs,
-                             centred=True, nuisance=nuisance, start_laws=laws, thin=thin)
-        diag = None
-        print(f"joint: {model.ndim} dimensions, {runs} runs of {W} walkers x {steps * thin} steps, "
-              f"{time.perf_counter() - t0:.0f} s, acceptance {[round(r['acceptance'], 3) for r in joint['runs']]}",
-              flush=True)
+    fit_x, info = reweight_exact(fit, st1.setups, np.random.default_rng([seed, 2]), True)
+    print(f"exact two-stage re-weighting of the same draws: {time.perf_counter() - t0:.1f} s, used {info['used']}, "
+          f"weight ESS {info['weight_ess']:.0f} of {info['n_draws']} ({info['weight_ess_fraction']:.2f}), smallest "
+          f"median site ESS {info['site_ess_median_min']:.0f} ({info['site_ess_setup']}), {info['pairs']:.2g} kernel "
+          f"evaluations; {info['reason'] or ''}", flush=True)
+    model = JointModel(lls, types, x, hyper, True, nuisance)
     T, dd = len(groups), len(names)
-    sel = [t * 3 * dd + 2 * dd + j for t in range(T) for j in range(dd)] + [T * 3 * dd + j for j in range(dd)]
-    qt, is_ess = _target_quantiles(fit.groups, hyper, fit.theta, np.random.default_rng([seed, 1]), n=1_000_000)
-    print(f"stage 2's target by importance sampling: ESS {is_ess:.0f}", flush=True)
     labels = [f"{p}_{n}[{g}]" for g in groups for p in ("a", "b", "sigma") for n in names] + \
         [f"tau_b_{n}" for n in names]
 
     def columns(dd):
         return np.concatenate(list(dd["types"]) + [dd["tau_b"]], axis=1)
 
-    two = columns({"types": [fit.types[g].flat for g in groups], "tau_b": fit.tau_b})
-    qj, se = run_spread(joint, lambda dd: np.quantile(columns(dd), [0.05, 0.5, 0.95], axis=0))
-    q2 = np.quantile(two, [0.05, 0.5, 0.95], axis=0)
-    sd, width = np.std(columns(joint), axis=0), qj[2] - qj[0]
-    dm = np.abs(q2[1] - qj[1]) / sd
-    de = np.max(np.abs(q2[[0, 2]] - qj[[0, 2]]), axis=0) / width
+    meta = {"library": str(lib), "stage1": str(s1), "picks": pick, "runs": runs, "steps": steps, "thin": thin,
+            "seed": seed, "likelihood": likelihood, "sampler": sampler}
+    if cache and Path(cache).exists() and json.loads(Path(cache).read_text())["meta"] == meta:
+        ref = json.loads(Path(cache).read_text())
+        print(f"joint reference read from {cache}", flush=True)
+    else:
+        # the reference's own stream: independent of how many numbers stage 2 drew
+        jrng = np.random.default_rng([seed, 3])
+        t0 = time.perf_counter()
+        if sampler == "gibbs":
+            n_burn = max(500, steps // 4)
+            joint = sample_gibbs(lls, types, x, hyper, jrng, laws, n_iter=steps, n_burn=n_burn, n_chains=runs,
+                                 nuisance=nuisance, thin=thin)
+            diag = {k: v.tolist() for k, v in chain_diagnostics(joint["chains"]).items()}
+            print(f"joint (Gibbs): {model.ndim} dimensions, {runs} chains x {steps * thin} iterations after "
+                  f"{n_burn}, {time.perf_counter() - t0:.0f} s, law acceptance "
+                  f"{np.round(joint['law_acceptance'], 3).tolist()}, slice updates at the shrinkage limit "
+                  f"{joint['stuck']}", flush=True)
+        else:
+            W = 2 * model.ndim + 8
+            joint = sample_joint(lls, types, x, hyper, jrng, n_steps=steps, n_burn=steps, n_walkers=W, n_runs=runs,
+                                 centred=True, nuisance=nuisance, start_laws=laws, thin=thin)
+            diag = None
+            print(f"joint: {model.ndim} dimensions, {runs} runs of {W} walkers x {steps * thin} steps, "
+                  f"{time.perf_counter() - t0:.0f} s, acceptance {[round(r['acceptance'], 3) for r in joint['runs']]}",
+                  flush=True)
+        qj, se = run_spread(joint, lambda dd: np.quantile(columns(dd), [0.05, 0.5, 0.95], axis=0))
+        ref = {"meta": meta, "q": qj.tolist(), "se": se.tolist(), "sd": np.std(columns(joint), axis=0).tolist(),
+               "diag": diag}
+        if cache:
+            Path(cache).write_text(json.dumps(ref))
+    qj, se, sd, diag = np.array(ref["q"]), np.array(ref["se"]), np.array(ref["sd"]), ref["diag"]
+    sel = [t * 3 * dd + 2 * dd + j for t in range(T) for j in range(dd)] + [T * 3 * dd + j for j in range(dd)]
+    qt, is_ess = _target_quantiles(fit.groups, hyper, fit.theta, np.random.default_rng([seed, 1]), n=1_000_000)
+    print(f"stage 2's target by importance sampling: ESS {is_ess:.0f}", flush=True)
+    width = qj[2] - qj[0]
+    out = {}
+    for tag, f in (("surrogate", fit), ("exact", fit_x)):
+        two = columns({"types": [f.types[g].flat for g in groups], "tau_b": f.tau_b})
+        q2 = np.quantile(two, [0.05, 0.5, 0.95], axis=0)
+        out[tag] = (q2, np.abs(q2[1] - qj[1]) / sd, np.abs(q2[[0, 2]] - qj[[0, 2]]) / width)
     for i, label in enumerate(labels):
         extra = ""
         if i in sel:
@@ -335,59 +363,31 @@ def joint_real(library: str, stage1: str, picks: str, runs: int = 4, steps: int 
         if diag is not None:
             extra += (f" | R-hat {diag['rhat'][i]:.3f}, ESS bulk {diag['ess_bulk'][i]:.0f}, "
                       f"tail {diag['ess_tail'][i]:.0f}")
-        print(f"{label:24s} stage 2 {q2[0, i]:9.4f} {q2[1, i]:9.4f} {q2[2, i]:9.4f} | joint {qj[0, i]:9.4f} "
-              f"{qj[1, i]:9.4f} {qj[2, i]:9.4f} | median {dm[i]:.3f} sd, ends {de[i]:.3f} of the width "
-              f"(MC se {np.max(se[[0, 2], i]) / width[i]:.3f}){extra}")
-    print(f"largest: {dm.max():.3f} sd ({labels[int(dm.argmax())]}), {de.max():.3f} of the width "
-          f"({labels[int(de.argmax())]}) (acceptance: 0.2 sd, 0.10)")
+        cells = " | ".join(f"{tag} {q2[0, i]:9.4f} {q2[1, i]:9.4f} {q2[2, i]:9.4f}: median {dm[i]:.3f} sd, ends "
+                           f"{de[:, i].max():.3f}" for tag, (q2, dm, de) in out.items())
+        print(f"{label:24s} {cells} | joint {qj[0, i]:9.4f} {qj[1, i]:9.4f} {qj[2, i]:9.4f} "
+              f"(MC se {np.max(se[[0, 2], i]) / width[i]:.3f} of the width){extra}")
+    for tag, (q2, dm, de) in out.items():
+        print(f"{tag}: largest {dm.max():.3f} sd ({labels[int(dm.argmax())]}), {de.max():.3f} of the width "
+              f"({labels[int(de.max(axis=0).argmax())]}); ends > 0.10: {int(np.sum(de > 0.10))} of {de.size} "
+              "(acceptance: 0.2 sd, 0.10)")
     if diag is not None:
-        print(f"R-hat at most {diag['rhat'].max():.3f}, ESS bulk at least {diag['ess_bulk'].min():.0f}, "
-              f"tail at least {diag['ess_tail'].min():.0f}")
-
-
-def two_stage_log_weights(fit, setups, hyper: Hyperprior, max_draws: int = 3000) -> np.ndarray:
-    """Log importance weights (H,) of stage 2's hyperparameter draws for the exact two-stage target.
-
-    Stage 2 replaces each setup's stage-1 posterior ``p_s(z) ~ L_s(z) 1_box(z)`` by the Gaussian ``N(m_s, C_s)``,
-    so its hyperparameter posterior has the factor ``N(m_s; mu_s, C_s + Sigma)`` where the joint model (stage-1
-    box included, as :mod:`bayes_rcsa.library.joint` samples it) has ``int N(z; mu_s, Sigma) p_s(z) / pi_s(z) dz``;
-    the latter is estimated by the average of ``N(z_i; mu_s, Sigma) / pi_s(z_i)`` over the stage-1 draws (Lunn et
-    al. 2013).  The weight of a draw ``(a_t, b_t, sigma_t)`` is the product of the ratios over the setups.
-    Trustworthy where the weights' ESS is large and the target's tails lie within the draws' (not where the
-    stage-1 draws themselves misrepresent their posterior's tails)."""
-    d = hyper.ndim
-    lw = 0.0
-    for s in setups:
-        tf = fit.types[s.holder_type]
-        th = tf.flat
-        a, b, sg = th[:, :d], th[:, d:2 * d], th[:, 2 * d:]
-        mu = a + b * float(covariate(s.diameter))
-        z = s.z[::max(1, s.z.shape[0] // max_draws)]
-        ln_s = np.empty(th.shape[0])
-        for lo in range(0, th.shape[0], 500):  # bounded memory: 500 x draws x d
-            r = (z[None] - mu[lo:lo + 500, None]) / sg[lo:lo + 500, None]
-            lp = -0.5 * np.sum(r * r, -1) - np.sum(np.log(sg[lo:lo + 500]), -1)[:, None] - s.ln_prior(z)[None]
-            top = lp.max(1)
-            ln_s[lo:lo + 500] = top + np.log(np.mean(np.exp(lp - top[:, None]), 1))
-        i = list(tf.names).index(s.name)
-        V = tf.C[i][None] + sg[:, None, :] ** 2 * np.eye(d)[None]
-        rr = tf.m[i][None] - mu
-        ln_n = -0.5 * np.sum(rr * np.linalg.solve(V, rr[..., None])[..., 0], -1) - 0.5 * np.linalg.slogdet(V)[1]
-        lw = lw + ln_s - ln_n
-    return lw
+        print(f"R-hat at most {max(diag['rhat']):.3f}, ESS bulk at least {min(diag['ess_bulk']):.0f}, "
+              f"tail at least {min(diag['ess_tail']):.0f}")
 
 
 def two_stage(library: str, stage1: str, picks: str, seed: int = 11) -> None:
     """Stage 2 of four real identify posteriors against its own draws re-weighted to the exact two-stage target
-    (:func:`two_stage_log_weights`): per type and coordinate the 90 % ends of the means and slopes."""
+    (:func:`bayes_rcsa.library.exact.two_stage_log_weights`): per type and coordinate the 90 % ends of the means
+    and slopes."""
     from bayes_rcsa.batch.manifest import load_manifest
     from bayes_rcsa.library.stage1 import collect
 
     lib = Path(library)
     st1 = collect([j for j in load_manifest(lib / "manifest.toml") if j.name in picks.split(",")], Path(stage1))
     hyper = Hyperprior.from_box(st1.names, st1.box, st1.growth[2])
-    res = fit_population(st1.setups, hyper, np.random.default_rng(seed), Stage2Settings(ess_target=3000))
-    lw = two_stage_log_weights(res.fit, st1.setups, hyper)
+    res = fit_population(st1.setups, hyper, np.random.default_rng(seed), Stage2Settings(ess_target=3000), exact=False)
+    lw, _ = two_stage_log_weights(res.fit, st1.setups)
     w = np.exp(lw - lw.max())
     w /= w.sum()
     print(f"stage 2 ESS {res.fit.ess:.0f}; two-stage weights: ESS {1 / np.sum(w * w):.0f} of {w.size}")
@@ -408,7 +408,7 @@ if __name__ == "__main__":
     if sys.argv[1:2] == ["joint"]:
         joint_check(*(int(v) for v in sys.argv[2:6]), *sys.argv[6:7])
     elif sys.argv[1:2] == ["joint-real"]:
-        joint_real(*sys.argv[2:5], *(int(v) for v in sys.argv[5:9]), *sys.argv[9:11])
+        joint_real(*sys.argv[2:5], *(int(v) for v in sys.argv[5:9]), *sys.argv[9:12])
     elif sys.argv[1:2] == ["two-stage"]:
         two_stage(*sys.argv[2:5], *(int(v) for v in sys.argv[5:6]))
     else:

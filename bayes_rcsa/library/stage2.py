@@ -17,6 +17,11 @@ linear hyperparameters integrated out in closed form; one emcee vectorised
 over walkers and setups, whose cost grows linearly with the number of
 setups).
 
+Where the library is small enough and the weights are sound, the hyperparameter draws are then re-weighted to
+the exact two-stage target, in which each setup's stage-1 draws (its stage-1 box included) are its likelihood,
+and resampled to an equally weighted set (:mod:`.exact`, option ``exact``); otherwise the surrogate result is
+kept and ``Stage2Result.exact`` says why.
+
 The surrogate is then checked setup by setup: the stage-1 draws are
 importance re-weighted to the setup's pooled posterior (weights = population
 density averaged over hyperparameter draws / stage-1 prior density).  The
@@ -33,6 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConvergenceError, SetupError
+from .exact import reweight_exact
 from .hierarchy import Group, HyperFit, Stage2Settings, TypeFit, _factor, _forward, fit_hyper
 from .population import Hyperprior
 
@@ -191,6 +197,8 @@ class Stage2Result:
         ess, refused (reason or None)
     warnings : list of str
     fit : HyperFit, the coupled posterior (sampler draws, groups) the types are views of
+    exact : dict, the exact two-stage re-weighting (:func:`.exact.reweight_exact`): ``used``, ``reason``,
+        ``weight_ess``, ``pairs`` (its cost), ...
     """
 
     names: tuple
@@ -199,10 +207,11 @@ class Stage2Result:
     setups: list
     warnings: list
     fit: HyperFit | None = None
+    exact: dict | None = None
 
 
 def fit_population(setups, hyper: Hyperprior, rng: np.random.Generator, settings: Stage2Settings = Stage2Settings(),
-                   ess_min: float = ESS_MIN, n_weight_draws: int = 32) -> Stage2Result:
+                   ess_min: float = ESS_MIN, n_weight_draws: int = 32, exact="auto") -> Stage2Result:
     """Stage 2 for a library: surrogates, one coupled emcee fit of all holder types, per-setup ESS and pooled
     estimates.
 
@@ -214,6 +223,11 @@ def fit_population(setups, hyper: Hyperprior, rng: np.random.Generator, settings
     settings : Stage2Settings
     ess_min : float, smallest importance ESS for a pooled estimate
     n_weight_draws : int, hyperparameter draws averaged in the importance weights
+    exact : ``"auto"``, True or False
+        Re-weight the hyperparameter draws to the exact two-stage target and resample them
+        (:func:`.exact.reweight_exact`): ``"auto"`` where the cost (setups x stage-1 draws x hyperparameter draws)
+        is at most :data:`.exact.EXACT_MAX_PAIRS` and the weights are sound, True whatever the cost (if sound),
+        False never.  Where it is requested but not sound the surrogate result is kept with a warning.
 
     Raises
     ------
@@ -248,8 +262,11 @@ def fit_population(setups, hyper: Hyperprior, rng: np.random.Generator, settings
         groups.append(Group(t, tuple(s.name for s in group), x, np.array([surr[s.name][0] for s in group]),
                             np.array([surr[s.name][1] for s in group])))
     hfit = fit_hyper(groups, hyper, rng, settings)
-    types: dict[str, TypeFit] = hfit.types
     warns += hfit.warnings
+    hfit, exact_info = reweight_exact(hfit, setups, rng, exact)
+    if exact_info["sound"] is False:  # requested, judged and found unsound (not: switched off, or too costly)
+        warns.append(f"stage 2: exact two-stage re-weighting not used: {exact_info['reason']}")
+    types: dict[str, TypeFit] = hfit.types
     rows = []
     for s in setups:
         fit = types[s.holder_type]
@@ -272,7 +289,7 @@ def fit_population(setups, hyper: Hyperprior, rng: np.random.Generator, settings
             for j, n in enumerate(names):
                 row[f"{n}_pooled"] = [float(v) for v in _weighted_quantiles(z[:, j], w, (0.05, 0.5, 0.95))]
         rows.append(row)
-    return Stage2Result(tuple(names), hyper, types, rows, warns, hfit)
+    return Stage2Result(tuple(names), hyper, types, rows, warns, hfit, exact_info)
 
 
 def _weighted_quantiles(v: np.ndarray, w: np.ndarray, q) -> np.ndarray:

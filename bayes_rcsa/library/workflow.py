@@ -143,7 +143,7 @@ def write_library(out_dir, fit: LibraryFit, plots: bool = True, attrs: dict | No
     stage2 = {t: {"n_setups": len(f.names), "ess": f.ess, "acceptance": f.acceptance,
                   "autocorrelation_steps": float(np.max(f.tau))} for t, f in fit.stage2.types.items()}
     doc = {"holder_types": list(fit.population.holder_types), "coordinates": list(fit.population.names),
-           "stage2": stage2, "pooling": pooling, "setups": fit.setups, "laws": laws,
+           "stage2": stage2, "stage2_exact": fit.stage2.exact, "pooling": pooling, "setups": fit.setups, "laws": laws,
            "outliers": [r["name"] for r in fit.setups if r.get("outlier")], "warnings": fit.warnings}
     atomic_write_text(out / "library.json", json.dumps(doc, indent=1, default=float))
     paths["json"] = out / "library.json"
