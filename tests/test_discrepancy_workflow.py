@@ -249,6 +249,10 @@ def test_unexplained_effect_gets_the_statistical_discrepancy_and_wider_intervals
     # benchmarks/discrepancy.py --coverage's table)
     assert r["unexplained_features"] and not r["usable_for_prediction"]
     assert any("30 mm (not fitted)" in w for w in r["usable_for_prediction_reasons"])
+    # the posterior-predictive scan finds the flange on its own (it is what flags the campaigns whose baseline
+    # detection saw no band there, 2 of 10 before it): a band at a fitted length that holds 1000 Hz
+    scan = [b for b in r["unexplained_features"] if b["detector"] == "predictive_scan"]
+    assert any(b["lo_hz"] <= 1000.0 <= b["hi_hz"] and b["log10_p"] < -5 for b in scan), scan
 
 
 def test_a_partial_explanation_is_not_named(tmp_path_factory):

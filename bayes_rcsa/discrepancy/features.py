@@ -15,10 +15,14 @@ not trusted.
 
 Rules:
 
-* a *feature* is a systematic misfit band of the baseline's detection at a
-  fitted measurement whose nearest edge lies more than two half-power widths
-  from every measured mode of that measurement (a band on a mode is a
-  shifted or reshaped mode, which the bias handles);
+* a *feature* is a systematic misfit band at a fitted measurement whose
+  nearest edge lies more than two half-power widths from every measured mode
+  of that measurement (a band on a mode is a shifted or reshaped mode, which
+  the bias handles).  Two detectors find them: the baseline detection's
+  bands (:func:`unexplained_features`, ``detector: "detection_bands"``) and
+  the posterior-predictive scan of the final model
+  (:mod:`.predictive_scan`, ``detector: "predictive_scan"``), which also
+  finds a weak resonance spread over more lines than the detection's five;
 * a predicted mode at a clamping length that was *not* fitted is *near* a
   feature when the feature's nearest edge lies within
   :data:`NEAR_FEATURE_REL` (10 %) of its frequency.  Two modes 10 % apart
@@ -70,7 +74,7 @@ def unexplained_features(detection_measurements: list, measurements: list) -> li
                           for f, w in modes)
             if not on_mode:
                 out.append({"lo_hz": lo, "hi_hz": hi, "source": d["source"], "direction": d["direction"],
-                            "clamping_length": d["clamping_length"]})
+                            "clamping_length": d["clamping_length"], "detector": "detection_bands"})
     return out
 
 
