@@ -87,6 +87,9 @@ def test_exact_option_moves_stage2_onto_the_known_two_stage_target_where_the_sur
     # the same chain (same seed): the re-weighted draws are rows of the surrogate's draws, resampled
     assert np.all(np.isin(auto.fit.theta[:, 0], sur.fit.theta[:, 0]))
     assert 0.1 < auto.exact["weight_ess_fraction"] < 0.95  # the weights do work, and did not degenerate
+    eff = auto.exact["effective_draws"]
+    assert eff == pytest.approx(auto.fit.ess * auto.exact["weight_ess_fraction"])
+    assert any("effective draws" in w for w in auto.warnings) == (eff < SETTINGS.ess_target)
     lw = _analytic_log_weights(sur.fit, setups, means)
     w = np.exp(lw - lw.max())
     w /= w.sum()
@@ -146,7 +149,7 @@ def test_too_few_stage1_draws_behind_a_site_average_fall_back():
 def test_exact_off_and_auto_above_its_cost_leave_stage2_untouched(box_fits, monkeypatch):
     setups, _, sur, _ = box_fits
     # exact=False: the result of stage 2 without the re-weighting step at all (same draws, same generator stream)
-    monkeypatch.setattr(stage2, "reweight_exact", lambda fit, setups, rng, mode: (fit, {"sound": None}))
+    monkeypatch.setattr(stage2, "reweight_exact", lambda fit, setups, rng, mode: (fit, {"sound": None, "used": False}))
     plain = fit_population(setups, HYPER, np.random.default_rng(5), SETTINGS)
     assert np.array_equal(plain.fit.theta, sur.fit.theta)
     assert np.array_equal(plain.types["T0"].chain, sur.types["T0"].chain)

@@ -266,6 +266,12 @@ def fit_population(setups, hyper: Hyperprior, rng: np.random.Generator, settings
     hfit, exact_info = reweight_exact(hfit, setups, rng, exact)
     if exact_info["sound"] is False:  # requested, judged and found unsound (not: switched off, or too costly)
         warns.append(f"stage 2: exact two-stage re-weighting not used: {exact_info['reason']}")
+    elif exact_info["used"] and exact_info["effective_draws"] < settings.ess_target:
+        # resampling keeps the draws' number, not their information: chain ESS x the weights' ESS fraction
+        warns.append(f"stage 2: the exact two-stage re-weighting leaves about {exact_info['effective_draws']:.0f} "
+                     f"effective draws (chain ESS {hfit.ess:.0f} x weight ESS fraction "
+                     f"{exact_info['weight_ess_fraction']:.2f}) < the ESS target {settings.ess_target:g}; the "
+                     "interval ends carry that much more Monte Carlo error (a larger ESS target reduces it)")
     types: dict[str, TypeFit] = hfit.types
     rows = []
     for s in setups:
