@@ -187,3 +187,29 @@ def test_library_json_records_the_exact_step(box_fits, tmp_path):
     ex = json.loads((tmp_path / "lib" / "library.json").read_text())["stage2_exact"]
     assert ex["used"] is True and ex["mode"] == "auto" and ex["weight_ess"] > 0.1 * ex["n_draws"]
     assert ex["pairs"] == 6 * 1000 * ex["n_draws"]
+
+
+def test_short_exact_result_runs_the_chain_longer_once_and_warns_only_if_the_cap_stops_it():
+    """The resampled set is worth chain ESS x weight ESS fraction; below the ESS target stage 2 runs its chain again,
+    longer, and re-weights once more.  Small settings (32 walkers, 100-step chunks) keep this at a few seconds."""
+    setups, _ = _box_library(11, n_draws=600)
+    kw = dict(ess_target=300, n_walkers=32, chunk=100, n_burn=200)
+    free = fit_population(setups, HYPER, np.random.default_rng(6), Stage2Settings(max_steps=3000, **kw))
+    ex, rerun = free.exact, free.exact["rerun"]
+    # the first chain stops at 100 steps with ~140 effective draws after re-weighting (seeds 5-7: 80-142)
+    assert rerun is not None and rerun["first_effective_draws"] < 300 and rerun["used"]
+    assert rerun["ess_target"] == pytest.approx(stage2.RERUN_MARGIN * 300 / rerun["first_weight_ess_fraction"])
+    assert rerun["n_steps"] > rerun["first_n_steps"] and free.fit.n_steps == rerun["n_steps"]
+    # the result is the longer chain's, re-weighted: 390-490 effective draws on seeds 5-7, no warning
+    assert ex["used"] and ex["effective_draws"] >= 300
+    assert ex["effective_draws"] == pytest.approx(free.fit.ess * ex["weight_ess_fraction"])
+    assert not any("effective draws" in w for w in free.warnings)
+    # the same first chain, but a cap the longer one reaches: it still falls short (98-173 on seeds 5-7) and says so
+    capped = fit_population(setups, HYPER, np.random.default_rng(6), Stage2Settings(max_steps=300, **kw))
+    assert capped.exact["rerun"]["n_steps"] == 300 and capped.exact["effective_draws"] < 300
+    assert capped.exact["rerun"]["first_effective_draws"] == rerun["first_effective_draws"]
+    assert sum("effective draws" in w and "after one longer chain (300 steps" in w for w in capped.warnings) == 1
+    # a first chain already at the cap is not run again (it could not get longer); the warning stays
+    stop = fit_population(setups, HYPER, np.random.default_rng(6), Stage2Settings(max_steps=100, **kw))
+    assert stop.exact["rerun"] is None and stop.fit.n_steps == 100
+    assert any("effective draws" in w and "longer chain" not in w for w in stop.warnings)
