@@ -42,6 +42,9 @@ def register(subparsers) -> None:
     p.add_argument("--force", action="store_true", help="recompute every stage-1 setup, finished or not")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="random seed of stage 2 (default 0)")
     p.add_argument("--no-outliers", action="store_true", help="skip the leave-one-out outlier check")
+    p.add_argument("--tail-correct", action="store_true",
+                   help="check every stage-1 posterior's interval ends against importance sampling and pool "
+                        "importance draws where the chain missed a tail (1e5 evaluations per setup; docs/library.md)")
     p.add_argument("--no-plots", action="store_true", help="skip shrinkage.png")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=run)
@@ -77,7 +80,8 @@ def run(args: argparse.Namespace) -> Summary:
                                                                     "setups": [j.name for j in jobs]}, indent=1))
             result = run_stage1(jobs, out, run_command, executor=executor, workers=workers, force=args.force,
                                 progress=progress)
-            stage1 = collect(jobs, out, result.rows)
+            stage1 = collect(jobs, out, result.rows, tail_correct=args.tail_correct,
+                             rng=np.random.default_rng([args.seed, 5]))
             fit = fit_library(stage1, np.random.default_rng(args.seed), outliers=not args.no_outliers, stage1_dir=out)
             fit.warnings[:0] = command_warnings()
             paths = write_library(out, fit, plots=not args.no_plots, attrs={"seed": args.seed})

@@ -86,8 +86,10 @@ def pareto_smoothed_log_weights(log_weights: np.ndarray) -> tuple[np.ndarray, fl
     -------
     (n,) smoothed log weights normalised to sum to one, and ``k`` (above 0.7 the estimate is unreliable).
     """
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), np.errstate(over="ignore"):
         warnings.simplefilter("ignore", UserWarning)  # ArviZ warns on a large k itself; the caller reports it
+        # its tail-length heuristic overflows exp() for a few extreme weights, harmlessly (inf -> weight 0)
+        warnings.simplefilter("ignore", RuntimeWarning)
         lw, k = _az().psislw(np.asarray(log_weights, dtype=float))
     return np.asarray(lw, dtype=float), float(np.asarray(k))
 

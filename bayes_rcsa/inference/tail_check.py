@@ -27,7 +27,7 @@ from scipy import stats
 from .diagnostics import pareto_smoothed_log_weights
 from .posterior import LogPosterior
 
-__all__ = ["importance_tail_check", "check_identification", "TOLERANCE_SD", "MIN_ESS", "TAIL_CHECK_RULE"]
+__all__ = ["importance_tail_check", "importance_resample", "check_identification", "TOLERANCE_SD", "MIN_ESS", "TAIL_CHECK_RULE"]
 
 #: Largest difference of an interval end, in posterior standard deviations, counted as agreement.  The 95 %
 #: point of 400 effective chain draws has a Monte Carlo error of about 0.1 sd, and the importance estimate's
@@ -50,6 +50,45 @@ def _weighted_quantiles(x: np.ndarray, w: np.ndarray, qs) -> np.ndarray:
     return np.take_along_axis(x[o, np.arange(x.shape[1])], idx, axis=0)
 
 
+def _importance(log_posterior, theta: np.ndarray, rng: np.random.Generator, n: int, df: float, scale: float,
+                batch: int):
+    """Importance draws ``x`` (m, d) inside the support, normalised PSIS weights ``w`` (m,), Pareto ``k``, weights'
+    ESS and ``m``, from a multivariate t fitted to ``theta`` (n_draws, d)."""
+    mu, cov = theta.mean(axis=0), np.atleast_2d(np.cov(theta, rowvar=False))
+    prop = stats.multivariate_t(loc=mu, shape=scale * cov, df=df, seed=rng)
+    x = np.atleast_2d(prop.rvs(n)).reshape(n, -1)
+    lp = np.concatenate([np.asarray(log_posterior(x[i:i + batch]), dtype=float) for i in range(0, n, batch)])
+    ok = np.isfinite(lp)
+    if ok.sum() < 2:
+        return x[ok], np.full(int(ok.sum()), 1.0 / max(int(ok.sum()), 1)), math.nan, 0.0, int(ok.sum())
+    x = x[ok]
+    lw, k = pareto_smoothed_log_weights(lp[ok] - prop.logpdf(x))
+    w = np.exp(lw - lw.max())
+    w /= w.sum()
+    return x, w, k, float(1.0 / np.sum(w * w)), int(ok.sum())
+
+
+def importance_resample(log_posterior, theta: np.ndarray, rng: np.random.Generator, size: int, n: int = 100_000,
+                        df: float = 3.0, scale: float = 2.0, batch: int = 4000) -> dict:
+    """Draws of the posterior by importance sampling, resampled to ``size`` equally weighted ones.
+
+    The same proposal and smoothing as :func:`importance_tail_check`; used where the chain's draws are known to
+    miss a tail (the check disagreed) and the importance estimate is reliable.
+
+    Returns
+    -------
+    dict: ``draws`` ((size, d) sampling coordinates, or None when unreliable), ``pareto_k``, ``ess``, ``used`` and
+    ``reason``.
+    """
+    x, w, k, ess, n_in = _importance(log_posterior, np.asarray(theta, dtype=float), rng, n, df, scale, batch)
+    if not (n_in >= MIN_ESS and k <= 0.7 and ess >= MIN_ESS):
+        return {"draws": None, "pareto_k": k, "ess": ess, "used": False,
+                "reason": f"importance sampling unreliable here (Pareto shape k = {k:.2f}, weights' ESS {ess:.0f}, "
+                          f"{n_in} of {n} draws inside the prior)"}
+    idx = rng.choice(x.shape[0], size=size, replace=True, p=w)
+    return {"draws": x[idx], "pareto_k": k, "ess": ess, "used": True, "reason": ""}
+
+
 def importance_tail_check(log_posterior, theta: np.ndarray, names, rng: np.random.Generator, n: int = 100_000,
                           df: float = 3.0, scale: float = 2.0, batch: int = 4000) -> dict:
     """Compare the chain's 5 % and 95 % points with an importance-sampling estimate of the same posterior.
@@ -68,22 +107,13 @@ def importance_tail_check(log_posterior, theta: np.ndarray, names, rng: np.rando
     dict: ``verdict``, ``reason``, ``pareto_k``, ``ess``, ``n``, ``rule`` and per parameter ``chain`` and
     ``importance`` (q05, q95) with ``shift_sd`` (the larger end difference in posterior sd).
     """
-    theta = np.asarray(theta, dtype=float)
     names = list(names)
-    mu, cov = theta.mean(axis=0), np.atleast_2d(np.cov(theta, rowvar=False))
-    prop = stats.multivariate_t(loc=mu, shape=scale * cov, df=df, seed=rng)
-    x = np.atleast_2d(prop.rvs(n)).reshape(n, -1)
-    lp = np.concatenate([np.asarray(log_posterior(x[i:i + batch]), dtype=float) for i in range(0, n, batch)])
-    ok = np.isfinite(lp)
     out = {"n": int(n), "rule": TAIL_CHECK_RULE, "parameters": {}}
-    if ok.sum() < MIN_ESS:
-        return {**out, "verdict": "unreliable", "reason": f"only {int(ok.sum())} of {n} importance draws lie inside "
+    theta = np.asarray(theta, dtype=float)
+    x, w, k, ess, n_in = _importance(log_posterior, theta, rng, n, df, scale, batch)
+    if n_in < MIN_ESS:
+        return {**out, "verdict": "unreliable", "reason": f"only {n_in} of {n} importance draws lie inside "
                 "the prior", "pareto_k": math.nan, "ess": 0.0}
-    x, lw = x[ok], lp[ok] - prop.logpdf(x[ok])
-    lw, k = pareto_smoothed_log_weights(lw - lw.max())
-    w = np.exp(lw - lw.max())
-    w /= w.sum()
-    ess = float(1.0 / np.sum(w * w))
     out.update(pareto_k=k, ess=ess)
     q_is = _weighted_quantiles(x, w, (0.05, 0.95))
     q_ch = np.quantile(theta, (0.05, 0.95), axis=0)

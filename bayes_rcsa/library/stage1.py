@@ -196,7 +196,54 @@ class Stage1:
     warnings: list
 
 
-def collect(jobs, out_dir, rows: Sequence[dict] | None = None) -> Stage1:
+def _tail_corrected(job, folder: Path, draws, rng: np.random.Generator):
+    """A setup's stage-1 draws with a missed tail replaced by importance-sampling draws; (draws, note or None).
+
+    The stage-1 chain's interval ends are compared with an importance-sampling estimate of the same log
+    posterior (:func:`bayes_rcsa.inference.tail_check.importance_tail_check`).  Where they disagree and the
+    importance estimate is reliable, the draws are replaced by as many importance draws, resampled
+    (:func:`~bayes_rcsa.inference.tail_check.importance_resample`): identify's default moves under-sample a
+    one-sided tail (docs/identification.md), and a population pooled from such draws inherits it.  The log
+    posterior is rebuilt from the setup file and the run's summary, and must reproduce the stored one.
+    """
+    import json
+
+    from ..inference.diagnostics import read_netcdf
+    from ..inference.posterior import LogPosterior
+    from ..inference.problem import IdentificationOptions, build_problem_from_setup
+    from ..inference.tail_check import importance_resample, importance_tail_check
+    from ..io.setup import load_setup
+
+    summary = json.loads((folder / "summary.json").read_text())
+    setup = load_setup(job.setup_file)
+    problem = build_problem_from_setup(setup, IdentificationOptions.from_setup(
+        setup.extra, method=summary["method"], lengths=None, band=None))
+    lp = LogPosterior(problem.priors, problem.likelihood.with_tempering(summary["likelihood"]["tempering"]))
+    names = problem.priors.names
+    missing = [n for n in names if n not in draws.values]
+    if missing:
+        return draws, f"setup {job.name}: tail correction skipped: the stage-1 draws lack {missing}"
+    theta = np.column_stack([np.asarray(problem.priors.priors[n].to_sampling(draws.values[n]), float) for n in names])
+    stored = np.asarray(read_netcdf(folder / "posterior.nc").sample_stats["lp"].values, float).ravel()
+    if stored.size != theta.shape[0] or not np.allclose(lp(theta), stored, rtol=0.0, atol=1e-6):
+        return draws, (f"setup {job.name}: tail correction skipped: the log posterior rebuilt from {job.setup_file} "
+                       "differs from the stage-1 run's (setup edited since?)")
+    check = importance_tail_check(lp, theta, names, rng)
+    if check["verdict"] != "disagrees":
+        return draws, None if check["verdict"] == "consistent" else f"setup {job.name}: tail check {check['reason']}"
+    res = importance_resample(lp, theta, rng, theta.shape[0])
+    if not res["used"]:
+        return draws, f"setup {job.name}: stage-1 tail not corrected: {res['reason']}; {check['reason']}"
+    values = dict(draws.values)
+    for j, n in enumerate(names):
+        values[n] = np.asarray(problem.priors.priors[n].to_physical(res["draws"][:, j]), float)
+    return dataclasses.replace(draws, values=values), (
+        f"setup {job.name}: stage-1 draws replaced by importance-sampling draws (Pareto k = {res['pareto_k']:.2f}, "
+        f"ESS {res['ess']:.0f}): {check['reason']}")
+
+
+def collect(jobs, out_dir, rows: Sequence[dict] | None = None, tail_correct: bool = False,
+            rng: np.random.Generator | None = None) -> Stage1:
     """Read every finished setup's posterior into population coordinates.
 
     Parameters
@@ -204,6 +251,12 @@ def collect(jobs, out_dir, rows: Sequence[dict] | None = None) -> Stage1:
     jobs : sequence of SetupJob
     out_dir : path-like, the stage-1 folder (``setups/<name>/identify/posterior.nc``)
     rows : batch rows or None; setups whose row is not ``done`` are left out with a warning
+    tail_correct : bool
+        Check every setup's stage-1 interval ends against importance sampling of its log posterior and, where
+        they disagree and the importance estimate is reliable, pool importance draws instead (see
+        :func:`_tail_corrected`; about 10^5 likelihood evaluations per setup).  Every replacement or refusal is
+        a warning.
+    rng : numpy.random.Generator, required with ``tail_correct``
 
     Raises
     ------
@@ -233,6 +286,12 @@ def collect(jobs, out_dir, rows: Sequence[dict] | None = None) -> Stage1:
             continue
         if row is not None and row.get("converged") is False:
             warns.append(f"setup {job.name}: its stage-1 posterior did not converge; pooled as it is")
+        if tail_correct:
+            if rng is None:
+                raise ValueError("collect(tail_correct=True) needs rng")
+            draws, note = _tail_corrected(job, path.parent, draws, rng)
+            if note:
+                warns.append(note)
         entries.append((job.name, htype, diameter, draws))
     if len(entries) < 2:
         raise SetupError(f"a library needs at least two usable combinations to estimate a population; got "
