@@ -4,8 +4,8 @@ R-hat, the autocorrelation time and the ESS are computed from the chain itself: 
 in the bulk and seldom enters a long one-sided tail passes them all.  That is what identify's default emcee
 moves do where a stiffness is bounded by the data from one side only (docs/identification.md, "Known
 limit"; ``benchmarks/sampler_tail.py``).  This check samples the same log posterior by importance sampling
-from a multivariate t fitted to the draws (``df`` degrees of freedom, covariance ``scale`` times the draws'),
-which needs no mixing, smooths the weights (PSIS, Vehtari et al. 2024) and compares the 5 % and 95 % points
+from a multivariate t fitted to the draws (``df`` degrees of freedom, covariance ``scale`` times the draws',
+refitted once to a weighted pilot), which needs no mixing, smooths the weights (PSIS, Vehtari et al. 2024) and compares the 5 % and 95 % points
 of every parameter with the chain's.
 
 Verdicts:
@@ -27,7 +27,8 @@ from scipy import stats
 from .diagnostics import pareto_smoothed_log_weights
 from .posterior import LogPosterior
 
-__all__ = ["importance_tail_check", "importance_resample", "check_identification", "TOLERANCE_SD", "MIN_ESS", "TAIL_CHECK_RULE"]
+__all__ = ["importance_tail_check", "importance_resample", "check_identification", "TOLERANCE_SD", "MIN_ESS",
+           "TAIL_CHECK_RULE"]
 
 #: Largest difference of an interval end, in posterior standard deviations, counted as agreement.  The 95 %
 #: point of 400 effective chain draws has a Monte Carlo error of about 0.1 sd, and the importance estimate's
@@ -37,8 +38,8 @@ TOLERANCE_SD = 0.4
 #: Smallest effective sample size of the smoothed weights for a verdict.
 MIN_ESS = 1000
 TAIL_CHECK_RULE = ("importance sampling of the same log posterior from a multivariate t (3 degrees of freedom, "
-                   "twice the covariance of the draws, refitted once to a weighted pilot), Pareto-smoothed weights; the 5 % and 95 % points of every "
-                   f"parameter compared with the chain's: agreement within {TOLERANCE_SD} posterior sd; no verdict "
+                   "twice the covariance of the draws, refitted once to a weighted pilot), Pareto-smoothed weights; "
+                   "the 5 % and 95 % points of every parameter compared with the chain's: agreement within {TOLERANCE_SD} posterior sd; no verdict "
                    f"when the Pareto shape k > 0.7 or the weights' ESS < {MIN_ESS}")
 
 
