@@ -39,7 +39,8 @@ TOLERANCE_SD = 0.4
 MIN_ESS = 1000
 TAIL_CHECK_RULE = ("importance sampling of the same log posterior from a multivariate t (3 degrees of freedom, "
                    "twice the covariance of the draws, refitted once to a weighted pilot), Pareto-smoothed weights; "
-                   f"the 5 % and 95 % points of every parameter compared with the chain's: agreement within {TOLERANCE_SD} posterior sd; no verdict "
+                   "the 5 % and 95 % points of every parameter compared with the chain's: "
+                   f"agreement within {TOLERANCE_SD} posterior sd; no verdict "
                    f"when the Pareto shape k > 0.7 or the weights' ESS < {MIN_ESS}")
 
 
