@@ -62,5 +62,6 @@ def test_identify_tail_check_option_writes_its_verdict_and_warns_when_it_is_not_
     tc = s["tail_check"]
     assert tc["verdict"] in ("consistent", "disagrees", "unreliable") and np.isfinite(tc["pareto_k"])
     assert set(tc["parameters"]) == set(s["parameter_names"])
+    assert f"within {TOLERANCE_SD} posterior sd" in tc["rule"] and "{" not in tc["rule"]  # the rule as applied
     # every warning printed also goes into the JSON output
     assert any(w.startswith("tail check") for w in s["warnings"]) == (tc["verdict"] != "consistent")
