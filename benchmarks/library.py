@@ -34,7 +34,8 @@ Tables
 
 The run in docs/library.md: ``--clean 10 --outliers 5 --loo 3 --big-type 8 --big-campaigns 3`` (stage 1 of
 the 90 + 10 + 24 fits about 1.5 h of wall time on the shared machine; the outlier and transfer parts of model
-version 2 then 15 and 6 min).
+version 2 then 15 and 6 min with stage 2's Gaussian surrogate; 23 and 26 min with the exact two-stage
+re-weighting and its longer chain, the default since 2026-11-26).
 """
 
 from __future__ import annotations
