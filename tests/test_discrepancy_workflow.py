@@ -58,6 +58,8 @@ def test_hidden_effect_is_named_and_the_gap_halves(tmp_path_factory, effect):
     assert r["candidates"][0]["criterion"] > np.log(100)
     # the held-out lengths (30, 35 mm) are reported too
     assert set(r["frequency_error_pct_after"]) == {"25", "30", "35", "40"}
+    # a named physical model carries no warning about the remainder's assumed bend between lengths
+    assert not any("unexplained remainder fitted" in w for w in r["warnings"])
 
 
 @pytest.mark.slow
@@ -242,6 +244,8 @@ def test_unexplained_effect_gets_the_statistical_discrepancy_and_wider_intervals
     assert width(f_interval(r["measurements_after"])) < 0.05 * f30
     assert inside(r["stiffness_after"]["k_xf"]["25"], cfg.k_xf)
     assert "cluster-robust" in r["interval_notes"][-1]
+    # two fitted lengths: the remainder's bias between them is assumed straight, and the JSON warnings say so
+    assert any(w.startswith("unexplained remainder fitted at 2 clamping length(s)") for w in r["warnings"])
     # The missing flange resonance (1000 Hz) moves the 30-mm mode (960 Hz) in a way no contact law can: the law
     # bounded by the fitted ends puts its interval 1-2 Hz above the truth here.  The workflow must not call that
     # interval trustworthy: the flange leaves misfit away from every fitted mode, the 30-mm mode predicted within

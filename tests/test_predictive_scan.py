@@ -88,6 +88,32 @@ def test_a_misfit_largest_next_to_a_mode_is_its_skirt_and_a_bump_beside_it_is_no
     assert predictive_misfit_scan([{**m, "fitted": False}], [F], [bump]) == []
 
 
+def test_a_broad_skirt_with_a_bump_in_its_middle_is_the_modes_and_a_resonance_above_it_is_not():
+    # A broad reshaped skirt (the rotor bench's slotted holder at 40 mm: z^2 rising from 1 to about 5 over the
+    # 40 lines below the mode's clearance and on inside it) with a noise bump in its middle, which puts the
+    # band's largest 20 lines from the edge: the residual keeps growing into the clearance's outer width,
+    # so it is the mode's skirt.  The same band with a resonance whose peak (12) stands above everything in the
+    # clearance next to it is a band of its own.
+    m = {"fitted": True, "source": "a.csv", "direction": "x", "clamping_length": 0.04,
+         "modes": [{"measured_hz": 1300.0, "measured_width_hz": 20.0}]}
+    lo = int(np.searchsorted(F, 1260.0))  # the first line inside the clearance (1300 - 2 x 20 Hz)
+    rising = np.ones(F.size)
+    rising[lo - 40 : lo + 20] = np.linspace(1.5, 5.0, 60)
+    bump = rising.copy()
+    bump[lo - 22 : lo - 17] += 1.5
+    assert np.argmax(np.convolve(bump, np.ones(5) / 5, mode="same")[lo - 40 : lo]) < 40 - SKIRT_LINES
+    assert predictive_misfit_scan([m], [F], [bump]) == []
+    resonance = rising.copy()
+    resonance[lo - 25 : lo - 14] = 12.0
+    (b,) = predictive_misfit_scan([m], [F], [resonance])
+    assert b["lo_hz"] <= F[lo - 20] <= b["hi_hz"]
+    # the clearance's residual is compared only in its outer width: a misfit at the mode's own peak, however
+    # large, does not make a resonance beside the clearance a skirt
+    peaked = resonance.copy()
+    peaked[(F > 1290.0) & (F < 1310.0)] = 50.0
+    assert len(predictive_misfit_scan([m], [F], [peaked])) == 1
+
+
 def test_z2_is_nan_without_a_noise_scale():
     h = sdof(F, 900.0)
     assert np.isnan(predictive_z2(h, h[None], float("nan"))).all()

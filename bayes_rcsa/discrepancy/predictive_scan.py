@@ -25,11 +25,12 @@ Exp(1) per line; windows of :data:`SCAN_WINDOWS` lines wholly away from
 every measured mode (:data:`.features.MODE_CLEARANCE_WIDTHS` half-power
 widths) are tested with the Gamma(w, 1) tail, Bonferroni over measurements,
 windows and positions at :data:`SCAN_FALSE_ALARM` per campaign.  A significant
-band that runs on into a mode's clearance *and is largest there* is that
-mode's own misfit spreading out (a reshaped skirt decays away from its
-mode) and is not reported; an unmodelled resonance peaks inside its band,
-however close it sits to the mode (on the rotor bench a slotted holder
-raises the residual over 1200-1700 Hz around a 40-Hz wide mode).  The
+band that runs on into a mode's clearance *and is largest there, or keeps
+growing into the clearance* is that mode's own misfit spreading out (a
+reshaped skirt decays away from its mode) and is not reported; an
+unmodelled resonance peaks inside its band, however close it sits to the
+mode (on the rotor bench a slotted holder raises the residual over
+1200-1700 Hz around a 40-Hz wide mode).  The
 parameter part of the residual is correlated across lines, which makes a
 window's sum heavier-tailed than Gamma: the level is nominal, and the
 false-alarm rate is measured on clean campaigns (docs/discrepancy.md).
@@ -44,12 +45,17 @@ from scipy.stats import gamma
 
 from .features import MODE_CLEARANCE_WIDTHS
 
-__all__ = ["predictive_z2", "predictive_misfit_scan", "SCAN_WINDOWS", "SCAN_FALSE_ALARM", "SKIRT_LINES"]
+__all__ = ["predictive_z2", "predictive_misfit_scan", "SCAN_WINDOWS", "SCAN_FALSE_ALARM", "SKIRT_LINES",
+           "SKIRT_SMOOTH_LINES"]
 
 #: Window lengths (lines): from a few lines to a weak resonance's skirt.
 SCAN_WINDOWS = (5, 9, 17, 33)
 #: Lines from a band's edge at a mode's clearance within which its largest residual marks it as that mode's skirt.
 SKIRT_LINES = 5
+#: Lines over which a band's level is compared with the clearance's next to it: the scan's second window, so
+#: that a noise bump of a few lines in a broad skirt does not outrank the skirt's rise, while an unmodelled
+#: resonance (several lines wide at half power) keeps its peak.
+SKIRT_SMOOTH_LINES = 9
 #: Nominal false-alarm probability per campaign (Bonferroni over measurements, windows and positions).
 SCAN_FALSE_ALARM = 0.01
 
@@ -98,16 +104,22 @@ def predictive_misfit_scan(measurements: list, frequency_hz: list, z2: list, win
         if not m["fitted"] or f.size < max(windows) or not np.isfinite(z).any():
             continue
         away = np.isfinite(z)
+        # distance to the nearest measured mode in its own half-power widths: the clearance's outer width
+        # (between MODE_CLEARANCE_WIDTHS - 1 and MODE_CLEARANCE_WIDTHS widths) is where a skirt is compared
+        widths = np.full(f.size, np.inf)
         for md in m["modes"]:
             w = md.get("measured_width_hz", math.nan)
             away &= np.abs(f - md["measured_hz"]) > MODE_CLEARANCE_WIDTHS * (w if math.isfinite(w) else 0.0)
-        cases.append((m, f, np.where(away, z, 0.0), away))
-    n_tests = sum(f.size for _, f, _, _ in cases) * len(windows)
+            if math.isfinite(w) and w > 0:
+                widths = np.minimum(widths, np.abs(f - md["measured_hz"]) / w)
+        outer = ~away & (widths > MODE_CLEARANCE_WIDTHS - 1.0)
+        cases.append((m, f, np.where(away, z, 0.0), away, np.where(np.isfinite(z), z, 0.0), outer))
+    n_tests = sum(c[1].size for c in cases) * len(windows)
     if not n_tests:
         return []
     log_level = math.log(alpha / n_tests)
     out = []
-    for m, f, z, away in cases:
+    for m, f, z, away, z_all, outer in cases:
         best = np.zeros(f.size)  # smallest log tail probability of a significant window covering each line
         for w in windows:
             k = np.ones(w)
@@ -119,18 +131,52 @@ def predictive_misfit_scan(measurements: list, frequency_hz: list, z2: list, win
                 lo, hi = max(0, i - w // 2), min(f.size, i + w // 2 + 1)
                 best[lo:hi] = np.minimum(best[lo:hi], lp[i])
         hot = np.flatnonzero(best < 0)
-        smooth = np.convolve(z, np.ones(min(windows)) / min(windows), mode="same")
         if not hot.size:
             continue
+        smooth = np.convolve(z, np.ones(min(windows)) / min(windows), mode="same")
+        k = np.ones(SKIRT_SMOOTH_LINES) / SKIRT_SMOOTH_LINES
+        # the level inside a clearance as well: the mode's own misfit there is not tested, only compared
+        level, level_all = np.convolve(z, k, mode="same"), np.convolve(z_all, k, mode="same")
         for run in np.split(hot, np.flatnonzero(np.diff(hot) > 1) + 1):
-            # a band that runs on into a mode's clearance and is largest there is that mode's misfit spreading
-            # out (a reshaped skirt, decaying away from the mode), not a structure of its own; an unmodelled
-            # resonance peaks inside the band, however close it sits to the mode
-            peak = run[int(np.argmax(smooth[run]))]
-            if ((run[0] > 0 and not away[run[0] - 1] and peak - run[0] < SKIRT_LINES)
-                    or (run[-1] + 1 < f.size and not away[run[-1] + 1] and run[-1] - peak < SKIRT_LINES)):
+            if _is_skirt(run, away, outer, smooth, level, level_all):
                 continue
             out.append({"lo_hz": float(f[run[0]]), "hi_hz": float(f[run[-1]]), "source": m["source"],
                         "direction": m["direction"], "clamping_length": m["clamping_length"],
                         "log10_p": float(best[run].min() / math.log(10)), "detector": "predictive_scan"})
     return out
+
+
+def _is_skirt(run: np.ndarray, away: np.ndarray, outer: np.ndarray, smooth: np.ndarray, level: np.ndarray,
+              level_all: np.ndarray) -> bool:
+    """Whether the band ``run`` (line indices) is a mode's own misfit spreading out of its clearance.
+
+    A reshaped skirt grows towards its mode.  The band is taken for one when it touches a mode's clearance and
+    either its largest smoothed ``z^2`` lies within :data:`SKIRT_LINES` of that edge, or the residual keeps
+    growing past the edge: somewhere in the clearance's outer width (one half-power width, next to the band)
+    ``z^2`` averaged over :data:`SKIRT_SMOOTH_LINES` lines reaches the band's largest average.  A noise bump
+    in the middle of a broad skirt then no longer makes a band of its own.  An unmodelled resonance beside a
+    mode peaks inside its band and falls off towards the mode, so the residual in the clearance stays below
+    its peak; a misfit at the mode's own peak (inner width) is not compared.
+
+    Parameters
+    ----------
+    run : (n_run,) int, the band's consecutive line indices
+    away : (n,) bool, lines outside every mode's clearance
+    outer : (n,) bool, lines in a clearance's outer half-power width
+    smooth, level : (n,) float, ``z^2`` averaged over the scan's first window and over
+        :data:`SKIRT_SMOOTH_LINES` lines, with the clearances' lines counted as 0
+    level_all : (n,) float, ``level`` with the clearances' own ``z^2``
+    """
+    peak = run[int(np.argmax(smooth[run]))]
+    top = float(np.max(level[run]))
+    for edge, step, near in ((run[0] - 1, -1, peak - run[0]), (run[-1] + 1, 1, run[-1] - peak)):
+        if not (0 <= edge < away.size) or away[edge]:
+            continue
+        if near < SKIRT_LINES:
+            return True
+        i = edge
+        while 0 <= i < away.size and outer[i]:
+            if level_all[i] >= top:
+                return True
+            i += step
+    return False
