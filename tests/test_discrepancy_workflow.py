@@ -512,3 +512,28 @@ def test_an_impossible_fit_far_better_than_every_possible_one_leaves_nothing_nam
     assert d["partial"][0]["outranked_by_implausible"] == "fluted_section"
     d = select.decide(refits(15.0, 12.7), 0.03, base)  # within ln 100: the possible candidate is named
     assert d["named"] == "spindle_error"
+
+
+def test_a_possible_pair_outranked_by_an_impossible_single_fit_is_not_named(monkeypatch):
+    """decide()'s outranking rule for two effects named together (select.pair_outranked): a pair that explains
+    the data less well than a physically impossible single fit, by more than ln 100, is not named."""
+    from types import SimpleNamespace
+
+    from bayes_rcsa.discrepancy import select
+
+    def refits(flute, spindle):
+        return [select.Refit(e, SimpleNamespace(statistic=1.0), None, c, 0.02, {"gap": 0.005})
+                for e, c in (("spindle_error", spindle), ("fluted_section", flute))]
+
+    impossible = {"fluted_section": ["q < 0.95"], "spindle_error": []}
+    # the rotor bench's tool modulus fitted at three lengths (a development seed): the impossible flute 53.3,
+    # spindle error 30.7 alone and 47.6 with a (possible) flute in the second round
+    assert select.pair_outranked(refits(53.3, 30.7), impossible, 47.6) == "fluted_section"
+    # tip mass plus spindle error: the pair far ahead of the impossible flute (rotor bench 51.9 vs 18.9,
+    # project bench 77.3 vs 69.0), and within ln 100 of it counts as not outranked either
+    assert select.pair_outranked(refits(18.9, 21.5), impossible, 51.9) is None
+    assert select.pair_outranked(refits(69.0, 60.0), impossible, 77.3) is None
+    assert select.pair_outranked(refits(50.0, 30.7), impossible, 47.6) is None
+    # nothing impossible, nothing to outrank
+    assert select.pair_outranked(refits(53.3, 30.7), {"fluted_section": [], "spindle_error": []}, 47.6) is None
+

@@ -47,8 +47,8 @@ from .mode_bias import BIAS_RULE, correct_mode_frequencies
 from .mode_shift import SHIFT_RULE, shifted_template_frequency
 from .noise import relative_noise_scale
 from .screen import embed_baseline, score_test
-from .select import (GAP_LAGS, LN_BF_NAME, MIN_SYSTEMATIC_REDUCTION, bound_warnings, decide, fitted_systematic_gap, gap, refit_candidate, separating_test,
-                     systematic_gap, systematic_gap_change)
+from .select import (GAP_LAGS, LN_BF_NAME, MIN_SYSTEMATIC_REDUCTION, bound_warnings, decide, fitted_systematic_gap, gap,
+                     pair_outranked, refit_candidate, separating_test, systematic_gap, systematic_gap_change)
 
 __all__ = ["DiscrepancyOptions", "DiscrepancyResult", "run_discrepancy", "write_discrepancy", "validate",
            "default_candidates", "remainder_terms", "REMAINDER_TERMS", "GAP_METRIC", "MIN_LINES_PER_PARAMETER"]
@@ -647,6 +647,20 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
         second = _second_effect(setup, base_opts, first, cands, decision, options, say, require_misfit=False)
         joint = next((r for r in second["refits"] if r.effect == second["named"]), None)
         base_sys = fitted_systematic_gap(baseline)
+        # the outranking rule of decide(), for the pair: a physically impossible single fit decisively better
+        # than the possible pair says that the data hold an effect outside the library, and the pair only
+        # mimics it (a tool modulus below the declared one, fitted at three lengths, by a stiffer spindle file
+        # plus a thinner flute)
+        over = joint and pair_outranked(decision["ranked"], decision["implausible"],
+                                        joint.fit.log_evidence - baseline.log_evidence)
+        if over:
+            say(f"{part} with {second['named']} is outranked by the impossible {over}: nothing named")
+            for q in decision["partial"]:
+                q.setdefault("outranked_by_implausible", over)
+            second["reason"] = (f"{part} with {second['named']} explains the data less well than the physically "
+                                f"impossible {over} (by more than ln 100): an effect outside the library, not named")
+            second["outranked_by_implausible"] = over
+            joint = None
         if joint is not None and joint.fit.log_evidence - baseline.log_evidence > LN_BF_NAME and (
                 base_sys["at_noise_floor"] or joint.systematic["gap"] <= (1 - MIN_SYSTEMATIC_REDUCTION) * base_sys["gap"]):
             named = part
@@ -661,7 +675,7 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
             detection.adequate = False
         else:
             second = {**second, "named": None}
-            if second.get("ran"):
+            if second.get("ran") and "outranked_by_implausible" not in second:
                 second["reason"] = f"{part} with a second known effect does not halve the systematic gap either"
     if named is not None:
         first = next(r for r in refits if r.effect == named)
@@ -700,6 +714,8 @@ def _second_round_report(second: dict) -> dict:
     if not second:
         return {"ran": False, "reason": "nothing was named in the first round"}
     out = {"ran": second["ran"], "reason": second["reason"], "named": second.get("named")}
+    if "outranked_by_implausible" in second:
+        out["outranked_by_implausible"] = second["outranked_by_implausible"]
     if second["ran"]:
         dec = second["decision"]
         out.update({"candidates": [{"effect": r.effect, "score": r.score.statistic, "criterion": r.criterion,
