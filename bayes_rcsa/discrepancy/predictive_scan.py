@@ -45,8 +45,8 @@ from scipy.stats import gamma
 
 from .features import MODE_CLEARANCE_WIDTHS
 
-__all__ = ["predictive_z2", "predictive_misfit_scan", "SCAN_WINDOWS", "SCAN_FALSE_ALARM", "SKIRT_LINES",
-           "SKIRT_SMOOTH_LINES"]
+__all__ = ["predictive_z2", "predictive_window_statistic", "predictive_misfit_scan", "SCAN_WINDOWS",
+           "SCAN_FALSE_ALARM", "SKIRT_LINES", "SKIRT_SMOOTH_LINES"]
 
 #: Window lengths (lines): from a few lines to a weak resonance's skirt.
 SCAN_WINDOWS = (5, 9, 17, 33)
@@ -80,8 +80,57 @@ def predictive_z2(measured: np.ndarray, h_draws: np.ndarray, sigma: float) -> np
     return np.where(var > 0, np.abs(measured - mean) ** 2 / np.where(var > 0, var, 1.0), math.nan)
 
 
+def predictive_window_statistic(measured: np.ndarray, h_draws: np.ndarray, sigma: float,
+                                windows=SCAN_WINDOWS) -> dict:
+    """Each window's residual whitened by the posterior-predictive covariance of its lines.
+
+    Under the model the residual ``r = h_meas - mean_d h_d`` over a window of ``w`` lines is complex normal
+    with covariance ``C_ww = cov_d(h) + diag((sigma |mean|)^2)``, whose draws' part is correlated over many
+    lines (a shared gain of the smooth FRF discrepancy, a draw that sits higher everywhere near a mode).
+    ``T = r_w^H C_ww^-1 r_w`` is then exactly Gamma(w, 1), whatever that correlation: a shared shift the
+    draws can make is one of the window's ``w`` directions and counts once, while a local excess that the
+    rest of the window does not share (an unmodelled resonance) keeps its full weight.  Where the lines
+    are independent ``T`` is the window's sum of :func:`predictive_z2`.
+
+    Parameters
+    ----------
+    measured : (n,) complex m/N
+    h_draws : (n_draws, n) complex m/N
+    sigma : float, the measurement's own relative noise scale
+    windows : odd window lengths, lines
+
+    Returns
+    -------
+    {w: (n,) float}: ``T`` of the window centred on each line; NaN where the window leaves the band or the
+    noise scale is unknown.
+    """
+    n = measured.size
+    out = {w: np.full(n, math.nan) for w in windows}
+    if not (math.isfinite(sigma) and sigma > 0):
+        return out
+    mean = h_draws.mean(axis=0)
+    d = (h_draws - mean) / math.sqrt(h_draws.shape[0])
+    r = measured - mean
+    noise = (sigma * np.abs(mean)) ** 2
+    for w in windows:
+        if w > n:
+            continue
+        start = np.arange(n - w + 1)
+        idx = start[:, None] + np.arange(w)  # (n_pos, w)
+        dw = d[:, idx].transpose(1, 2, 0)  # (n_pos, w, n_draws)
+        c = dw.conj() @ dw.transpose(0, 2, 1)  # (n_pos, w, w): E[conj(r_i) r_j], the Hermitian form's matrix
+        c[:, np.arange(w), np.arange(w)] += noise[idx]
+        rw = r[idx]  # (n_pos, w)
+        ok = np.all(noise[idx] > 0, axis=1)
+        sol = np.linalg.solve(c[ok], rw[ok].conj()[..., None])[..., 0]
+        t = np.full(start.size, math.nan)
+        t[ok] = np.real(np.einsum("pi,pi->p", rw[ok], sol))
+        out[w][start + w // 2] = t
+    return out
+
+
 def predictive_misfit_scan(measurements: list, frequency_hz: list, z2: list, windows=SCAN_WINDOWS,
-                           alpha: float = SCAN_FALSE_ALARM) -> list[dict]:
+                           alpha: float = SCAN_FALSE_ALARM, window_statistic: list | None = None) -> list[dict]:
     """Bands at the fitted measurements where the measured FRF leaves the final model's predictive.
 
     Parameters
@@ -92,6 +141,9 @@ def predictive_misfit_scan(measurements: list, frequency_hz: list, z2: list, win
     z2 : list of (n,) arrays, :func:`predictive_z2` of each measurement
     windows : window lengths, lines
     alpha : nominal false-alarm probability per campaign
+    window_statistic : list of {w: (n,) float} or None
+        :func:`predictive_window_statistic` of each measurement, tested instead of the window's sum of
+        ``z^2`` (which treats the lines as independent); both are Gamma(w, 1) under the model.
 
     Returns
     -------
@@ -113,17 +165,18 @@ def predictive_misfit_scan(measurements: list, frequency_hz: list, z2: list, win
             if math.isfinite(w) and w > 0:
                 widths = np.minimum(widths, np.abs(f - md["measured_hz"]) / w)
         outer = ~away & (widths > MODE_CLEARANCE_WIDTHS - 1.0)
-        cases.append((m, f, np.where(away, z, 0.0), away, np.where(np.isfinite(z), z, 0.0), outer))
+        ws = window_statistic[j] if window_statistic is not None else None
+        cases.append((m, f, np.where(away, z, 0.0), away, np.where(np.isfinite(z), z, 0.0), outer, ws))
     n_tests = sum(c[1].size for c in cases) * len(windows)
     if not n_tests:
         return []
     log_level = math.log(alpha / n_tests)
     out = []
-    for m, f, z, away, z_all, outer in cases:
+    for m, f, z, away, z_all, outer, ws in cases:
         best = np.zeros(f.size)  # smallest log tail probability of a significant window covering each line
         for w in windows:
             k = np.ones(w)
-            total = np.convolve(z, k, mode="same")
+            total = np.convolve(z, k, mode="same") if ws is None else np.nan_to_num(ws[w], nan=0.0)
             # only windows wholly away from the modes: the lines they hold are Exp(1) under the model
             full = np.convolve(away.astype(float), k, mode="same") > w - 0.5
             lp = np.where(full, gamma.logsf(total, w), 0.0)

@@ -42,7 +42,7 @@ from ..params.terms import get_term, known_terms
 from .detect import TAU_MAX, UNMATCHED_REL_HEIGHT, Detection, detect_from_fit, transfer_failures
 from .fit import ModelFit, fit_baseline, fit_variant, laplace_draws, with_robust_covariance
 from .features import modes_near_features, unexplained_features
-from .predictive_scan import predictive_misfit_scan, predictive_z2
+from .predictive_scan import predictive_misfit_scan, predictive_window_statistic, predictive_z2
 from .mode_bias import BIAS_RULE, correct_mode_frequencies
 from .mode_shift import SHIFT_RULE, shifted_template_frequency
 from .noise import relative_noise_scale
@@ -341,7 +341,7 @@ def evaluate(fit: ModelFit, rng: np.random.Generator, n_draws: int = 200, correc
     parts = stack.split(h_map)
     dparts = stack.split(h_draws)
     noise = _noise_sd(prob, vals, measured, parts)
-    per, tracked, z2 = [], [], []
+    per, tracked, z2, z2_win = [], [], [], []
     used = {(o.configuration, o.source) for o in prob.observations}
     for j, ((cfg, frf), f, hm, hp, hd, (scale, floor2, coh)) in enumerate(
             zip(prob.all_measurements, freqs, measured, parts, dparts, noise)):
@@ -354,6 +354,7 @@ def evaluate(fit: ModelFit, rng: np.random.Generator, n_draws: int = 200, correc
         sigma_own = relative_noise_scale(hm)
         me = mode_entries(f, hm, hp, hd, hd_rep + eps, sigma_own)
         z2.append(predictive_z2(hm, hd, sigma_own))
+        z2_win.append(predictive_window_statistic(hm, hd, sigma_own))
         tracked.append(me.pop("tracked"))
         per.append({"source": frf.source, "clamping_length": cfg.clamping_length, "direction": cfg.direction,
                     "fitted": (cfg, frf.source) in used, **me,
@@ -392,7 +393,8 @@ def evaluate(fit: ModelFit, rng: np.random.Generator, n_draws: int = 200, correc
     return {"gap": g["gap"], "gap_detail": g, "gap_fitted": split["fitted"], "gap_held_out": split["held_out"], "frequency_error_pct": {k: float(np.mean(v)) for k, v in by_len.items()},
             "measurements": per, "mode_bias_notes": notes,
             "mode_bias_observation": bias_observation if correct_bias else None, "stiffness": stiff, "term_parameters": params,
-            "frf": {"frequency_hz": freqs, "measured": measured, "predicted": parts, "predictive_z2": z2}}
+            "frf": {"frequency_hz": freqs, "measured": measured, "predicted": parts, "predictive_z2": z2,
+                    "predictive_window_statistic": z2_win}}
 
 
 #: Systematic gap of the final model at the fitted measurements above which it is not usable (rule 4 of
@@ -751,7 +753,8 @@ def build_report(res: DiscrepancyResult) -> dict:
     # two detectors: the baseline detection's bands (sized for naming) and the posterior-predictive scan of the
     # final model (predictive_scan.py), which also finds a weak resonance spread over many lines
     features = (unexplained_features(res.detection.as_dict()["measurements"], a["measurements"])
-                + predictive_misfit_scan(a["measurements"], a["frf"]["frequency_hz"], a["frf"]["predictive_z2"])
+                + predictive_misfit_scan(a["measurements"], a["frf"]["frequency_hz"], a["frf"]["predictive_z2"],
+                                         window_statistic=a["frf"]["predictive_window_statistic"])
                 ) if remainder else []
     near = modes_near_features(a["measurements"], features)
     usable, why = usable and not near, why + near
