@@ -322,8 +322,12 @@ def mode_entries(f: np.ndarray, measured: np.ndarray, h_map: np.ndarray, h_draws
 
 
 def evaluate(fit: ModelFit, rng: np.random.Generator, n_draws: int = 200, correct_bias: bool = False,
-             bias_observation: str = "peak") -> dict:
+             bias_observation: str = "peak", scan: bool = False) -> dict:
     """Gap, mode-by-mode natural frequencies and stiffness of a fit at every measurement of the setup.
+
+    ``scan`` adds each window's whitened residual (:func:`.predictive_scan.predictive_window_statistic`,
+    ``frf["predictive_window_statistic"]``) for the final model's posterior-predictive scan; the baseline's
+    evaluation does not need it (None per measurement there).
 
     Per measurement, every in-band mode of the measured FRF is matched one to one with the model's
     (:func:`mode_entries`); the headline keys (``measured_hz``, ``predicted_hz``, ``error_pct``, ...)
@@ -354,7 +358,7 @@ def evaluate(fit: ModelFit, rng: np.random.Generator, n_draws: int = 200, correc
         sigma_own = relative_noise_scale(hm)
         me = mode_entries(f, hm, hp, hd, hd_rep + eps, sigma_own)
         z2.append(predictive_z2(hm, hd, sigma_own))
-        z2_win.append(predictive_window_statistic(hm, hd, sigma_own))
+        z2_win.append(predictive_window_statistic(hm, hd, sigma_own) if scan else None)
         tracked.append(me.pop("tracked"))
         per.append({"source": frf.source, "clamping_length": cfg.clamping_length, "direction": cfg.direction,
                     "fitted": (cfg, frf.source) in used, **me,
@@ -699,7 +703,7 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
     # every final model gets the mode-frequency bias learned at the fitted lengths (mode_bias.py): a named
     # model is right only as far as its physics is, and the remainder must cover what it cannot move
     after = evaluate(final, rng_final, correct_bias=True,
-                     bias_observation="peak" if label == "statistical_discrepancy" else "resonance")
+                     bias_observation="peak" if label == "statistical_discrepancy" else "resonance", scan=True)
     t["add_and_show_s"] = time.perf_counter() - t0
     res = DiscrepancyResult(setup, options, baseline, detection, scores, refits, decision, final, label,
                             {"before": before, "after": after}, t, second=second, transfer_check=transfer_check)
