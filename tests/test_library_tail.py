@@ -27,6 +27,31 @@ def test_importance_resample_recovers_a_tail_the_draws_missed():
     assert not bad["used"] and bad["draws"] is None and "unreliable" in bad["reason"]
 
 
+def test_the_tail_check_resamples_its_own_importance_draws_without_a_second_run():
+    # the stage-1 tail correction needs the check and, where it disagrees, resampled draws: one importance run
+    # (n log-posterior evaluations, not 2n) gives both, with the tail back in place as above
+    from bayes_rcsa.inference.tail_check import importance_tail_check
+
+    target = stats.multivariate_normal([3.0, -1.0], [[1.0, 0.6], [0.6, 2.0]])
+    rng = np.random.default_rng(32)
+    draws = target.rvs(8000, random_state=rng)
+    draws = draws[draws[:, 0] < np.quantile(draws[:, 0], 0.90)]
+    evaluated = []
+
+    def lp(x):
+        evaluated.append(x.shape[0])
+        return target.logpdf(x)
+
+    check = importance_tail_check(lp, draws, ["a", "b"], rng, n=40_000, resample=4000)
+    assert check["verdict"] == "disagrees" and check["draws"].shape == (4000, 2)
+    assert sum(evaluated) == 40_000 // 4 + 40_000  # the pilot and the refitted proposal, once
+    assert np.quantile(check["draws"][:, 0], 0.95) == pytest.approx(3.0 + 1.6448536, abs=0.05)
+    # a consistent chain is not resampled
+    ok = importance_tail_check(target.logpdf, target.rvs(8000, random_state=rng), ["a", "b"], rng, n=40_000,
+                               resample=4000)
+    assert ok["verdict"] == "consistent" and "draws" not in ok
+
+
 @pytest.fixture(scope="module")
 def stage1(tmp_path_factory):
     """Two ER32 combinations of the synthetic library bench with short stage-1 chains, fitted by ``batch``."""

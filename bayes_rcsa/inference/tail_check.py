@@ -106,7 +106,7 @@ def importance_resample(log_posterior, theta: np.ndarray, rng: np.random.Generat
 
 
 def importance_tail_check(log_posterior, theta: np.ndarray, names, rng: np.random.Generator, n: int = 100_000,
-                          df: float = 3.0, scale: float = 2.0, batch: int = 4000) -> dict:
+                          df: float = 3.0, scale: float = 2.0, batch: int = 4000, resample: int | None = None) -> dict:
     """Compare the chain's 5 % and 95 % points with an importance-sampling estimate of the same posterior.
 
     Parameters
@@ -117,11 +117,16 @@ def importance_tail_check(log_posterior, theta: np.ndarray, names, rng: np.rando
     rng : numpy.random.Generator
     n : number of importance draws (log-posterior evaluations)
     df, scale : the t proposal's degrees of freedom and covariance factor
+    resample : int or None
+        With a verdict ``"disagrees"``, also return this many equally weighted draws resampled from the same
+        importance draws (``draws``, (resample, d) sampling coordinates), what
+        :func:`importance_resample` would give, without sampling the posterior a second time.
 
     Returns
     -------
     dict: ``verdict``, ``reason``, ``pareto_k``, ``ess``, ``n``, ``rule`` and per parameter ``chain`` and
-    ``importance`` (q05, q95) with ``shift_sd`` (the larger end difference in posterior sd).
+    ``importance`` (q05, q95) with ``shift_sd`` (the larger end difference in posterior sd); ``draws`` when
+    ``resample`` was asked and the verdict is ``"disagrees"``.
     """
     names = list(names)
     out = {"n": int(n), "rule": TAIL_CHECK_RULE, "parameters": {}}
@@ -144,6 +149,8 @@ def importance_tail_check(log_posterior, theta: np.ndarray, names, rng: np.rando
     bad = [names[j] for j in np.flatnonzero(shift > TOLERANCE_SD)]
     if not bad:
         return {**out, "verdict": "consistent", "reason": f"every 5 % and 95 % point within {TOLERANCE_SD} sd"}
+    if resample:
+        out["draws"] = x[rng.choice(x.shape[0], size=int(resample), replace=True, p=w)]
     detail = "; ".join(f"{b}: chain [{out['parameters'][b]['chain'][0]:.4g}, {out['parameters'][b]['chain'][1]:.4g}], "
                        f"importance [{out['parameters'][b]['importance'][0]:.4g}, "
                        f"{out['parameters'][b]['importance'][1]:.4g}] (sampling coordinates)" for b in bad)

@@ -202,7 +202,7 @@ def _tail_corrected(job, folder: Path, draws, rng: np.random.Generator):
     The stage-1 chain's interval ends are compared with an importance-sampling estimate of the same log
     posterior (:func:`bayes_rcsa.inference.tail_check.importance_tail_check`).  Where they disagree and the
     importance estimate is reliable, the draws are replaced by as many importance draws, resampled
-    (:func:`~bayes_rcsa.inference.tail_check.importance_resample`): identify's default moves under-sample a
+    from the check's own importance draws (``resample``): identify's default moves under-sample a
     one-sided tail (docs/identification.md), and a population pooled from such draws inherits it.  The log
     posterior is rebuilt from the setup file and the run's summary, and must reproduce the stored one.
     """
@@ -211,7 +211,7 @@ def _tail_corrected(job, folder: Path, draws, rng: np.random.Generator):
     from ..inference.diagnostics import read_netcdf
     from ..inference.posterior import LogPosterior
     from ..inference.problem import IdentificationOptions, build_problem_from_setup
-    from ..inference.tail_check import importance_resample, importance_tail_check
+    from ..inference.tail_check import importance_tail_check
     from ..io.setup import load_setup
 
     summary = json.loads((folder / "summary.json").read_text())
@@ -228,18 +228,17 @@ def _tail_corrected(job, folder: Path, draws, rng: np.random.Generator):
     if stored.size != theta.shape[0] or not np.allclose(lp(theta), stored, rtol=0.0, atol=1e-6):
         return draws, (f"setup {job.name}: tail correction skipped: the log posterior rebuilt from {job.setup_file} "
                        "differs from the stage-1 run's (setup edited since?)")
-    check = importance_tail_check(lp, theta, names, rng)
+    # one importance run serves both the check and the replacement: "disagrees" is only ever returned when the
+    # importance estimate is reliable (Pareto k <= 0.7, ESS >= MIN_ESS), the condition for resampling it
+    check = importance_tail_check(lp, theta, names, rng, resample=theta.shape[0])
     if check["verdict"] != "disagrees":
         return draws, None if check["verdict"] == "consistent" else f"setup {job.name}: tail check {check['reason']}"
-    res = importance_resample(lp, theta, rng, theta.shape[0])
-    if not res["used"]:
-        return draws, f"setup {job.name}: stage-1 tail not corrected: {res['reason']}; {check['reason']}"
     values = dict(draws.values)
     for j, n in enumerate(names):
-        values[n] = np.asarray(problem.priors.priors[n].to_physical(res["draws"][:, j]), float)
+        values[n] = np.asarray(problem.priors.priors[n].to_physical(check["draws"][:, j]), float)
     return dataclasses.replace(draws, values=values), (
-        f"setup {job.name}: stage-1 draws replaced by importance-sampling draws (Pareto k = {res['pareto_k']:.2f}, "
-        f"ESS {res['ess']:.0f}): {check['reason']}")
+        f"setup {job.name}: stage-1 draws replaced by importance-sampling draws (Pareto k = "
+        f"{check['pareto_k']:.2f}, ESS {check['ess']:.0f}): {check['reason']}")
 
 
 def collect(jobs, out_dir, rows: Sequence[dict] | None = None, tail_correct: bool = False,
