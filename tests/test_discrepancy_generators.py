@@ -150,6 +150,22 @@ def test_summary_of_an_unusable_result_writes_no_trustworthy_interval(modulus):
     assert rows and all("(not usable)" in line for line in rows if "no matching" not in line)
 
 
+def test_summary_marks_held_out_intervals_of_a_two_length_remainder_as_resting_on_an_assumption(modulus):
+    # two fitted lengths leave the remainder's bias between them a straight line by assumption (docs/
+    # discrepancy.md, "Why the held-out rows miss"): its held-out rows say so, its fitted rows do not
+    res, _ = modulus
+    r = res.report
+    assert r["final_model"] == "statistical_discrepancy" and r["usable_for_prediction"]
+    text = summary_markdown(r)
+    rows = [line for line in text.splitlines() if line.startswith(("| x ", "| y ")) and "no matching" not in line
+            and "prominent mode differs" not in line]
+    held = [line for line in rows if line.split("|")[2].strip() == "no"]
+    fitted = [line for line in rows if line.split("|")[2].strip() == "yes"]
+    assert held and fitted
+    assert all("(straight-line bias assumed)" in line for line in held)
+    assert not any("assumed" in line for line in fitted)
+
+
 def test_adequate_at_the_fitted_lengths_but_not_carrying_says_so(clean):
     res, _ = clean
     r = res.report

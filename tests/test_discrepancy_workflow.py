@@ -246,6 +246,9 @@ def test_unexplained_effect_gets_the_statistical_discrepancy_and_wider_intervals
     assert "cluster-robust" in r["interval_notes"][-1]
     # two fitted lengths: the remainder's bias between them is assumed straight, and the JSON warnings say so
     assert any(w.startswith("unexplained remainder fitted at 2 clamping length(s)") for w in r["warnings"])
+    # ... and every held-out mode carries it, no fitted one does (summary.md marks those rows)
+    flags = {(m["fitted"], md["straight_line_bias_assumed"]) for m in r["measurements_after"] for md in m["modes"]}
+    assert flags == {(True, False), (False, True)}
     # The missing flange resonance (1000 Hz) moves the 30-mm mode (960 Hz) in a way no contact law can: the law
     # bounded by the fitted ends puts its interval 1-2 Hz above the truth here.  The workflow must not call that
     # interval trustworthy: the flange leaves misfit away from every fitted mode, the 30-mm mode predicted within

@@ -769,7 +769,13 @@ def build_report(res: DiscrepancyResult) -> dict:
     elif grew:
         warnings.append(f"the systematic gap grew in the final model ({100 * b['gap']:.2g} % -> {100 * a['gap']:.2g} %)")
     n_fitted = len({round(m["clamping_length"], 9) for m in a["measurements"] if m["fitted"]})
-    if remainder and n_fitted < MIN_LENGTHS_FOR_BEND:
+    assumed = remainder and n_fitted < MIN_LENGTHS_FOR_BEND
+    for m in a["measurements"]:
+        # per mode, so that no held-out interval of the remainder reads as estimated where it rests on an
+        # assumption (summary.md marks those rows)
+        for md in m["modes"]:
+            md["straight_line_bias_assumed"] = bool(assumed and not m["fitted"])
+    if assumed:
         # with two fitted lengths the bias's bend between them is an assumption, not an estimate: on the
         # independent rotor bench the remainder's fitted parameters bend the mode's frequency over clamping length
         # differently from the truth by about 1.4 Hz at 30 and 35 mm, the same in every campaign of an effect,
@@ -969,6 +975,8 @@ def summary_markdown(report: dict) -> str:
             qb = b["model_interval"] if b else None
             qa, qp = md["model_interval"], md["predictive_interval"]
             star = "" if usable else " (not usable)"
+            if usable and md.get("straight_line_bias_assumed"):
+                star = " (straight-line bias assumed)"
             lines.append(f"| {ma['direction']} {ma['clamping_length'] * 1e3:g} mm | {'yes' if ma['fitted'] else 'no'} "
                          f"| {md['measured_hz']:.1f}{' (most prominent)' if md['most_prominent_measured'] else ''} "
                          + (f"| {qb['q50']:.1f} [{qb['q05']:.1f}, {qb['q95']:.1f}] " if qb else "| no matching mode ")
