@@ -21,21 +21,24 @@ length was fitted),
   steadily with it (a wrong modulus, a softer holder), unshrunk, with the
   uncertainty the noise of the measured peaks leaves, and needs no large
   amplitude to do so;
-* amplitude ``a_k^2``: how far the bias departs from its straight line
-  between lengths, the restricted-maximum-likelihood (REML) estimate from the
-  posterior-median bias: the likelihood of its contrasts orthogonal to the
-  straight line, under the kernel plus the peaks' noise (Patterson &
-  Thompson 1971; with three fitted lengths one contrast, in closed form), but
-  never less than the measured peak's noise variance (two or three fitted
-  lengths cannot show a smaller departure).  The plain residual variance
-  about the least-squares line, the rule before, ignores that the line
-  absorbs most of a smooth kernel's variation over a span of two length
-  scales: on data drawn from this very model (a line plus a departure twice
-  the peak noise, three of four lengths fitted) it covered the held-out
-  length 0.81, REML 0.85 (``tests/test_modes.py``).  One contrast cannot pin
-  the amplitude, so a plug-in estimate still under-covers there, and at a
-  fitted length a departure as large as the noise is smoothed towards the
-  line (0.88 instead of 0.90).  It is estimated from the median over draws, not from
+* amplitude ``a_k``: how far the bias departs from its straight line
+  between lengths, *marginalised*: its posterior on a grid, from the
+  restricted likelihood of the posterior-median bias's contrasts orthogonal
+  to the straight line under the kernel plus the peaks' noise (Patterson &
+  Thompson 1971) and a half-Cauchy prior whose scale is the measured peak's
+  noise sd (Gelman 2006); each GP draw takes its own amplitude from it.
+  Three fitted lengths leave one contrast, which cannot pin the amplitude,
+  and any plug-in estimate under-covers where the departure is real.  On
+  data drawn from this very model (three of four lengths fitted, 1500
+  replicated campaigns, ``tests/test_modes.py``), held out / fitted, for a
+  departure of 0, 1 and 2 noise sd: marginalised 0.965 / 0.913, 0.947 /
+  0.904, 0.888 / 0.886; a REML plug-in floored at the noise variance 0.949 /
+  0.892, 0.904 / 0.883, 0.850 / 0.870; the residual variance about the
+  least-squares line (the rule before both; the line absorbs most of a
+  smooth departure over two length scales) 0.939 / 0.905, 0.902 / 0.896,
+  0.810 / 0.874.  With two fitted lengths nothing is left to estimate it
+  from, and the amplitude is the noise's (the bias between them is then
+  assumed straight, and the outputs say so).  It is estimated from the median over draws, not from
   every draw: the draws' spread is parameter uncertainty, which the draws
   themselves carry to every length, and counting it again in the bias's
   prior would count it twice.  With one fitted length the change with
@@ -77,7 +80,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 __all__ = ["correct_mode_frequencies", "BIAS_RULE", "BIAS_REPLICATES"]
 
@@ -87,8 +89,9 @@ BIAS_REPLICATES = 8
 
 BIAS_RULE = ("mode-frequency bias of the final model: per direction and mode order, a Gaussian process over clamping "
              "length with an unknown straight-line mean (flat prior; universal kriging; a constant with one "
-             "fitted length), squared-exponential kernel, amplitude^2 = the REML estimate from the posterior-median "
-             "bias's contrasts orthogonal to its line, but at least the observation's noise variance (one "
+             "fitted length), squared-exponential kernel, amplitude marginalised over its posterior (restricted likelihood "
+             "of the posterior-median bias's contrasts to its line, half-Cauchy prior scaled by the observation's "
+             "noise sd; two fitted lengths: the noise variance; one "
              "fitted length: bias^2 + noise variance), length scale = half the fitted span, conditioned per "
              "posterior draw on measured - model frequency at the fitted lengths (the measured peak for the "
              "unexplained remainder, the measured mode from its whole resonance for a physical model); its "
@@ -120,77 +123,86 @@ def _basis(x: np.ndarray, centre: float, scale: float, degree: int) -> np.ndarra
     return np.column_stack([t**k for k in range(degree + 1)])
 
 
-def _gp_weights(x_obs, noise_var, x_new, amp2: float, lam: float, degree: int = 1):
-    """Universal-kriging weights ``W`` (n_obs, n_new) and posterior variances (n_new,).
+def _gp_weights(x_obs, noise_var, x_new, amp2, lam: float, degree: int = 1):
+    """Universal-kriging weights ``W`` (..., n_obs, n_new) and posterior variances (..., n_new).
 
-    A GP with squared-exponential kernel (amplitude² ``amp2``, length scale
-    ``lam``) plus an unknown polynomial mean of ``degree`` (0: a constant,
-    1: a straight line in clamping length) under a flat prior, observed at
-    ``x_obs`` with independent noise variances ``noise_var``.  The posterior
-    mean at ``x_new`` of observations ``y`` is ``y @ W`` for any batch of
-    ``y`` (n_draws, n_obs): the weights reproduce the mean's polynomial
-    exactly, so a bias shared by all observations (or changing linearly) is
-    carried unshrunk.  The variance includes the uncertainty of the mean's
-    coefficients (Rasmussen & Williams 2006, eq. 2.42 with a vague prior).
+    A GP with squared-exponential kernel (amplitude² ``amp2`` Hz², a scalar or an array of amplitudes
+    batched over the leading axis, length scale ``lam`` m) plus an unknown polynomial mean of ``degree`` (0: a
+    constant, 1: a straight line in clamping length) under a flat prior, observed at ``x_obs`` with
+    independent noise variances ``noise_var``.  The posterior mean at ``x_new`` of observations ``y`` is
+    ``y @ W`` for any batch of ``y`` (n_draws, n_obs): the weights reproduce the mean's polynomial exactly, so
+    a bias shared by all observations (or changing linearly) is carried unshrunk.  The variance includes the
+    uncertainty of the mean's coefficients (Rasmussen & Williams 2006, eq. 2.42 with a vague prior).
     """
     x_obs, noise_var, x_new = (np.asarray(v, dtype=float) for v in (x_obs, noise_var, x_new))
+    amp2 = np.asarray(amp2, dtype=float)
+    s2 = amp2[..., None, None]
     # a straight line needs two distinct lengths (repeated taps at one length give one)
     degree = min(degree, np.unique(x_obs).size - 1)
     centre, scale = float(np.mean(x_obs)), max(float(np.ptp(x_obs)), lam)
     h, hs = _basis(x_obs, centre, scale, degree), _basis(x_new, centre, scale, degree)
-    k = lambda a, b: amp2 * np.exp(-0.5 * ((a[:, None] - b[None, :]) / lam) ** 2)  # noqa: E731
-    kxx = k(x_obs, x_obs) + np.diag(noise_var) + 1e-12 * amp2 * np.eye(x_obs.size)
+    k = lambda a, b: s2 * np.exp(-0.5 * ((a[:, None] - b[None, :]) / lam) ** 2)  # noqa: E731
+    kxx = k(x_obs, x_obs) + np.diag(noise_var) + 1e-12 * s2 * np.eye(x_obs.size)
     kxs = k(x_obs, x_new)
-    a = np.linalg.solve(kxx, kxs)  # K^-1 k*   (n_obs, n_new)
-    b = np.linalg.solve(kxx, h)  # K^-1 H      (n_obs, p)
-    m = h.T @ b  # H^T K^-1 H                  (p, p)
-    r = hs.T - h.T @ a  # what the kriging weights leave of the mean's basis   (p, n_new)
+    a = np.linalg.solve(kxx, kxs)  # K^-1 k*   (..., n_obs, n_new)
+    b = np.linalg.solve(kxx, np.broadcast_to(h, kxx.shape[:-1] + h.shape[-1:]))  # K^-1 H   (..., n_obs, p)
+    m = np.swapaxes(b, -1, -2) @ h  # H^T K^-1 H (symmetric)   (..., p, p)
+    r = hs.T - h.T @ a  # what the kriging weights leave of the mean's basis   (..., p, n_new)
     c = np.linalg.solve(m, r)
     w = a + b @ c
-    var = amp2 - np.einsum("ij,ij->j", kxs, a) + np.einsum("ij,ij->j", r, c)
+    var = amp2[..., None] - np.sum(kxs * a, axis=-2) + np.sum(r * c, axis=-2)
     return w, np.maximum(var, 0.0)  # round-off only: the GP posterior variance is >= 0 exactly
 
 
-def _amplitude2(x: np.ndarray, y: np.ndarray, noise_var: np.ndarray, lam: float, degree: int = 1) -> float:
-    """The kernel's amplitude² (Hz²) from the per-draw biases ``y`` (n_draws, n_fitted) and their noise variances.
+#: Amplitude grid of the marginalisation, in units of the half-Cauchy prior's scale (log-spaced; 121 points
+#: over 10^-2 .. 10^2.5: far below any resolvable departure to far beyond the largest bias seen on either bench).
+AMPLITUDE_GRID = np.logspace(-2.0, 2.5, 121)
 
-    How far the bias departs from its mean's polynomial between lengths: the REML estimate from the
-    posterior-median bias, i.e. the maximum over ``a²`` of the likelihood of its contrasts ``z = P^T y``
-    orthogonal to the polynomial, ``z ~ N(0, a² P^T K P + P^T N P)`` (``K`` the unit kernel of length scale
-    ``lam`` m, ``N`` the noise variances); floored at the mean noise variance (two or three fitted lengths
-    cannot show a smaller departure).  With a single fitted length (tapped once or repeatedly), the bias seen
-    (mean bias² + noise variance); with no contrast left (two lengths and a straight line), the floor.
+
+def _amplitude2_posterior(x: np.ndarray, y: np.ndarray, noise_var: np.ndarray, lam: float,
+                          degree: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """The kernel's amplitude² (Hz²) given the per-draw biases ``y`` (n_draws, n_fitted): values and weights.
+
+    How far the bias departs from its mean's polynomial between lengths.  Its posterior on a grid, from the
+    restricted likelihood of the posterior-median bias's contrasts ``z = P^T y`` orthogonal to the polynomial,
+    ``z ~ N(0, a² P^T K P + P^T N P)`` (``K`` the unit kernel of length scale ``lam`` m, ``N`` the noise
+    variances; Patterson & Thompson 1971), and a half-Cauchy prior on the amplitude ``a`` with the peak noise's
+    sd as its scale (Gelman 2006: a departure of the order of what the measurement resolves is typical, a much
+    larger one possible).  Three fitted lengths leave one contrast, which cannot pin ``a``: a plug-in estimate
+    would take the departure seen at face value and under-cover wherever it is real.
+
+    Returns
+    -------
+    amp2 : (n_grid,) Hz²
+    weights : (n_grid,) summing to 1.  With a single fitted length (tapped once or repeatedly) one value, the
+        bias seen (mean bias² + noise variance); with no contrast left (two lengths and a straight line), one
+        value, the noise variance (two lengths cannot show a departure: the outputs say that the bias between
+        them is assumed straight).
     """
     ym = np.median(y, axis=0)
     noise_var = np.asarray(noise_var, dtype=float)
     nv = float(np.mean(noise_var))
     x = np.asarray(x, dtype=float)
     if np.unique(x).size < 2:  # one length (perhaps tapped repeatedly): its change with length is not seen
-        return float(np.mean(ym**2)) + nv
+        return np.array([float(np.mean(ym**2)) + nv]), np.ones(1)
     degree = min(degree, np.unique(x).size - 1)
     if ym.size - degree - 1 <= 0:
-        return nv
+        return np.array([nv]), np.ones(1)
     h = _basis(x, float(np.mean(x)), max(float(np.ptp(x)), 1e-3), degree)
     q, _ = np.linalg.qr(h, mode="complete")
     p = q[:, h.shape[1]:]  # orthonormal contrasts that the polynomial mean cannot produce
     z = p.T @ ym
     a = p.T @ np.exp(-0.5 * ((x[:, None] - x[None, :]) / lam) ** 2) @ p
     n = p.T @ np.diag(noise_var) @ p
-    if z.size == 1:  # the restricted likelihood's maximum in closed form
-        return max(float((z[0] ** 2 - n[0, 0]) / a[0, 0]), nv)
-
-    def nll(log_a2: float) -> float:
-        c = math.exp(log_a2) * a + n
-        return 0.5 * (np.linalg.slogdet(c)[1] + float(z @ np.linalg.solve(c, z)))
-
-    # the restricted likelihood of a² is unimodal on a log scale between the floor and ten times what the
-    # contrasts' whole sum of squares could need
-    scale = float(z @ z) / max(float(np.trace(a)), 1e-12) + nv
-    if scale <= 0:  # noise-free and exactly on the line
-        return nv
-    lo = math.log(nv) - 1.0 if nv > 0 else math.log(scale) - 30.0
-    best = minimize_scalar(nll, bounds=(lo, math.log(10.0 * scale)), method="bounded")
-    return max(math.exp(best.x), nv)
+    scale = math.sqrt(nv) if nv > 0 else math.sqrt(float(z @ z) / max(float(np.trace(a)), 1e-12) + 1e-24)
+    amp = scale * AMPLITUDE_GRID
+    c = amp[:, None, None] ** 2 * a[None] + n[None]  # (n_grid, m, m)
+    ll = -0.5 * (np.linalg.slogdet(c)[1] + np.einsum("i,gij,j->g", z, np.linalg.inv(c), z))
+    # half-Cauchy density of the amplitude, times the grid's d(log a) = da / a
+    lp = ll - np.log1p((amp / scale) ** 2) + np.log(amp)
+    w = np.exp(lp - lp.max())
+    keep = w > 1e-8
+    return amp[keep] ** 2, w[keep] / w[keep].sum()
 
 
 def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Generator,
@@ -250,31 +262,37 @@ def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Gen
         y, nv = np.column_stack(cols), np.array(nv)  # (n_draws, n_fitted), (n_fitted,)
         span = max(xl) - min(xl)
         lam = 0.5 * span if span > 0 else 0.01
-        amp2 = _amplitude2(np.array(xl), y, nv, lam)
-        if amp2 <= 0:
+        amp2, amp_w = _amplitude2_posterior(np.array(xl), y, nv, lam)
+        if not np.all(amp2 > 0):
             continue
         xs = [measurements[j]["clamping_length"] for j, _ in members]
-        weights, var = _gp_weights(xl, nv, xs, amp2, lam)
-        means = y @ weights  # (n_draws, n_members): each draw's bias at every length
-        for k, ((j, i), v) in enumerate(zip(members, var)):
+        gw, gv = _gp_weights(xl, nv, xs, amp2, lam)  # (n_grid, n_fitted, n_members), (n_grid, n_members)
+        # the amplitude marginalised: each replicate of each draw takes its own amplitude from the posterior
+        g = rng.choice(amp2.size, size=(y.shape[0], BIAS_REPLICATES), p=amp_w)
+        means = np.einsum("do,dron->drn", y, gw[g])  # (n_draws, replicates, n_members)
+        ym = np.median(y, axis=0) @ gw  # (n_grid, n_members): the median draw's bias under each amplitude
+        for k, (j, i) in enumerate(members):
             md = measurements[j]["modes"][i]
             fd, fp = draws[j][0][:, i], draws[j][1][:, i]
-            mu = means[:, k]
-            shift = mu[:, None] + math.sqrt(v) * rng.standard_normal((fd.size, BIAS_REPLICATES))
+            mu = means[:, :, k]
+            shift = mu + np.sqrt(gv[g, k]) * rng.standard_normal(mu.shape)
             fdc, fpc = (fd[:, None] + shift).ravel(), (fp[:, None] + shift).ravel()
+            m_k = float(amp_w @ ym[:, k])
+            bias_sd = math.sqrt(float(amp_w @ gv[:, k] + amp_w @ (ym[:, k] - m_k) ** 2))
             q, qp = _quantiles(fdc), _quantiles(fpc)
             fm = md["measured_hz"]
             md.update({"uncorrected_model_hz": md["model_hz"], "model_hz": q["q50"],
                        "error_pct": 100.0 * (q["q50"] - fm) / fm,
                        "uncorrected_model_interval": md["model_interval"],
                        "uncorrected_predictive_interval": md["predictive_interval"],
-                       "bias_hz": {"mean": float(np.mean(mu)), "sd": float(math.sqrt(v))},
+                       "bias_hz": {"mean": float(np.mean(mu)), "sd": bias_sd},
                        "model_interval": q, "predictive_interval": qp,
                        "predictive_sd_hz": float(np.nanstd(fpc)),
                        "covered_model_90": bool(q["q05"] <= fm <= q["q95"]),
                        "covered_predictive_90": bool(qp["q05"] <= fm <= qp["q95"])})
         y = np.median(y, axis=0)
+        amp_median = math.sqrt(float(amp2[min(np.searchsorted(np.cumsum(amp_w), 0.5), amp2.size - 1)]))
         notes.append(f"mode {r + 1} ({direction}): bias {', '.join(f'{v:+.1f}' for v in y)} Hz at the fitted "
-                     f"lengths {', '.join(f'{1e3 * v:g}' for v in xl)} mm (GP amplitude {math.sqrt(amp2):.1f} Hz, "
-                     f"length scale {1e3 * lam:.1f} mm)")
+                     f"lengths {', '.join(f'{1e3 * v:g}' for v in xl)} mm (GP amplitude {amp_median:.1f} Hz"
+                     f"{' posterior median' if amp2.size > 1 else ''}, length scale {1e3 * lam:.1f} mm)")
     return notes
