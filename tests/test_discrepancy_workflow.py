@@ -518,8 +518,8 @@ def test_an_impossible_fit_far_better_than_every_possible_one_leaves_nothing_nam
 
 
 def test_a_possible_pair_outranked_by_an_impossible_single_fit_is_not_named(monkeypatch):
-    """decide()'s outranking rule for two effects named together (select.pair_outranked): a pair that explains
-    the data less well than a physically impossible single fit, by more than ln 100, is not named."""
+    """decide()'s outranking rule for two effects named together (select.pair_outranked): a pair that does not
+    beat a physically impossible single fit by more than ln 10 (the confounding margin) is not named."""
     from types import SimpleNamespace
 
     from bayes_rcsa.discrepancy import select
@@ -532,11 +532,15 @@ def test_a_possible_pair_outranked_by_an_impossible_single_fit_is_not_named(monk
     # the rotor bench's tool modulus fitted at three lengths (a development seed): the impossible flute 53.3,
     # spindle error 30.7 alone and 47.6 with a (possible) flute in the second round
     assert select.pair_outranked(refits(53.3, 30.7), impossible, 47.6) == "fluted_section"
-    # tip mass plus spindle error: the pair far ahead of the impossible flute (rotor bench 51.9 vs 18.9,
-    # project bench 77.3 vs 69.0), and within ln 100 of it counts as not outranked either
+    # another development seed: 63.1 against the pair's 58.8, less than ln 100 apart (named under that margin)
+    assert select.pair_outranked(refits(63.1, 40.7), impossible, 58.8) == "fluted_section"
+    # a pair ahead of the impossible fit by less than ln 10 is confounded with it, not a confident name
+    assert select.pair_outranked(refits(46.0, 30.7), impossible, 47.6) == "fluted_section"
+    # tip mass plus spindle error: the pair clearly ahead of the impossible flute (rotor bench 51.9 vs 18.9,
+    # project bench 77.3 vs 69.0): named
     assert select.pair_outranked(refits(18.9, 21.5), impossible, 51.9) is None
     assert select.pair_outranked(refits(69.0, 60.0), impossible, 77.3) is None
-    assert select.pair_outranked(refits(50.0, 30.7), impossible, 47.6) is None
+    assert select.pair_outranked(refits(45.0, 30.7), impossible, 47.6) is None
     # nothing impossible, nothing to outrank
     assert select.pair_outranked(refits(53.3, 30.7), {"fluted_section": [], "spindle_error": []}, 47.6) is None
 

@@ -653,18 +653,18 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
         second = _second_effect(setup, base_opts, first, cands, decision, options, say, require_misfit=False)
         joint = next((r for r in second["refits"] if r.effect == second["named"]), None)
         base_sys = fitted_systematic_gap(baseline)
-        # the outranking rule of decide(), for the pair: a physically impossible single fit decisively better
-        # than the possible pair says that the data hold an effect outside the library, and the pair only
-        # mimics it (a tool modulus below the declared one, fitted at three lengths, by a stiffer spindle file
-        # plus a thinner flute)
+        # the outranking rule of decide(), for the pair: a possible pair that does not clearly beat a physically
+        # impossible single fit (by ln 10) cannot be told from the effect outside the library that the impossible
+        # fit stands in for (a tool modulus below the declared one, fitted at three lengths, mimicked by a
+        # spindle term plus a thinner flute)
         over = joint and pair_outranked(decision["ranked"], decision["implausible"],
                                         joint.fit.log_evidence - baseline.log_evidence)
         if over:
             say(f"{part} with {second['named']} is outranked by the impossible {over}: nothing named")
             for q in decision["partial"]:
                 q.setdefault("outranked_by_implausible", over)
-            second["reason"] = (f"{part} with {second['named']} explains the data less well than the physically "
-                                f"impossible {over} (by more than ln 100): an effect outside the library, not named")
+            second["reason"] = (f"{part} with {second['named']} does not explain the data clearly better (by ln 10) "
+                                f"than the physically impossible {over}: an effect outside the library, not named")
             second["outranked_by_implausible"] = over
             joint = None
         if joint is not None and joint.fit.log_evidence - baseline.log_evidence > LN_BF_NAME and (
