@@ -200,6 +200,9 @@ def _amplitude2_posterior(x: np.ndarray, y: np.ndarray, noise_var: np.ndarray, l
     ll = -0.5 * (np.linalg.slogdet(c)[1] + np.einsum("i,gij,j->g", z, np.linalg.inv(c), z))
     # half-Cauchy density of the amplitude, times the grid's d(log a) = da / a
     lp = ll - np.log1p((amp / scale) ** 2) + np.log(amp)
+    if not np.isfinite(lp).any():  # a degenerate contrast (e.g. noise-free and on the line): the noise's amplitude
+        return np.array([max(nv, 1e-24)]), np.ones(1)
+    lp = np.where(np.isfinite(lp), lp, -np.inf)
     w = np.exp(lp - lp.max())
     keep = w > 1e-8
     return amp[keep] ** 2, w[keep] / w[keep].sum()
