@@ -33,9 +33,9 @@ from pathlib import Path
 
 import numpy as np
 
+from bayes_rcsa.inference.diagnostics import chain_diagnostics
 from bayes_rcsa.library.hierarchy import Group, fit_hyper
-from bayes_rcsa.library.joint import (chain_diagnostics, gaussian_log_likelihood, pool_runs, run_spread,
-                                     sample_gibbs, sample_joint)
+from bayes_rcsa.library.joint import gaussian_log_likelihood, pool_runs, run_spread, sample_gibbs, sample_joint
 from bayes_rcsa.library.outliers import flag_outliers, loo_p_values
 from bayes_rcsa.library.population import COORDINATES, Hyperprior, covariate
 from bayes_rcsa.library.exact import reweight_exact, two_stage_log_weights
@@ -179,7 +179,7 @@ def joint_check(replicates: int = 5, runs: int = 4, steps: int = 48000, seed: in
         if sampler == "gibbs":
             joint = sample_gibbs(lls, types, x, hyper, rng, [stage1[i] for i in range(4)], n_iter=steps,
                                  n_burn=steps // 4, n_chains=runs)
-            dg = chain_diagnostics(joint["chains"])
+            dg = chain_diagnostics(np.swapaxes(joint["chains"], 0, 1))
             mixing = (f"  R-hat <= {dg['rhat'].max():.3f}, ESS bulk >= {dg['ess_bulk'].min():.0f}, tail >= "
                       f"{dg['ess_tail'].min():.0f}")
         else:
@@ -330,7 +330,7 @@ def joint_real(library: str, stage1: str, picks: str, runs: int = 4, steps: int 
             n_burn = max(500, steps // 4)
             joint = sample_gibbs(lls, types, x, hyper, jrng, laws, n_iter=steps, n_burn=n_burn, n_chains=runs,
                                  nuisance=nuisance, thin=thin)
-            diag = {k: v.tolist() for k, v in chain_diagnostics(joint["chains"]).items()}
+            diag = {k: v.tolist() for k, v in chain_diagnostics(np.swapaxes(joint["chains"], 0, 1)).items()}
             print(f"joint (Gibbs): {model.ndim} dimensions, {runs} chains x {steps * thin} iterations after "
                   f"{n_burn}, {time.perf_counter() - t0:.0f} s, law acceptance "
                   f"{np.round(joint['law_acceptance'], 3).tolist()}, slice updates at the shrinkage limit "

@@ -15,6 +15,7 @@ import pytest
 from scipy.stats import kstest, multivariate_normal, norm
 
 from bayes_rcsa.errors import SetupError
+from bayes_rcsa.inference.diagnostics import chain_diagnostics
 from bayes_rcsa.library.joint import gaussian_log_likelihood, sample_joint
 from bayes_rcsa.library.outliers import (ADEQUACY_WEIGHT, adequacy_p_value, adequacy_rows, combine, draw_statistics,
                                          flag_outliers, loo_p_values, shift_direction)
@@ -85,9 +86,9 @@ def test_joint_normal_prior_is_the_multivariate_normal_and_round_trips_through_i
 # -- stage 2 against the joint model ---------------------------------------------------------------------
 
 
-def test_two_stage_hyperparameters_match_joint_emcee_on_four_combinations():
-    # two holder types of two combinations each: the types share the slope's and the spread's hyperparameters,
-    # so stage 2 is one coupled fit; the joint sampler integrates nothing out
+@pytest.fixture(scope="module")
+def four_combinations():
+    """Two holder types of two combinations each, fitted by stage 2 with its default settings (seed 11)."""
     rng = np.random.default_rng(11)
     names = NAMES2[:1]
     hyper = Hyperprior.from_box(names, BOX2[:1], 1.5)
@@ -102,7 +103,43 @@ def test_two_stage_hyperparameters_match_joint_emcee_on_four_combinations():
     groups = [Group(f"T{t}", tuple(f"s{i}" for i in range(4) if types[i] == t), x[[i for i in range(4) if types[i] == t]],
                     np.array([exact[i][0] for i in range(4) if types[i] == t]),
                     np.array([exact[i][1] for i in range(4) if types[i] == t])) for t in (0, 1)]
-    fit = fit_hyper(groups, hyper, rng, Stage2Settings(ess_target=3000))
+    fit = fit_hyper(groups, hyper, rng, Stage2Settings())
+    return hyper, types, x, exact, fit, rng
+
+
+def test_stage2_stops_converged_by_default_and_reports_no_more_than_the_arviz_bulk_ess(four_combinations):
+    # The old rule (walkers x steps / max tau >= 400 and 10 tau) stopped this case after 250 steps with a reported
+    # ESS of 1,246 against an ArviZ bulk ESS of 351 and R-hat 1.19.  Now: stage 1's rule, and the ESS of the draws
+    # that are kept, recomputed here from them (walker by walker, as ArviZ chains)
+    _, _, _, _, fit, _ = four_combinations
+    settings = Stage2Settings()
+    chain = np.swapaxes(fit.theta.reshape(fit.n_walkers, -1, fit.theta.shape[1]), 0, 1)
+    dg = chain_diagnostics(chain)
+    assert fit.ess <= np.min(dg["ess_bulk"]), (fit.ess, dg)
+    assert fit.ess >= 0.9 * settings.ess_target
+    np.testing.assert_array_equal(fit.rhat, dg["rhat"])
+    if fit.converged:
+        assert np.all(dg["rhat"] < settings.rhat_max), dg
+        assert fit.n_steps > settings.tau_factor * np.max(fit.tau)
+        assert not any("unconverged" in w for w in fit.warnings)
+    else:
+        assert any("unconverged" in w and "R-hat" in w and "bulk ESS" in w and "autocorrelation time" in w
+                   for w in fit.warnings), fit.warnings
+    # every type is a view of the one coupled chain
+    assert all(t.quality is fit.quality and t.ess == fit.ess for t in fit.types.values())
+    # and a chain stopped by its cap says so, with the numbers
+    short = fit_hyper(fit.groups, four_combinations[0], np.random.default_rng(1), Stage2Settings(n_burn=50,
+                                                                                                 max_steps=100))
+    assert not short.converged and short.n_steps == 100
+    warn = next(w for w in short.warnings if "unconverged" in w)
+    assert f"R-hat {np.max(short.rhat):.3f}" in warn and f"bulk ESS {short.ess:.0f}" in warn, warn
+
+
+def test_two_stage_hyperparameters_match_joint_emcee_on_four_combinations(four_combinations):
+    # two holder types of two combinations each: the types share the slope's and the spread's hyperparameters,
+    # so stage 2 is one coupled fit; the joint sampler integrates nothing out.  Stage 2 runs with its default
+    # settings (converged by stage 1's rule: ~2,000 steps, bulk ESS ~3,900)
+    hyper, types, x, exact, fit, rng = four_combinations
     joint = sample_joint([gaussian_log_likelihood(m, C) for m, C in exact], types, x, hyper, rng, n_steps=8000,
                          n_burn=2000, n_walkers=48)
     for t in range(2):
@@ -141,6 +178,14 @@ def test_surrogate_divides_out_a_normal_stage1_prior():
 # -- per-setup ESS and refusal, outliers ----------------------------------------------------------------
 
 
+#: Short stage-2 chains for the tests of what is computed from the draws (per-setup ESS, refusals, the predictive, the
+#: outlier statistics, pooling), not of the chain's convergence.  Stage 2's default rule (50 autocorrelation times,
+#: tau stable to 5 %, R-hat < 1.02) needs 2,000-10,000 steps on these stand-ins (tau 35-190 steps; 9,000-10,000 for
+#: the three types below with 24 walkers, 13 fits of ~14 s each); a step cap keeps each fit at the cost the old ESS
+#: rule had (200-400 steps), and each says in its warnings that it stopped unconverged.
+_SHORT = Stage2Settings(n_burn=200, ess_target=200, max_steps=500)
+
+
 @pytest.fixture(scope="module")
 def clean_fit():
     """Eight setups in two holder types.  As on the bench, each setup's own data pin its law down much more
@@ -149,7 +194,7 @@ def clean_fit():
     dia = np.array([0.006, 0.008, 0.010, 0.012, 0.014, 0.016, 0.018, 0.020])
     setups, _ = _setups(rng, dia, ["ER32", "HSK"] * 4, n_draws=800, box=BOX2, c_scale=0.01)
     hyper = Hyperprior.from_box(NAMES2, BOX2, 1.5)
-    res = fit_population(setups, hyper, rng, Stage2Settings(n_burn=200, ess_target=200))
+    res = fit_population(setups, hyper, rng, _SHORT)
     return setups, hyper, res
 
 
@@ -166,7 +211,7 @@ def test_per_setup_ess_is_reported_and_a_degenerate_reweighting_refused(clean_fi
                                                             rng.uniform(0.0, 1.5, 500)]),
                      np.zeros(2), np.zeros((2, 2)), BOX2)
     er32 = [s for s in setups if s.holder_type == "ER32"]
-    res2 = fit_population(er32 + [bad], hyper, rng, Stage2Settings(n_burn=200, ess_target=200))
+    res2 = fit_population(er32 + [bad], hyper, rng, _SHORT)
     row = next(r for r in res2.setups if r["name"] == "bad")
     assert row["refused"] is not None and "importance ESS" in row["refused"] and "k_xf_pooled" not in row, row
     assert any("setup bad" in w for w in res2.warnings)
@@ -182,7 +227,7 @@ def test_per_setup_ess_is_reported_and_a_degenerate_reweighting_refused(clean_fi
 _TYPES = {"ER32": ([6.45, 5.95], [0.87, 1.30], 0.065), "shrink_fit": ([6.65, 6.18], [0.78, 1.22], 0.035),
           "hydraulic": ([6.56, 6.08], [0.96, 1.39], 0.043)}
 _BOX_K = np.array([[4.0, 10.0], [2.0, 9.0]])
-_CHEAP = Stage2Settings(n_burn=100, ess_target=150, chunk=100, n_walkers=24)
+_CHEAP = Stage2Settings(n_burn=100, ess_target=150, chunk=100, n_walkers=24, max_steps=400)  # see _SHORT
 
 
 def _three_types(seed, softer=None):
@@ -388,7 +433,11 @@ def test_pooled_zero_tap_predictive_is_narrower_than_one_type_alone_and_covers(t
     zs, _ = predictive_draws(single, "ER32", 0.012, rng, 4000)
     wp = np.diff(np.quantile(zp, [0.05, 0.95], axis=0), axis=0)[0]
     ws = np.diff(np.quantile(zs, [0.05, 0.95], axis=0), axis=0)[0]
-    assert np.all(wp < 0.8 * ws), (wp, ws)  # at least 20 % narrower in both stiffnesses
+    # narrower in both stiffnesses: k_xf by 37-38 % and k_thetaM by 17-20 % with converged chains (default settings,
+    # bulk ESS > 4,000, three seeds); the chains here are short (_CHEAP: bulk ESS ~50), on which the ratio scatters
+    # 0.55-0.68 and 0.68-0.93 over six seeds.  (This asked 20 % of k_thetaM too, which only the old rule's
+    # unconverged chains gave, on some seeds: 0.74-1.04 over five.)
+    assert wp[0] < 0.8 * ws[0] and wp[1] < 0.95 * ws[1], (wp, ws)
     # and it still covers: the type's true median law at 12 mm, and most of 40 new ER32 combinations drawn from
     # the type's true population.  One library's four ER32 combinations are themselves a small sample of the
     # spread (here their k_thetaM scatter is 0.038 decade against the true 0.065), so the coverage of one

@@ -148,11 +148,21 @@ def tiny_library(tmp_path_factory):
 
 @pytest.mark.slow
 def test_stage1_on_a_dask_local_cluster_equals_the_process_pool_and_the_library_reuses_it(tiny_library, tmp_path,
-                                                                                         capsys):
+                                                                                         capsys, monkeypatch):
     distributed = pytest.importorskip("distributed")
-    from bayes_rcsa.batch import load_manifest
-    from bayes_rcsa.library.stage1 import collect, run_stage1
+    import functools
 
+    from bayes_rcsa.batch import load_manifest
+    from bayes_rcsa.library import workflow
+    from bayes_rcsa.library.stage1 import collect, run_stage1
+    from bayes_rcsa.library.stage2 import Stage2Settings
+
+    # This test is about stage 1 (dask, the process pool, reuse), not stage 2's convergence: with its default rule
+    # stage 2 and its two leave-one-out refits take ~60 s per library run here (tau ~140 steps in 8 dimensions, 7,500-
+    # 8,250 steps each), so the library command's stage 2 gets a 300-step cap (the command has no option for it)
+    short = Stage2Settings(n_burn=100, ess_target=150, chunk=150, max_steps=300)
+    monkeypatch.setattr(workflow, "fit_library", functools.partial(workflow.fit_library, settings=short))
+    monkeypatch.setattr(workflow, "loo_p_values", functools.partial(workflow.loo_p_values, settings=short))
     jobs = load_manifest(tiny_library)
     pool_dir = tmp_path / "pool"
     capsys.readouterr()
@@ -187,6 +197,7 @@ def test_library_outputs_and_the_report_section(tmp_path):
     from bayes_rcsa.library.stage2 import SetupDraws, Stage2Settings
     from bayes_rcsa.library.workflow import fit_library, write_library
     from bayes_rcsa.report import write_report_html
+    from bayes_rcsa.report.answer import num
 
     rng = np.random.default_rng(4)
     names, box = ("k_xf", "g_xf"), np.array([[4.0, 10.0], [0.0, 0.5]])
@@ -195,8 +206,9 @@ def test_library_outputs_and_the_report_section(tmp_path):
         z = np.array([7.0 + 1.5 * math.log(dia / 0.01), 0.25]) + 0.05 * rng.standard_normal(2)
         setups.append(SetupDraws(f"c{i}", ("ER32", "HSK")[i % 2], dia, z + 0.01 * rng.standard_normal((300, 2)),
                                  np.zeros(2), np.zeros((2, 2)), box))
+    # a step cap (the outputs are under test, not stage 2's convergence; the default rule takes ~8,000 steps here)
     fit = fit_library(Stage1(names, setups, (0.025, 0.040, 0.5), box, []), rng,
-                      Stage2Settings(n_burn=150, ess_target=150, chunk=150), outliers=False)
+                      Stage2Settings(n_burn=150, ess_target=150, chunk=150, max_steps=300), outliers=False)
     paths = write_library(tmp_path / "lib", fit)
     assert {p.name for p in paths.values()} == {"population.nc", "laws.json", "laws.csv", "library.json",
                                                "shrinkage.png"}
@@ -208,6 +220,17 @@ def test_library_outputs_and_the_report_section(tmp_path):
     pool = json.loads((tmp_path / "lib" / "library.json").read_text())["pooling"]["coordinates"]["k_xf"]
     assert pool["sigma_geometric_mean"][0] < 0.05 < pool["sigma_geometric_mean"][2], pool
     assert 0 <= pool["tau_b"][0] <= pool["tau_b"][1] <= pool["tau_b"][2] and pool["sigma_max_over_min"][0] >= 1
+    # stage 2's convergence next to its ESS, per type and with the pooling (also population.nc's "pooling")
+    doc = json.loads((tmp_path / "lib" / "library.json").read_text())
+    q = fit.stage2.fit.quality
+    for row in doc["stage2"].values():
+        assert row["rhat_max"] == pytest.approx(np.max(q.rhat)) and row["ess_bulk_min"] == pytest.approx(np.min(q.ess_bulk))
+        assert row["ess"] == pytest.approx(q.ess) and row["ess"] <= row["ess_bulk_min"] and row["converged"] is False
+        assert row["steps"] == 300 and row["ess_tail_min"] > 0 and row["autocorrelation_steps"] > 0
+    assert doc["pooling"]["stage2_rhat_max"] == pytest.approx(np.max(q.rhat))
+    assert doc["pooling"]["stage2_ess"] == pytest.approx(q.ess) and doc["pooling"]["stage2_steps"] == 300
+    assert any("stage 2 stopped at max_steps = 300 unconverged" in w for w in doc["warnings"])
     html = write_report_html([tmp_path / "lib"], tmp_path / "report.html").read_text()
     assert "Tool library: the contact population" in html and html.count("<td>ER32</td><td>k_xf</td>") == 1
     assert "shrinkage: own vs pooled estimates" in html
+    assert "<th>R-hat (max)</th>" in html and f'<td class="num">{num(np.max(q.rhat), 4)}</td>' in html

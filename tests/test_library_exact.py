@@ -69,7 +69,10 @@ def _weighted_quantiles(v, w, q=(0.05, 0.5, 0.95)):
     return np.interp(q, (cw - 0.5 * w[o]) / cw[-1], v[o])
 
 
-SETTINGS = Stage2Settings(ess_target=400)
+#: A step cap, not stage 2's convergence: these tests are about the re-weighting of the draws it returns.  The default
+#: rule (50 autocorrelation times, tau stable to 5 %, R-hat < 1.02) takes 2,000-4,000 steps here and would quadruple
+#: this file's time; 500 steps is about what the old ESS rule stopped at (each fit warns that it stopped unconverged).
+SETTINGS = Stage2Settings(ess_target=400, max_steps=500)
 
 
 @pytest.fixture(scope="module")
@@ -141,7 +144,7 @@ def test_too_few_stage1_draws_behind_a_site_average_fall_back():
     setups = [SetupDraws(f"s{i}", "T0", d, np.column_stack([7.0 + 0.01 * rng.standard_normal(14),
                                                            0.5 + 0.003 * rng.standard_normal(14)]),
                          np.zeros(2), np.zeros((2, 2)), BOX) for i, d in enumerate((0.006, 0.01, 0.016))]
-    res = fit_population(setups, HYPER, np.random.default_rng(9), Stage2Settings(ess_target=200))
+    res = fit_population(setups, HYPER, np.random.default_rng(9), SETTINGS)
     assert res.exact["used"] is False and res.exact["site_ess_median_min"] <= 14
     assert "effective stage-1 draws" in res.exact["reason"]
 
@@ -189,27 +192,38 @@ def test_library_json_records_the_exact_step(box_fits, tmp_path):
     assert ex["pairs"] == 6 * 1000 * ex["n_draws"]
 
 
-def test_short_exact_result_runs_the_chain_longer_once_and_warns_only_if_the_cap_stops_it():
+def test_short_exact_result_runs_the_chain_longer_once_and_warns_where_it_still_falls_short():
     """The resampled set is worth chain ESS x weight ESS fraction; below the ESS target stage 2 runs its chain again,
-    longer, and re-weights once more.  Small settings (32 walkers, 100-step chunks) keep this at a few seconds."""
+    longer, and re-weights once more.
+
+    Small settings keep this at a few seconds: 32 walkers, 100-step checks, and a loose stopping rule (5
+    autocorrelation times, tau stability off, R-hat < 1.2), so that the ESS target is what stops both chains.  On
+    such short chains the ESS of the kept draws (what is reported) is 10-20 % below the one the rule judged on the
+    chain thinned by half of tau, and the weights' ESS fraction of the longer chain ~0.06 below the first's, so the
+    longer chain can still fall a little short (145-183 effective draws for a target of 150 on seeds 5-7); it then
+    says so."""
     setups, _ = _box_library(11, n_draws=600)
-    kw = dict(ess_target=300, n_walkers=32, chunk=100, n_burn=200)
+    kw = dict(ess_target=150, n_walkers=32, chunk=100, n_burn=100, tau_factor=5, tau_rtol=1.0, rhat_max=1.2)
     free = fit_population(setups, HYPER, np.random.default_rng(6), Stage2Settings(max_steps=3000, **kw))
     ex, rerun = free.exact, free.exact["rerun"]
-    # the first chain stops at 100 steps with ~140 effective draws after re-weighting (seeds 5-7: 80-142)
-    assert rerun is not None and rerun["first_effective_draws"] < 300 and rerun["used"]
-    assert rerun["ess_target"] == pytest.approx(stage2.RERUN_MARGIN * 300 / rerun["first_weight_ess_fraction"])
-    assert rerun["n_steps"] > rerun["first_n_steps"] and free.fit.n_steps == rerun["n_steps"]
-    # the result is the longer chain's, re-weighted: 390-490 effective draws on seeds 5-7, no warning
-    assert ex["used"] and ex["effective_draws"] >= 300
+    # the first chain stops at 400-500 steps with 50-69 effective draws after re-weighting (seeds 5-7)
+    assert rerun is not None and rerun["first_effective_draws"] < 150 and rerun["used"]
+    assert rerun["ess_target"] == pytest.approx(stage2.RERUN_MARGIN * 150 / rerun["first_weight_ess_fraction"])
+    assert rerun["n_steps"] > rerun["first_n_steps"] and free.fit.n_steps == rerun["n_steps"] < 3000
+    # the result is the longer chain's, re-weighted: 2-3x the first's effective draws, converged, a warning only
+    # where it is still short of the target
+    assert ex["used"] and free.fit.converged and ex["effective_draws"] > 1.5 * rerun["first_effective_draws"]
     assert ex["effective_draws"] == pytest.approx(free.fit.ess * ex["weight_ess_fraction"])
-    assert not any("effective draws" in w for w in free.warnings)
-    # the same first chain, but a cap the longer one reaches: it still falls short (98-173 on seeds 5-7) and says so
-    capped = fit_population(setups, HYPER, np.random.default_rng(6), Stage2Settings(max_steps=300, **kw))
-    assert capped.exact["rerun"]["n_steps"] == 300 and capped.exact["effective_draws"] < 300
+    assert any("effective draws" in w for w in free.warnings) == (ex["effective_draws"] < 150)
+    assert not any("unconverged" in w for w in free.warnings)
+    # the same first chain, but a cap the longer one reaches: it stops there unconverged, falls short and says both
+    capped = fit_population(setups, HYPER, np.random.default_rng(6), Stage2Settings(max_steps=700, **kw))
+    assert capped.exact["rerun"]["n_steps"] == 700 and capped.exact["effective_draws"] < 150
     assert capped.exact["rerun"]["first_effective_draws"] == rerun["first_effective_draws"]
-    assert sum("effective draws" in w and "after one longer chain (300 steps" in w for w in capped.warnings) == 1
-    # a first chain already at the cap is not run again (it could not get longer); the warning stays
+    assert sum("effective draws" in w and "after one longer chain (700 steps" in w for w in capped.warnings) == 1
+    assert sum("stopped at max_steps = 700 unconverged" in w for w in capped.warnings) == 1
+    # a first chain already at the cap is not run again (it could not get longer); the warnings stay
     stop = fit_population(setups, HYPER, np.random.default_rng(6), Stage2Settings(max_steps=100, **kw))
     assert stop.exact["rerun"] is None and stop.fit.n_steps == 100
     assert any("effective draws" in w and "longer chain" not in w for w in stop.warnings)
+    assert any("stopped at max_steps = 100 unconverged" in w for w in stop.warnings)

@@ -106,6 +106,11 @@ class LogPosterior:
             lp[ok] += ll
         return lp
 
+    def check_inside(self, theta: np.ndarray, what: str = "starting point") -> None:
+        """Raise :class:`~bayes_rcsa.errors.SetupError` naming the first row of theta (n, ndim) outside the
+        prior's support (:meth:`PriorSet.check_inside`)."""
+        self.priors.check_inside(theta, what)
+
     def negative(self, theta: np.ndarray) -> np.ndarray:
         """``-log posterior`` for optimisers; accepts (ndim,) or (ndim, n) like scipy's vectorised calls."""
         theta = np.asarray(theta, dtype=float)

@@ -38,7 +38,7 @@ import math
 import sys
 import time
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Protocol
 
 import numpy as np
 
@@ -49,6 +49,7 @@ from .search import derivatives
 
 __all__ = [
     "SamplerSettings",
+    "LogDensity",
     "ChainResult",
     "Optimum",
     "find_optimum",
@@ -105,6 +106,24 @@ class SamplerSettings:
     def __post_init__(self) -> None:
         if self.max_steps < 1 or self.check_every < 1:
             raise SetupError(f"max_steps = {self.max_steps}, check_every = {self.check_every}: expected positive integers")
+
+
+class LogDensity(Protocol):
+    """What :func:`run_ensemble` samples: a :class:`.posterior.LogPosterior`, or another vectorised density
+    (e.g. the coupled stage-2 hyperparameters of a tool library, :mod:`bayes_rcsa.library.hierarchy`).
+
+    Attributes
+    ----------
+    ndim : int, sampling coordinates
+    """
+
+    ndim: int
+
+    def __call__(self, theta: np.ndarray) -> np.ndarray:
+        """(n,) unnormalised log density of theta (n, ndim); ``-inf`` outside the support."""
+
+    def check_inside(self, theta: np.ndarray, what: str) -> None:
+        """Raise :class:`SetupError` naming the first row of theta (n, ndim) outside the support."""
 
 
 @dataclass(frozen=True)
@@ -353,7 +372,7 @@ class _Start:
     accepted: np.ndarray
 
 
-def _start(log_post: LogPosterior, initial, rng, resume_state) -> _Start:
+def _start(log_post: LogDensity, initial, rng, resume_state) -> _Start:
     """Step 1: the state to start from, new (checked walkers, seeded proposal generator) or resumed."""
     nd = log_post.ndim
     if resume_state is not None and resume_state.iteration > 0:
@@ -363,7 +382,7 @@ def _start(log_post: LogPosterior, initial, rng, resume_state) -> _Start:
     if initial is None or rng is None:
         raise SetupError("a new run needs initial walker positions and a random generator")
     coords0 = np.asarray(initial, dtype=float)
-    log_post.priors.check_inside(coords0, "walker start")
+    log_post.check_inside(coords0, "walker start")
     lp0 = log_post(coords0)
     if not np.all(np.isfinite(lp0)):
         i = int(np.argmax(~np.isfinite(lp0)))
@@ -431,7 +450,7 @@ def _replay(start: _Start, settings: SamplerSettings, decide: _Convergence, sche
 
 
 def run_ensemble(
-    log_post: LogPosterior,
+    log_post: LogDensity,
     settings: SamplerSettings,
     *,
     initial: np.ndarray | None = None,
@@ -450,11 +469,14 @@ def run_ensemble(
 
     Parameters
     ----------
-    log_post : LogPosterior
-        Called with whole walker batches (``vectorize=True``).
+    log_post : LogDensity
+        A :class:`.posterior.LogPosterior` or any density of the :class:`LogDensity` protocol; called with
+        whole walker batches (``vectorize=True``).
     settings : SamplerSettings
     initial : (n_walkers, ndim), optional
-        Start of a new run; every walker must lie inside the prior.
+        Start of a new run; every walker must lie inside the support (``log_post.check_inside``), have a
+        finite log density, and the walkers must be linearly independent (repeated rows are allowed as long
+        as the distinct ones span the space).
     rng : numpy.random.Generator
         Seeds emcee's proposal generator for a new run.
     checkpoint : Checkpoint, optional
@@ -474,8 +496,8 @@ def run_ensemble(
     Raises
     ------
     SetupError
-        A walker start outside the prior, or walkers that are not linearly
-        independent.
+        A walker start outside the support or with a non-finite log
+        density, or walkers that are not linearly independent.
     """
     import emcee
 

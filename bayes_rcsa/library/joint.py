@@ -38,8 +38,10 @@ integrated out, so the narrow laws never have to move together with the
 hyperparameters; each law moves by random-walk Metropolis under its own
 likelihood, shaped by its stage-1 covariance (docs/library.md, "With real
 identify posteriors").  Independent chains run as one batch through each
-likelihood; R-hat and ESS over the chains (:func:`chain_diagnostics`) say
-how far a run can be trusted.
+likelihood; R-hat and ESS over the chains
+(:func:`bayes_rcsa.inference.diagnostics.chain_diagnostics` of
+``np.swapaxes(out["chains"], 0, 1)``: it takes steps first) say how far a
+run can be trusted.
 """
 
 from __future__ import annotations
@@ -51,7 +53,7 @@ import numpy as np
 from .population import Hyperprior
 
 __all__ = ["JointModel", "sample_joint", "gaussian_log_likelihood", "pool_runs", "run_spread", "GibbsJoint", "sample_gibbs",
-           "slice_step", "chain_diagnostics"]
+           "slice_step"]
 
 
 def gaussian_log_likelihood(m: np.ndarray, C: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
@@ -619,11 +621,3 @@ def sample_gibbs(log_likelihoods: Sequence[Callable], types: Sequence[int], x: n
     out.update(chains=chains, law_acceptance=acc, scale=g.scale.copy(), stuck=stuck)
     return out
 
-
-def chain_diagnostics(chains: np.ndarray) -> dict:
-    """Rank-normalised split R-hat, bulk and tail ESS (arviz) of every column of (n_chains, n_draws, p) draws."""
-    import arviz as az
-
-    ds = az.convert_to_dataset({"h": chains})
-    return {"rhat": np.asarray(az.rhat(ds)["h"].values), "ess_bulk": np.asarray(az.ess(ds, method="bulk")["h"].values),
-            "ess_tail": np.asarray(az.ess(ds, method="tail")["h"].values)}

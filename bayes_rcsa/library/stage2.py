@@ -267,6 +267,7 @@ def fit_population(setups, hyper: Hyperprior, rng: np.random.Generator, settings
     hfit = fit_hyper(groups, hyper, rng, settings)
     warns += hfit.warnings
     hfit, exact_info = _exact_step(hfit, groups, setups, hyper, rng, settings, exact)
+    warns += [w for w in hfit.warnings if w not in warns]  # the longer chain's, where its draws are used
     if exact_info["sound"] is False:  # requested, judged and found unsound (not: switched off, or too costly)
         warns.append(f"stage 2: exact two-stage re-weighting not used: {exact_info['reason']}")
     elif exact_info["used"] and exact_info["effective_draws"] < settings.ess_target:

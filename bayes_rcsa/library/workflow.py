@@ -123,7 +123,8 @@ def pooling_summary(fit: LibraryFit) -> dict:
         out[n] = {"tau_b": [float(v) for v in np.quantile(hf.tau_b[:, j], q)],
                   "sigma_geometric_mean": [float(v) for v in np.exp(np.quantile(ln_s[:, :, j].mean(axis=1), q))],
                   "sigma_max_over_min": [float(v) for v in np.exp(np.quantile(np.ptp(ln_s[:, :, j], axis=1), q))]}
-    return {"coordinates": out, "stage2_ess": hf.ess, "stage2_steps": hf.n_steps,
+    # the coupled chain's convergence: stage2_ess, stage2_steps, stage2_rhat_max, stage2_ess_bulk_min, ...
+    return {"coordinates": out, **{f"stage2_{k}": v for k, v in hf.quality.summary().items()},
             "sampler": "one emcee over ln sigma per type and coordinate and tau_b per coordinate"}
 
 
@@ -140,8 +141,9 @@ def write_library(out_dir, fit: LibraryFit, plots: bool = True, attrs: dict | No
                                              **(attrs or {})})}
     laws = law_table(fit.population)
     paths["laws_json"], paths["laws_csv"] = write_law_table(out, laws)
-    stage2 = {t: {"n_setups": len(f.names), "ess": f.ess, "acceptance": f.acceptance,
-                  "autocorrelation_steps": float(np.max(f.tau))} for t, f in fit.stage2.types.items()}
+    # per type the coupled chain's ESS, autocorrelation time, R-hat and bulk/tail ESS (one chain for all types)
+    stage2 = {t: {"n_setups": len(f.names), "acceptance": f.acceptance, **f.quality.summary()}
+              for t, f in fit.stage2.types.items()}
     doc = {"holder_types": list(fit.population.holder_types), "coordinates": list(fit.population.names),
            "stage2": stage2, "stage2_exact": fit.stage2.exact, "pooling": pooling, "setups": fit.setups, "laws": laws,
            "outliers": [r["name"] for r in fit.setups if r.get("outlier")], "warnings": fit.warnings}

@@ -3,7 +3,7 @@
 Reads ``library.json`` (:func:`bayes_rcsa.library.workflow.write_library`
 writes it) and embeds ``shrinkage.png`` when present: the law table per
 holder type (median at 10 mm with its 90 % interval, diameter slope,
-spread), stage 2 per type (ESS, autocorrelation), a row per setup (holder
+spread), stage 2 per type (ESS, autocorrelation, R-hat, bulk ESS), a row per setup (holder
 type, diameter, importance ESS, leave-one-out p-value, outlier flag or the
 refusal of its pooled estimate) and the warnings.
 """
@@ -35,7 +35,9 @@ def library_section(run) -> dict:
                        "ess": num(s["ess"], 3), "p": "—" if p is None else num(p, 2),
                        "verdict": "OUTLIER" if s.get("outlier") else ("refused: " + s["refused"] if s.get("refused")
                                                                       else "consistent")})
-    stage2 = [{"type": t, "n": v["n_setups"], "ess": num(v["ess"], 3), "tau": num(v["autocorrelation_steps"], 3)}
+    # R-hat and bulk ESS are missing ("—") in the library.json of older versions
+    stage2 = [{"type": t, "n": v["n_setups"], "ess": num(v["ess"], 3), "tau": num(v["autocorrelation_steps"], 3),
+               "rhat": num(v.get("rhat_max"), 4), "ess_bulk": num(v.get("ess_bulk_min"), 3)}
               for t, v in doc["stage2"].items()]
     images = [F.png_data_uri(p) for p in (run.file("shrinkage.png"),) if p]
     return {"path": str(run.path), "laws": laws, "setups": setups, "stage2": stage2, "outliers": doc["outliers"],
