@@ -159,7 +159,8 @@ def test_stage1_on_a_dask_local_cluster_equals_the_process_pool_and_the_library_
 
     # This test is about stage 1 (dask, the process pool, reuse), not stage 2's convergence: with its default rule
     # stage 2 and its two leave-one-out refits take ~60 s per library run here (tau ~140 steps in 8 dimensions, 7,500-
-    # 8,250 steps each), so the library command's stage 2 gets a 300-step cap (the command has no option for it)
+    # 8,250 steps each), so the leave-one-out refits get a 300-step cap, and stage 2 too (the first run through the
+    # command's --max-steps, which overrides this default)
     short = Stage2Settings(n_burn=100, ess_target=150, chunk=150, max_steps=300)
     monkeypatch.setattr(workflow, "fit_library", functools.partial(workflow.fit_library, settings=short))
     monkeypatch.setattr(workflow, "loo_p_values", functools.partial(workflow.loo_p_values, settings=short))
@@ -167,8 +168,11 @@ def test_stage1_on_a_dask_local_cluster_equals_the_process_pool_and_the_library_
     pool_dir = tmp_path / "pool"
     capsys.readouterr()
     assert main(["library", str(tiny_library), "--out", str(pool_dir), "--workers", "2", "--quiet", "--json",
-                 "--no-plots"]) == 0
+                 "--no-plots", "--max-steps", "250"]) == 0
     first = json.loads(capsys.readouterr().out)
+    first_lib = json.loads((pool_dir / "library.json").read_text())
+    assert any("stage 2 stopped at max_steps = 250 unconverged" in w and "--max-steps" in w
+               for w in first_lib["warnings"])
     assert sorted(first["ran"]) == sorted(j.name for j in jobs) and first["holder_types"] == ["ER32"]
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
                                   silence_logs=40) as cluster, distributed.Client(cluster) as client:

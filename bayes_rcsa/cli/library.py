@@ -41,6 +41,9 @@ def register(subparsers) -> None:
                    help="Dask scheduler address: run stage 1 on that cluster instead")
     p.add_argument("--force", action="store_true", help="recompute every stage-1 setup, finished or not")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="random seed of stage 2 (default 0)")
+    p.add_argument("--max-steps", type=positive_int, default=None, metavar="N",
+                   help="stage 2 stops unconverged, with a warning, after N steps (default "
+                        f"{_default_max_steps()}; a library of many holder types and setups may need more)")
     p.add_argument("--no-outliers", action="store_true", help="skip the leave-one-out outlier check")
     p.add_argument("--tail-correct", action="store_true",
                    help="check every stage-1 posterior's interval ends against importance sampling and pool "
@@ -50,6 +53,12 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
+def _default_max_steps() -> int:
+    from ..library.stage2 import Stage2Settings
+
+    return Stage2Settings().max_steps
+
+
 def run(args: argparse.Namespace) -> Summary:
     import json
 
@@ -57,6 +66,7 @@ def run(args: argparse.Namespace) -> Summary:
 
     from ..batch import load_manifest
     from ..io.atomic import atomic_write_text, directory_lock, new_output_directory
+    from ..library.stage2 import Stage2Settings
     from ..library.stage1 import check_setups, collect, run_stage1
     from ..library.workflow import fit_library, write_library
     from .batch import prepare_run
@@ -82,7 +92,9 @@ def run(args: argparse.Namespace) -> Summary:
                                 progress=progress)
             stage1 = collect(jobs, out, result.rows, tail_correct=args.tail_correct,
                              rng=np.random.default_rng([args.seed, 5]))
-            fit = fit_library(stage1, np.random.default_rng(args.seed), outliers=not args.no_outliers, stage1_dir=out)
+            settings = {} if args.max_steps is None else {"settings": Stage2Settings(max_steps=args.max_steps)}
+            fit = fit_library(stage1, np.random.default_rng(args.seed), outliers=not args.no_outliers, stage1_dir=out,
+                              **settings)
             fit.warnings[:0] = command_warnings()
             paths = write_library(out, fit, plots=not args.no_plots, attrs={"seed": args.seed})
     finally:

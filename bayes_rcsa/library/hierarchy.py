@@ -616,7 +616,8 @@ def fit_hyper(groups, hyper: Hyperprior, rng: np.random.Generator, settings: Sta
                      f"{np.max(diag['rhat']):.3f} (required < {settings.rhat_max:g}), bulk ESS "
                      f"{np.min(diag['ess_bulk']):.0f} (required >= {settings.ess_target:g}), autocorrelation time "
                      f"{np.max(run.tau):.0f} steps (required < 1/{settings.tau_factor:g} of the chain); the "
-                     f"hyperparameter intervals are approximate (ESS {quality.ess:.0f}; a larger max_steps helps)")
+                     f"hyperparameter intervals are approximate (ESS {quality.ess:.0f}; a larger max_steps helps: "
+                     "'bayes-rcsa library --max-steps')")
     draws = _type_draws(theta, groups, hyper, rng) if type_draws else [np.zeros((theta.shape[0], 0))] * T
     acc = float(np.mean(run.acceptance_fraction))
     types = {}

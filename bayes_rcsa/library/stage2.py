@@ -278,7 +278,8 @@ def fit_population(setups, hyper: Hyperprior, rng: np.random.Generator, settings
         warns.append(f"stage 2: the exact two-stage re-weighting leaves about {exact_info['effective_draws']:.0f} "
                      f"effective draws (chain ESS {hfit.ess:.0f} x weight ESS fraction "
                      f"{exact_info['weight_ess_fraction']:.2f}){longer} < the ESS target {settings.ess_target:g}; "
-                     "the interval ends carry that much more Monte Carlo error (a larger max_steps reduces it)")
+                     "the interval ends carry that much more Monte Carlo error (a larger max_steps reduces it: "
+                     "'bayes-rcsa library --max-steps')")
     types: dict[str, TypeFit] = hfit.types
     rows = []
     for s in setups:
