@@ -236,8 +236,7 @@ def out_of_library(gen: Generator, n: int, root: Path, times: list, cases=OUT_OF
             print(f"[{gen.name}] {effect} seed {seed}: named {r['named_effect']} (confounded {r['confounded_with']}), "
                   f"final {r['final_model']}, usable "
                   f"{usable}, coverage { {k: v for k, v in c.items() if k != 'held_z'} } "
-                  f"held z {[round(v, 2) for v in c['held_z']]} "
-                  f"reweighting ESS {(r['mode_bias'].get('reweighting') or {}).get('ess')} ({t:.1f} s)", flush=True)
+                  f"held z {[round(v, 2) for v in c['held_z']]} ({t:.1f} s)", flush=True)
         rows.append(f"| `{effect}` | {named}/{n} | {confounded}/{n} | {reported}/{n} | {unusable}/{n} | "
                     + " | ".join(frac(*tot[key]) for key in keys)
                     + (f" | {statistics.mean(zs):+.2f}, {statistics.pstdev(zs):.2f} |" if zs else " | |"))

@@ -38,11 +38,10 @@ length was fitted),
   smooth departure over two length scales) 0.939 / 0.905, 0.902 / 0.896,
   0.810 / 0.874.  With two fitted lengths nothing is left to estimate it
   from, and the amplitude is the noise's (the bias between them is then
-  assumed straight, and the outputs say so).  For a physical model it is estimated from the median over
-  draws, not from every draw: the draws' spread is parameter uncertainty, which the draws
+  assumed straight, and the outputs say so).  It is estimated from the median over draws, not from
+  every draw: the draws' spread is parameter uncertainty, which the draws
   themselves carry to every length, and counting it again in the bias's
-  prior would count it twice.  For the unexplained remainder each draw takes the amplitude its own
-  contrast asks for, in the joint weighting below.  With one fitted length the change with
+  prior would count it twice.  With one fitted length the change with
   length is not seen at all, and the prior spread is the bias seen
   (``bias^2`` + noise variance);
 * length scale ``lam`` = half the span of the fitted lengths (the bias may
@@ -55,21 +54,6 @@ length was fitted),
   lengths cancels), with the variance of the measured peak frequency under
   the fitted noise model (the variance, over draws, of the predictive minus
   the model frequency of the same draw).
-
-* parameters and bias inferred *jointly* for the unexplained remainder (Kennedy & O'Hagan's posterior of
-  ``theta`` includes the bias's marginal likelihood): each posterior draw is weighted by the restricted
-  likelihood of *its own* bias's departure from the straight line at the fitted lengths, marginalised over
-  the amplitude, and the amplitude that goes with a draw is the one its departure asks for.  The remainder's
-  draws come from a deliberately widened covariance (cluster-robust, the law's bend between two published
-  interface laws) that has not weighed the fitted mode frequencies against each other: on the rotor bench's
-  slotted holder they spread by about 16 Hz at every length and differ in how they bend between 25 and 40 mm.
-  Conditioning each draw apart and keeping all equally probable let the draws whose bend the middle
-  length contradicts widen every held-out interval (held out 1.00 in every table, intervals 1.7 times their
-  errors); on data drawn from the bias model with a 5 Hz spread of bends it covered 1.00 held out, weighted
-  0.93-0.96 (``tests/test_modes.py``).  With fewer than three fitted lengths no departure is seen and
-  nothing is weighted.  A physical model's posterior has used the fitted data in full already and is not
-  weighted.  The effective number of distinct draws left is reported (``reweighting`` in discrepancy.json) and
-  warned about below :data:`MIN_REWEIGHT_ESS`.
 
 The corrected draws are the model's mode-frequency draws plus the shift
 ``mu_k(l)`` and an independent Gaussian of variance ``v_k(l)``, the GP
@@ -94,30 +78,10 @@ contain the measured peak itself.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["correct_mode_frequencies", "BiasCorrection", "BIAS_RULE", "BIAS_REPLICATES", "MIN_REWEIGHT_ESS"]
-
-
-@dataclass
-class BiasCorrection:
-    """What :func:`correct_mode_frequencies` did.
-
-    notes : list of str, one per mode (its bias at the fitted lengths, the kernel), plus the reweighting's
-    reweighting : dict or None, ``applied`` (bool), ``modes`` (how many contrasts weighed the draws), ``ess``
-        (effective number of distinct posterior draws after weighting), ``n_draws`` (distinct draws before),
-        ``low_ess`` (``ess`` < :data:`MIN_REWEIGHT_ESS`: the intervals rest on few draws)
-    """
-
-    notes: list
-    reweighting: dict | None
-
-
-#: Effective number of distinct draws below which the reweighted intervals are said to rest on few draws
-#: (their 5 % and 95 % quantiles then scatter by more than a quarter of the parameter spread's sd).
-MIN_REWEIGHT_ESS = 50.0
+__all__ = ["correct_mode_frequencies", "BIAS_RULE", "BIAS_REPLICATES"]
 
 #: Draws of the bias's GP posterior per posterior draw (the intervals' quantiles are read from
 #: n_draws x BIAS_REPLICATES samples; see the module docstring for why one is too few).
@@ -131,9 +95,7 @@ BIAS_RULE = ("mode-frequency bias of the final model: per direction and mode ord
              "fitted length: bias^2 + noise variance), length scale = half the fitted span, conditioned per "
              "posterior draw on measured - model frequency at the fitted lengths (the measured peak for the "
              "unexplained remainder, the measured mode from its whole resonance for a physical model); its "
-             "posterior mean (per draw) and variance (8 Gaussian replicates per draw) are added to the model's draws; "
-             "for the unexplained remainder each draw is weighted by the restricted likelihood of its own bias's "
-             "departure from the straight line (parameters and bias inferred jointly; three or more fitted lengths)")
+             "posterior mean (per draw) and variance (8 Gaussian replicates per draw) are added to the model's draws")
 
 
 def _quantiles(x: np.ndarray) -> dict:
@@ -246,52 +208,9 @@ def _amplitude2_posterior(x: np.ndarray, y: np.ndarray, noise_var: np.ndarray, l
     return amp[keep] ** 2, w[keep] / w[keep].sum()
 
 
-def _contrast_basis(x: np.ndarray, lam: float, noise_var: np.ndarray, degree: int = 1):
-    """Orthonormal contrasts ``P`` (n, m) that the mean's polynomial cannot produce, the unit kernel ``P^T K P``
-    and the noise ``P^T N P`` (m, m); ``m = 0`` when nothing is left over the polynomial."""
-    degree = min(degree, np.unique(x).size - 1)
-    h = _basis(x, float(np.mean(x)), max(float(np.ptp(x)), 1e-3), degree)
-    q, _ = np.linalg.qr(h, mode="complete")
-    p = q[:, h.shape[1]:]
-    return p, p.T @ np.exp(-0.5 * ((x[:, None] - x[None, :]) / lam) ** 2) @ p, p.T @ np.diag(noise_var) @ p
-
-
-def _joint_log_weights(x: np.ndarray, y: np.ndarray, noise_var: np.ndarray, lam: float):
-    """Per posterior draw, the log marginal likelihood of its bias's contrasts, and the amplitude given the draw.
-
-    Kennedy & O'Hagan infer the parameters and the bias together: ``p(theta, a | data)`` is proportional to
-    ``p(theta) p(a) p(P^T delta_theta | a)``, the restricted (line-free) likelihood of draw ``theta``'s own bias
-    at the fitted lengths.  A draw whose bend between the fitted lengths contradicts the measured mode at the
-    middle length is therefore less probable, and the amplitude that goes with a draw is the one *its* contrast
-    asks for.
-
-    Parameters
-    ----------
-    x : (n_fitted,) m;  y : (n_draws, n_fitted) Hz, each draw's bias;  noise_var : (n_fitted,) Hz^2
-    lam : float, m, the kernel's length scale
-
-    Returns
-    -------
-    log_w : (n_draws,) log p(contrast_d), marginalised over the amplitude (up to a constant)
-    amp2 : (n_grid,) Hz^2;  p_amp : (n_draws, n_grid), the amplitude's posterior given each draw
-    """
-    p, a, n = _contrast_basis(x, lam, noise_var)
-    nv = float(np.mean(noise_var))
-    scale = math.sqrt(nv) if nv > 0 else 1e-12
-    amp = scale * AMPLITUDE_GRID
-    z = y @ p  # (n_draws, m)
-    c = amp[:, None, None] ** 2 * a[None] + n[None]  # (n_grid, m, m)
-    ll = -0.5 * (np.linalg.slogdet(c)[1][None, :] + np.einsum("di,gij,dj->dg", z, np.linalg.inv(c), z))
-    t = ll - np.log1p((amp / scale) ** 2)[None, :] + np.log(amp)[None, :]  # half-Cauchy on a log grid
-    top = t.max(axis=1, keepdims=True)
-    e = np.exp(t - top)
-    tot = e.sum(axis=1, keepdims=True)
-    return top[:, 0] + np.log(tot[:, 0]), amp**2, e / tot
-
-
 def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Generator,
-                             observation: str = "peak", reweight: bool | None = None) -> "BiasCorrection":
-    """Bias-corrected mode-frequency intervals of every matched mode, in place.
+                             observation: str = "peak") -> list:
+    """Bias-corrected mode-frequency intervals of every matched mode, in place; returns notes.
 
     Parameters
     ----------
@@ -310,27 +229,16 @@ def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Gen
         it), whatever its bias.  ``"resonance"``: the measured mode's frequency from its whole resonance
         (``measured_fit_hz`` / ``measured_fit_sd_hz``, :mod:`.mode_shift`), about ten times more precise, which
         is what a physical model's sub-line bias needs; the peak where that estimate is missing.
-    reweight : bool, optional
-        Infer parameters and bias jointly (:func:`_joint_log_weights`): weight each posterior draw by the
-        likelihood of its own bias's departure from a straight line at the fitted lengths.  Default: for
-        ``observation="peak"`` (the unexplained remainder, whose draws come from a deliberately widened
-        covariance that has not weighed the fitted mode frequencies one against the other), not for a physical
-        model, whose posterior has used those data in full already.  Without a contrast (fewer than three
-        fitted lengths) it changes nothing.
 
     Returns
     -------
-    BiasCorrection: notes (what was corrected, or why a mode was left uncorrected) and the reweighting's
-    effective sample size.
+    list of str: what was corrected, or why a mode was left uncorrected (no fitted length has it).
     """
-    if reweight is None:
-        reweight = observation == "peak"
     notes = []
     groups: dict = {}
     for j, m in enumerate(measurements):
         for r, md in enumerate(sorted(range(len(m["modes"])), key=lambda i: m["modes"][i]["measured_hz"])):
             groups.setdefault((m["direction"], r), []).append((j, md))
-    prep = {}
     for (direction, r), members in sorted(groups.items()):
         fitted = [(j, i) for j, i in members if measurements[j]["fitted"]]
         if not fitted:
@@ -357,50 +265,21 @@ def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Gen
         y, nv = np.column_stack(cols), np.array(nv)  # (n_draws, n_fitted), (n_fitted,)
         span = max(xl) - min(xl)
         lam = 0.5 * span if span > 0 else 0.01
-        prep[(direction, r)] = (members, xl, y, nv, lam)
-    if not prep:
-        return BiasCorrection(notes, None)
-    n_d = next(iter(prep.values()))[2].shape[0]
-    # the joint posterior of parameters and bias: one weight per draw from every mode's contrasts
-    log_w, joint = np.zeros(n_d), {}
-    if reweight:
-        for key, (members, xl, y, nv, lam) in prep.items():
-            x = np.array(xl)
-            if np.unique(x).size < 3 or not np.all(nv > 0):
-                continue  # no departure from a straight line can be seen: every draw is as good
-            lw, amp2, p_amp = _joint_log_weights(x, y, nv, lam)
-            log_w += lw
-            joint[key] = (amp2, p_amp)
-    w = np.exp(log_w - log_w.max())
-    w /= w.sum()
-    # tracked model draws repeat once per noise realisation: the ESS counts distinct draws
-    distinct = np.unique(np.column_stack([v[2] for v in prep.values()]), axis=0).shape[0]
-    ess = float(1.0 / np.sum(w**2)) * distinct / n_d
-    rows = rng.choice(n_d, size=(n_d, BIAS_REPLICATES), p=w) if joint else np.repeat(np.arange(n_d)[:, None],
-                                                                                      BIAS_REPLICATES, axis=1)
-    for (direction, r), (members, xl, y, nv, lam) in sorted(prep.items()):
-        if (direction, r) in joint:
-            amp2, p_amp = joint[(direction, r)]
-            pr = p_amp[rows]  # (n_draws, replicates, n_grid): each resampled draw's own amplitude posterior
-            g = np.minimum((np.cumsum(pr, axis=-1) < rng.random(rows.shape)[..., None]).sum(-1), amp2.size - 1)
-            amp_w = pr.reshape(-1, amp2.size).mean(axis=0)
-        else:
-            amp2, amp_w = _amplitude2_posterior(np.array(xl), y[rows[:, 0]], nv, lam)
-            g = rng.choice(amp2.size, size=rows.shape, p=amp_w)
+        amp2, amp_w = _amplitude2_posterior(np.array(xl), y, nv, lam)
         if not np.all(amp2 > 0):
             continue
         xs = [measurements[j]["clamping_length"] for j, _ in members]
         gw, gv = _gp_weights(xl, nv, xs, amp2, lam)  # (n_grid, n_fitted, n_members), (n_grid, n_members)
         # the amplitude marginalised: each replicate of each draw takes its own amplitude from the posterior
-        means = np.einsum("dro,dron->drn", y[rows], gw[g])  # (n_draws, replicates, n_members)
-        y_med = np.median(y[rows[:, 0]], axis=0)
-        ym = y_med @ gw  # (n_grid, n_members): the median draw's bias under each amplitude
+        g = rng.choice(amp2.size, size=(y.shape[0], BIAS_REPLICATES), p=amp_w)
+        means = np.einsum("do,dron->drn", y, gw[g])  # (n_draws, replicates, n_members)
+        ym = np.median(y, axis=0) @ gw  # (n_grid, n_members): the median draw's bias under each amplitude
         for k, (j, i) in enumerate(members):
             md = measurements[j]["modes"][i]
             fd, fp = draws[j][0][:, i], draws[j][1][:, i]
             mu = means[:, :, k]
             shift = mu + np.sqrt(gv[g, k]) * rng.standard_normal(mu.shape)
-            fdc, fpc = (fd[rows] + shift).ravel(), (fp[rows] + shift).ravel()
+            fdc, fpc = (fd[:, None] + shift).ravel(), (fp[:, None] + shift).ravel()
             m_k = float(amp_w @ ym[:, k])
             bias_sd = math.sqrt(float(amp_w @ gv[:, k] + amp_w @ (ym[:, k] - m_k) ** 2))
             q, qp = _quantiles(fdc), _quantiles(fpc)
@@ -414,13 +293,9 @@ def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Gen
                        "predictive_sd_hz": float(np.nanstd(fpc)),
                        "covered_model_90": bool(q["q05"] <= fm <= q["q95"]),
                        "covered_predictive_90": bool(qp["q05"] <= fm <= qp["q95"])})
+        y = np.median(y, axis=0)
         amp_median = math.sqrt(float(amp2[min(np.searchsorted(np.cumsum(amp_w), 0.5), amp2.size - 1)]))
-        notes.append(f"mode {r + 1} ({direction}): bias {', '.join(f'{v:+.1f}' for v in y_med)} Hz at the fitted "
+        notes.append(f"mode {r + 1} ({direction}): bias {', '.join(f'{v:+.1f}' for v in y)} Hz at the fitted "
                      f"lengths {', '.join(f'{1e3 * v:g}' for v in xl)} mm (GP amplitude {amp_median:.1f} Hz"
                      f"{' posterior median' if amp2.size > 1 else ''}, length scale {1e3 * lam:.1f} mm)")
-    reweighting = {"applied": bool(joint), "modes": len(joint), "ess": ess, "n_draws": distinct,
-                   "low_ess": bool(joint) and ess < MIN_REWEIGHT_ESS}
-    if joint:
-        notes.append(f"draws weighted by their bias's departure from a straight line at the fitted lengths "
-                     f"({len(joint)} mode(s)): effective sample size {ess:.0f} of {distinct} draws")
-    return BiasCorrection(notes, reweighting)
+    return notes

@@ -363,8 +363,7 @@ def evaluate(fit: ModelFit, rng: np.random.Generator, n_draws: int = 200, correc
         per.append({"source": frf.source, "clamping_length": cfg.clamping_length, "direction": cfg.direction,
                     "fitted": (cfg, frf.source) in used, **me,
                     "gap": systematic_gap([hm], [hp])["gap"], "gap_raw": gap(hm, hp)})
-    corr = correct_mode_frequencies(per, tracked, rng, bias_observation) if correct_bias else None
-    notes = corr.notes if corr is not None else []
+    notes = correct_mode_frequencies(per, tracked, rng, bias_observation) if correct_bias else []
     by_len: dict[str, list] = {}
     nan_q = {"q05": math.nan, "q50": math.nan, "q95": math.nan}
     for entry in per:
@@ -397,7 +396,6 @@ def evaluate(fit: ModelFit, rng: np.random.Generator, n_draws: int = 200, correc
         split[key] = systematic_gap([measured[j] for j in idx], [parts[j] for j in idx])["gap"] if idx else None
     return {"gap": g["gap"], "gap_detail": g, "gap_fitted": split["fitted"], "gap_held_out": split["held_out"], "frequency_error_pct": {k: float(np.mean(v)) for k, v in by_len.items()},
             "measurements": per, "mode_bias_notes": notes,
-            "mode_bias_reweighting": corr.reweighting if corr is not None else None,
             "mode_bias_observation": bias_observation if correct_bias else None, "stiffness": stiff, "term_parameters": params,
             "frf": {"frequency_hz": freqs, "measured": measured, "predicted": parts, "predictive_z2": z2,
                     "predictive_window_statistic": z2_win}}
@@ -471,11 +469,6 @@ NOISE_REPLICATES = 8
 #: Distinct fitted clamping lengths from which the remainder's bias between lengths is estimated, not assumed:
 #: a straight line through two leaves no residual to judge its bend by.
 MIN_LENGTHS_FOR_BEND = 3
-#: Posterior draws of the remainder's final evaluation when it is fitted at MIN_LENGTHS_FOR_BEND or more lengths.
-#: Its draws are then weighted by their bias's departure from a straight line (mode_bias.py); on the rotor bench's
-#: slotted holder that left 36-40 effective of 200 draws in 2 of 12 development campaigns, and 137 of 800 in the
-#: worst one.  800 draws cost about 2.5 s more than 200 (one loop: 42-45 s).
-REMAINDER_DRAWS = 800
 
 
 
@@ -709,10 +702,8 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
     before = evaluate(baseline, rng_eval)
     # every final model gets the mode-frequency bias learned at the fitted lengths (mode_bias.py): a named
     # model is right only as far as its physics is, and the remainder must cover what it cannot move
-    remainder = label == "statistical_discrepancy"
-    n_fitted = len({round(o.configuration.clamping_length, 12) for o in final.problem.observations})
-    after = evaluate(final, rng_final, n_draws=REMAINDER_DRAWS if remainder and n_fitted >= MIN_LENGTHS_FOR_BEND else 200,
-                     correct_bias=True, bias_observation="peak" if remainder else "resonance", scan=True)
+    after = evaluate(final, rng_final, correct_bias=True,
+                     bias_observation="peak" if label == "statistical_discrepancy" else "resonance", scan=True)
     t["add_and_show_s"] = time.perf_counter() - t0
     res = DiscrepancyResult(setup, options, baseline, detection, scores, refits, decision, final, label,
                             {"before": before, "after": after}, t, second=second, transfer_check=transfer_check)
@@ -793,11 +784,6 @@ def build_report(res: DiscrepancyResult) -> dict:
                         "other clamping lengths rest on a bias interpolated along a straight line, which the data "
                         "cannot test; they can be off by about one of their own standard deviations. Fit a third "
                         "clamping length, or the one you need, before choosing a spindle speed from them")
-    rw = a.get("mode_bias_reweighting") or {}
-    if rw.get("low_ess"):
-        warnings.append(f"mode-frequency bias: weighting the posterior draws by their bias's departure from a "
-                        f"straight line left {rw['ess']:.0f} effective of {rw['n_draws']} draws; the mode-frequency "
-                        "intervals rest on few draws")
     out = {
         "adequate": bool(res.detection.adequate),
         "named_effect": named,
@@ -827,7 +813,6 @@ def build_report(res: DiscrepancyResult) -> dict:
         "mode_rule": MODE_RULE,
         "mode_bias": {"rule": BIAS_RULE, "applied": bool(a["mode_bias_notes"]), "notes": a["mode_bias_notes"],
                       "observation": a.get("mode_bias_observation"),
-                      "reweighting": a.get("mode_bias_reweighting"),
                       "resonance_rule": SHIFT_RULE},
         "frequency_error_pct_before": b["frequency_error_pct"],
         "frequency_error_pct_after": a["frequency_error_pct"],
