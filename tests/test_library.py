@@ -18,7 +18,8 @@ from bayes_rcsa.errors import SetupError
 from bayes_rcsa.inference.diagnostics import chain_diagnostics
 from bayes_rcsa.library.joint import gaussian_log_likelihood, sample_joint
 from bayes_rcsa.library.outliers import (ADEQUACY_WEIGHT, adequacy_p_value, adequacy_rows, combine, draw_statistics,
-                                         flag_outliers, loo_p_values, shift_direction)
+                                         flag_outliers, loo_p_values, refit_warnings,
+                                         shift_direction)
 from bayes_rcsa.library.population import Hyperprior, covariate
 from bayes_rcsa.library.predictive import Population, predictive_draws, predictive_prior
 from bayes_rcsa.library.hierarchy import Group, fit_hyper
@@ -275,6 +276,14 @@ def test_a_contact_three_times_softer_is_flagged_with_four_combinations_per_type
     # the importance-sampling check of large types (no refits; here forced) sees the same combination
     imp, _ = flag_outliers(loo_p_values(fit.fit, hyper, rng, exact_max=0), len(setups))
     assert all(r["method"] == "importance" for r in imp)
+    # each exact refit says whether it met its rule; capped at 400 steps here, those that did not are named in one
+    # warning (they used to be dropped), and the importance rows have no refit to judge
+    assert all(isinstance(r["refit_converged"], bool) and 0 < r["refit_steps"] <= 400 for r in rows)
+    assert all(r["refit_converged"] is None and r["refit_rhat_max"] is None for r in imp)
+    unconverged = [r["name"] for r in rows if not r["refit_converged"]]
+    warn = refit_warnings(p_rows, _CHEAP)
+    assert unconverged and len(warn) == 1 and "max_steps = 400 unconverged" in warn[0]
+    assert all(name in warn[0] for name in unconverged) and refit_warnings(imp, _CHEAP) == []
     assert {r["name"] for r in imp if r["outlier"]} == {"ER32_1"}, imp
     # the clean ones are not near the threshold either (Bonferroni 0.05 / 12 = 0.0042)
     assert min(r["p_value"] for r in rows if r["name"] != "ER32_1") > 0.01, rows

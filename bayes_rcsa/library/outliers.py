@@ -56,7 +56,7 @@ import numpy as np
 
 from .hierarchy import HyperFit, Stage2Settings, _factor, _forward, fit_hyper, predictive_of_setup
 
-__all__ = ["loo_p_values", "REFIT_SETTINGS", "flag_outliers", "draw_statistics", "shift_direction", "combine", "adequacy_p_value",
+__all__ = ["loo_p_values", "refit_warnings", "REFIT_SETTINGS", "flag_outliers", "draw_statistics", "shift_direction", "combine", "adequacy_p_value",
            "adequacy_rows", "stage1_residual_correlation", "ALPHA", "EXACT_MAX", "ADEQUACY_WEIGHT"]
 
 #: Family-wise false-flag rate of a clean library.
@@ -176,7 +176,7 @@ def loo_p_values(fit: HyperFit, hyper, rng: np.random.Generator, exact_max: int 
     rng : numpy Generator
     exact_max : int, types of at most this many combinations are checked by exact refits
     settings : Stage2Settings of the refits (default :data:`REFIT_SETTINGS`, a screening rule looser than stage
-        2's own; their warnings are not kept)
+        2's own; whether each refit met it is kept in its row, and :func:`refit_warnings` says which did not)
     n_draws : int, refit draws (evenly thinned) the p-values average over
 
     Returns
@@ -185,7 +185,8 @@ def loo_p_values(fit: HyperFit, hyper, rng: np.random.Generator, exact_max: int 
     combination of its type), ``p_shift``, ``p_omnibus`` (the two
     leave-one-out p-values), ``shift_median`` (median standardised shift
     ``t``: negative = softer than the population), ``method`` (``"exact"``,
-    ``"importance"`` or ``None``), ``distance_median`` (of ``D``)
+    ``"importance"`` or ``None``), ``distance_median`` (of ``D``); for an exact refit also ``refit_converged``
+    (its rule met before ``settings.max_steps``), ``refit_steps`` and ``refit_rhat_max`` (None otherwise)
     """
     e = shift_direction(hyper.names)
     out = []
@@ -196,8 +197,9 @@ def loo_p_values(fit: HyperFit, hyper, rng: np.random.Generator, exact_max: int 
         for i, name in enumerate(g.names):
             if n < 2:
                 out.append({"name": name, "p_value": None, "p_shift": None, "p_omnibus": None, "shift_median": None,
-                            "method": None, "distance_median": None})
+                            "method": None, "distance_median": None, **_NO_REFIT})
                 continue
+            refit = dict(_NO_REFIT)
             if n <= exact_max:
                 groups = tuple(gg.without(i) if k == t else gg for k, gg in enumerate(fit.groups))
                 sub = fit_hyper(groups, hyper, rng, settings, start_from=fit.theta, type_draws=False)
@@ -205,6 +207,8 @@ def loo_p_values(fit: HyperFit, hyper, rng: np.random.Generator, exact_max: int 
                 st = draw_statistics(*predictive_of_setup(theta, groups, hyper, t, g.m[i], g.C[i], float(g.x[i])), e)
                 w = np.full(theta.shape[0], 1.0 / theta.shape[0])
                 method = "exact"
+                refit = {"refit_converged": bool(sub.quality.converged), "refit_steps": int(sub.quality.n_steps),
+                         "refit_rhat_max": float(np.max(sub.quality.rhat))}
             else:
                 a, b, s = flat[:, :d], flat[:, d:2 * d], flat[:, 2 * d:]
                 st = _diagonal_spread_statistics(g.m[i][None, :] - a - b * float(g.x[i]), g.C[i], s * s, e)
@@ -216,8 +220,26 @@ def loo_p_values(fit: HyperFit, hyper, rng: np.random.Generator, exact_max: int 
             p_shift = None if e is None else float(np.sum(w * st["p_shift"]))
             out.append({"name": name, "p_value": _combine(p_shift, p_omni), "p_shift": p_shift, "p_omnibus": p_omni,
                         "shift_median": None if e is None else float(np.median(st["t"])), "method": method,
-                        "distance_median": float(np.median(st["D"]))})
+                        "distance_median": float(np.median(st["D"])), **refit})
     return out
+
+
+_NO_REFIT = {"refit_converged": None, "refit_steps": None, "refit_rhat_max": None}
+
+
+def refit_warnings(p_rows: list[dict], settings: Stage2Settings = REFIT_SETTINGS) -> list[str]:
+    """One warning naming the setups whose leave-one-out refit stopped at ``settings.max_steps`` unconverged.
+
+    Their p-values come from a chain shorter than the screening rule asks for: usable to rank, but a flag (or its
+    absence) near the threshold is less certain than the p-value says.
+    """
+    bad = [r for r in p_rows if r.get("refit_converged") is False]
+    if not bad:
+        return []
+    worst = max(r["refit_rhat_max"] for r in bad)
+    return [f"leave-one-out refits of {len(bad)} setup(s) ({', '.join(r['name'] for r in bad)}) stopped at "
+            f"max_steps = {settings.max_steps} unconverged (R-hat up to {worst:.3f}, required < "
+            f"{settings.rhat_max:g}): their outlier p-values are approximate"]
 
 
 def stage1_residual_correlation(summary_path) -> tuple[float, tuple[int, ...]] | str:

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SetupError
-from .outliers import adequacy_rows, flag_outliers, loo_p_values
+from .outliers import adequacy_rows, flag_outliers, loo_p_values, refit_warnings
 from .population import Hyperprior
 from .predictive import Population
 from .stage1 import Stage1
@@ -56,7 +56,7 @@ def outlier_check(stage2: Stage2Result, stage1: Stage1, stage1_dir, rng: np.rand
             for r in adq.values():
                 r["adequacy_skipped"] = "no stage-1 folder: no hammer tests to check (e.g. synthetic stage-1 draws)"
     rows, w = flag_outliers(p_rows, n, adequacy=adq)
-    return rows, warns + w
+    return rows, warns + w + refit_warnings(p_rows)
 
 
 def fit_library(stage1: Stage1, rng: np.random.Generator, settings: Stage2Settings = Stage2Settings(),
@@ -101,7 +101,8 @@ def fit_library(stage1: Stage1, rng: np.random.Generator, settings: Stage2Settin
                       # (negative: softer), the omnibus distance, both combined, and the model adequacy of the
                       # setup's own hammer tests (residual correlation at its stage-1 optimum)
                       **{k: f.get(k) for k in ("p_shift", "p_omnibus", "shift_median", "p_contact", "p_adequacy",
-                                               "residual_correlation_lines", "adequacy_skipped")}})
+                                               "residual_correlation_lines", "adequacy_skipped",
+                                               "refit_converged", "refit_steps", "refit_rhat_max")}})
     diameters = {t: (min(s.diameter for s in stage1.setups if s.holder_type == t),
                      max(s.diameter for s in stage1.setups if s.holder_type == t)) for t in types}
     pop = Population(stage1.names, {t: res.types[t].flat for t in types}, stage1.box, stage1.growth, diameters)
