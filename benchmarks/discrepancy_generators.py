@@ -22,7 +22,8 @@ between ``<!-- generators-table:begin -->`` and ``<!-- generators-table:end -->`
   measurement, never the highest peak against the highest peak), the 90 % predictive interval against the
   measured mode; fitted and held-out lengths apart; and the mean and sd of the noise-free mode's distance from
   each held-out interval's median in the interval's own sd (offset or width).  ``--fit-lengths 25,30,40``
-  fits three lengths instead of two.  Campaigns flagged not usable are counted, not pooled;
+  fits three lengths instead of two (``--campaign-lengths`` sets the campaigns' lengths, e.g. five with four
+  fitted).  Campaigns flagged not usable are counted, not pooled;
 * **two effects**: ``tip_mass`` + ``spindle_error``: both named, or the stronger one named and the rest
   covered;
 * **timing**: median wall time of the whole loop.
@@ -200,7 +201,7 @@ def naming(gen: Generator, n: int, n_clean: int, root: Path, times: list, only=N
 
 
 def out_of_library(gen: Generator, n: int, root: Path, times: list, cases=OUT_OF_LIBRARY, base: int = 1200,
-                   lengths=FIT) -> list[str]:
+                   lengths=FIT, overrides: dict | None = None) -> list[str]:
     rows = ["| effect | named with confidence | named, confounded | partial or remainder reported | not usable "
             "| fitted: model vs truth | fitted: predictive vs measured | held out: model vs truth "
             "| held out: predictive vs measured | held out: model before the mode bias vs truth "
@@ -216,7 +217,7 @@ def out_of_library(gen: Generator, n: int, root: Path, times: list, cases=OUT_OF
             order = OUT_OF_LIBRARY if effect in OUT_OF_LIBRARY else NAMED_COVERAGE
             seed = SEED_OFFSET + base + 20 * order.index(effect) + s
             effects = {e: True for e in effect.split("+")}
-            setup, cfg = gen.campaign(effects, seed, root)
+            setup, cfg = gen.campaign(effects, seed, root, overrides)
             res, t = run(setup, seed, lengths=lengths)
             times.append(t)
             r = res.report
@@ -286,6 +287,10 @@ def main() -> None:
     ap.add_argument("--fit-lengths", default=None,
                     help="comma-separated fitted clamping lengths in mm of the out-of-library rows (default 25,40; "
                          "the others are held out), e.g. 25,30,40 for what a third tap buys")
+    ap.add_argument("--campaign-lengths", default=None,
+                    help="comma-separated clamping lengths in mm of the out-of-library rows' campaigns (default the "
+                         "bench's 25,30,35,40), e.g. 25,30,32.5,35,40 with --fit-lengths 25,30,35,40 for what a "
+                         "fourth tap buys")
     ap.add_argument("--write-docs", action="store_true")
     a = ap.parse_args()
     fit_lengths = tuple(float(v) * 1e-3 for v in a.fit_lengths.split(",")) if a.fit_lengths else FIT
@@ -305,7 +310,9 @@ def main() -> None:
             out += ["Out-of-library effects (coverage pooled over the in-band modes of the usable campaigns; "
                     f"fitted {', '.join(f'{1e3 * v:g}' for v in fit_lengths)} mm):", ""]
             cases = tuple(c for c in OUT_OF_LIBRARY if c in a.cases.split(",")) if a.cases else OUT_OF_LIBRARY
-            out += out_of_library(gen, a.coverage, root, times, cases, lengths=fit_lengths) + [""]
+            campaign = ({"rotor": {"clamping_lengths": tuple(float(v) * 1e-3 for v in a.campaign_lengths.split(","))}}
+                        if a.campaign_lengths else None)
+            out += out_of_library(gen, a.coverage, root, times, cases, lengths=fit_lengths, overrides=campaign) + [""]
         if "named" in parts and a.generator == "rotor":
             n_named = a.named_coverage if a.named_coverage is not None else max(3, a.coverage // 3)
             out += ["A hysteretic joint, in the library since `joint_loss_factor` (the named model's intervals):", ""]
