@@ -281,9 +281,9 @@ def test_a_contact_three_times_softer_is_flagged_with_four_combinations_per_type
     assert all(isinstance(r["refit_converged"], bool) and 0 < r["refit_steps"] <= 400 for r in rows)
     assert all(r["refit_converged"] is None and r["refit_rhat_max"] is None for r in imp)
     unconverged = [r["name"] for r in rows if not r["refit_converged"]]
-    warn = refit_warnings(p_rows, _CHEAP)
-    assert unconverged and len(warn) == 1 and "max_steps = 400 unconverged" in warn[0]
-    assert all(name in warn[0] for name in unconverged) and refit_warnings(imp, _CHEAP) == []
+    warn = refit_warnings(p_rows)
+    assert unconverged and len(warn) == 1 and "step cap (400 steps) unconverged" in warn[0]
+    assert all(name in warn[0] for name in unconverged) and refit_warnings(imp) == []
     assert {r["name"] for r in imp if r["outlier"]} == {"ER32_1"}, imp
     # the clean ones are not near the threshold either (Bonferroni 0.05 / 12 = 0.0042)
     assert min(r["p_value"] for r in rows if r["name"] != "ER32_1") > 0.01, rows

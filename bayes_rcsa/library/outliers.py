@@ -227,19 +227,20 @@ def loo_p_values(fit: HyperFit, hyper, rng: np.random.Generator, exact_max: int 
 _NO_REFIT = {"refit_converged": None, "refit_steps": None, "refit_rhat_max": None}
 
 
-def refit_warnings(p_rows: list[dict], settings: Stage2Settings = REFIT_SETTINGS) -> list[str]:
-    """One warning naming the setups whose leave-one-out refit stopped at ``settings.max_steps`` unconverged.
+def refit_warnings(p_rows: list[dict]) -> list[str]:
+    """One warning naming the setups whose leave-one-out refit stopped at its step cap unconverged.
 
-    Their p-values come from a chain shorter than the screening rule asks for: usable to rank, but a flag (or its
-    absence) near the threshold is less certain than the p-value says.
+    Their p-values come from a chain shorter than the screening rule (:data:`REFIT_SETTINGS`, or the settings
+    given to :func:`loo_p_values`) asks for: usable to rank, but a flag (or its absence) near the threshold is
+    less certain than the p-value says.
     """
     bad = [r for r in p_rows if r.get("refit_converged") is False]
     if not bad:
         return []
     worst = max(r["refit_rhat_max"] for r in bad)
-    return [f"leave-one-out refits of {len(bad)} setup(s) ({', '.join(r['name'] for r in bad)}) stopped at "
-            f"max_steps = {settings.max_steps} unconverged (R-hat up to {worst:.3f}, required < "
-            f"{settings.rhat_max:g}): their outlier p-values are approximate"]
+    return [f"leave-one-out refits of {len(bad)} setup(s) ({', '.join(r['name'] for r in bad)}) stopped at their "
+            f"step cap ({max(r['refit_steps'] for r in bad)} steps) unconverged (R-hat up to {worst:.3f}): their "
+            "outlier p-values are approximate"]
 
 
 def stage1_residual_correlation(summary_path) -> tuple[float, tuple[int, ...]] | str:
