@@ -166,6 +166,25 @@ def test_summary_marks_held_out_intervals_of_a_two_length_remainder_as_resting_o
     assert not any("assumed" in line for line in fitted)
 
 
+def test_summary_says_what_the_number_of_fitted_lengths_leaves_of_the_bend(modulus):
+    # the remainder's bias between lengths: assumed straight with two fitted lengths, judged from one difference
+    # per mode with three (intervals on the wide side; docs/discrepancy.md, "What a fourth tap buys")
+    import copy
+
+    res, _ = modulus
+    r = res.report
+    two = summary_markdown(r)
+    assert "straight line that the data cannot test" in two and "fourth measured length" not in two
+    three = copy.deepcopy(r)
+    extra = next(m for m in three["measurements_after"] if not m["fitted"])
+    for m in three["measurements_after"]:
+        if m["clamping_length"] == extra["clamping_length"]:
+            m["fitted"] = True
+    text = summary_markdown(three)
+    assert "one difference per mode" in text and "A fourth measured length narrows them" in text
+    assert "straight line that the data cannot test" not in text
+
+
 def test_adequate_at_the_fitted_lengths_but_not_carrying_says_so(clean):
     res, _ = clean
     r = res.report

@@ -924,12 +924,23 @@ def summary_markdown(report: dict) -> str:
                 lines.append(f"- `{part['effect']}` improves the fit decisively but removes only "
                              f"{100 * (1 - ratio):.0f} % of the systematic mismatch: at most part of the explanation")
         if report.get("mode_bias", {}).get("applied"):
+            n_fit = len({round(m["clamping_length"], 9) for m in report.get("measurements_after", []) if m["fitted"]})
+            if n_fit < MIN_LENGTHS_FOR_BEND:
+                how = ("With two measured lengths the interpolation is a straight line that the data cannot "
+                       "test, and the intervals there can be off by about one of their own standard deviations. "
+                       "Measure the clamping length you need (or a third one) to test and narrow them.")
+            elif n_fit == MIN_LENGTHS_FOR_BEND:
+                # docs/discrepancy.md, "What a fourth tap buys": one contrast per mode leaves the bend's size open
+                how = ("With three measured lengths the bend of that bias between them is judged from one "
+                       "difference per mode, which cannot tell a small smooth bend from a rougher one, so the "
+                       "intervals between them err on the wide side (on the project's independent bench up to 1.7 "
+                       "times the errors). A fourth measured length narrows them.")
+            else:
+                how = (f"With {n_fit} measured lengths the bend of that bias between them is judged from "
+                       f"{n_fit - 2} differences per mode.")
             lines += ["", "The mode frequencies carry the bias between model and measurement learned at the "
                       "measured clamping lengths; between them that bias is interpolated with its uncertainty, "
-                      "so predictions at other clamping lengths are wider than the model alone would say. "
-                      "With two measured lengths the interpolation is a straight line that the data cannot "
-                      "test, and the intervals there can be off by about one of their own standard deviations. "
-                      "Measure the clamping length you need (or a third one) to test and narrow them."]
+                      "so predictions at other clamping lengths are wider than the model alone would say. " + how]
     if report.get("gap_grew"):
         lines += ["", f"**The systematic mismatch grew** in the final model ({100 * report['gap_before']:.2g} % -> "
                   f"{100 * report['gap_after']:.2g} %): the added term makes the fit worse, not more honest."]
