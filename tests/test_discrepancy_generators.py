@@ -183,6 +183,12 @@ def test_summary_says_what_the_number_of_fitted_lengths_leaves_of_the_bend(modul
     text = summary_markdown(three)
     assert "one difference per mode" in text and "A fourth measured length narrows them" in text
     assert "straight line that the data cannot test" not in text
+    one = copy.deepcopy(r)
+    first = next(m for m in one["measurements_after"] if m["fitted"])
+    for m in one["measurements_after"]:
+        m["fitted"] = m["clamping_length"] == first["clamping_length"]
+    text = summary_markdown(one)
+    assert "With one measured length" in text and "two measured lengths" not in text
 
 
 def test_adequate_at_the_fitted_lengths_but_not_carrying_says_so(clean):

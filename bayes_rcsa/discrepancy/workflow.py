@@ -925,7 +925,11 @@ def summary_markdown(report: dict) -> str:
                              f"{100 * (1 - ratio):.0f} % of the systematic mismatch: at most part of the explanation")
         if report.get("mode_bias", {}).get("applied"):
             n_fit = len({round(m["clamping_length"], 9) for m in report.get("measurements_after", []) if m["fitted"]})
-            if n_fit < MIN_LENGTHS_FOR_BEND:
+            if n_fit < 2:
+                how = ("With one measured length the bias's change with clamping length is not seen at all, and "
+                       "predictions at other lengths rest on its spread alone. Measure the clamping length you need "
+                       "(or two more) to test and narrow them.")
+            elif n_fit < MIN_LENGTHS_FOR_BEND:
                 how = ("With two measured lengths the interpolation is a straight line that the data cannot "
                        "test, and the intervals there can be off by about one of their own standard deviations. "
                        "Measure the clamping length you need (or a third one) to test and narrow them.")
