@@ -134,6 +134,13 @@ CASES = {
     # the viscous joint damping by it (its author's choice, unknown to the term)
     "bench joint loss factor 0.05": ("bench", {"joint_loss_factor": 0.05}, {}, False, "joint_loss_factor", None),
     "rotor hysteretic joint": ("rotor", {"hysteretic_joint": True}, {}, False, "joint_loss_factor", None),
+    # a spindle file measured in translation only: the bench's rotation comes from its in-band modes, the rotor
+    # bench's mostly from bearing tilt above the file band (static flexibility of the upper modes)
+    "bench spindle file without rotations": ("bench", {"spindle_rotation_omitted": 1.0}, {}, False,
+                                             "spindle_rotation_omitted", None),
+    "rotor spindle file without rotations": ("rotor", {"spindle_rotation_omitted": 1.0}, {}, False,
+                                             "spindle_rotation_omitted", [{}, {"rotation_slope_upper_per_m": 20.0,
+                                                                           "rotation_compliance_upper_urad_per_Nm": 1.0}]),
     "rotor ring on the collet nut": ("rotor", {"extra_mode": True}, {}, False, "extra_mode",
                                      [{"extra_mode_mass_kg": 0.1, "extra_mode_frequency_hz": 2400.0,
                                        "extra_mode_damping_ratio": 0.03, "extra_mode_position": 0.85}]),
@@ -166,7 +173,16 @@ def test_term_halves_the_systematic_gap_of_its_effect(case, tmp_path, clean_fits
     clean, clean_contact = clean_fits(generator)
     assert clean < 0.1 * before
     assert fitted["k_xf"] == pytest.approx(clean_contact["k_xf"], rel=0.1)
-    assert fitted["k_thetaM"] == pytest.approx(clean_contact["k_thetaM"], rel=0.25)
+    ratio = fitted["k_thetaM"] / clean_contact["k_thetaM"]
+    lo, hi = K_THETA_RATIO.get(case, (0.75, 1.25))
+    assert lo <= ratio <= hi, (ratio, fitted)
+
+
+#: Cases whose term shares the contact's physics in part, with the range of k_thetaM / clean fit they may end in.
+#: The flange's rotational compliance and the tool-holder contact's are both between the spindle's rotation and the
+#: tool's: two lengths separate them only partly.  Measured 2.0 (bench) and 1.36 (rotor) with the upper modes' part;
+#: with in-band slopes alone (the term before) 3.6 and 200 (the contact on its prior bound of 1e8 N m/rad).
+K_THETA_RATIO = {"bench spindle file without rotations": (0.4, 2.5), "rotor spindle file without rotations": (0.4, 2.5)}
 
 
 #: Four lengths: a law's shape between the outer lengths is invisible with two.
