@@ -329,3 +329,31 @@ def test_workflow_names_the_omitted_rotation_on_the_rotor_bench(tmp_path):
     cand = next(c for c in r["candidates"] if c["effect"] == "spindle_rotation_omitted")
     assert not cand["parameters_on_prior_edge"], cand["parameters_on_prior_edge"]
     assert cand["parameters"][UPPER_COMPLIANCE]["q05"] > 0  # the rotation the file lacks is mostly upper-mode
+
+
+@pytest.mark.parametrize("terms", [("tip_mass",), ("spindle_rotation_omitted", "tip_mass")])
+def test_sets_sharing_their_term_values_share_the_coupling_and_equal_one_by_one_evaluation(bench, terms):
+    """ForwardModel couples spindle and holder once per distinct structural-term value (a grid over the contact
+    shares one); the batch must equal evaluating every set alone, for the tip-only and the general path."""
+    cfg, model = bench
+    lengths = (0.025, 0.040)
+    stack = ConfigurationStack([model.precompute(Configuration(length, "x"), FREQ) for length in lengths])
+    made = [make_term(t) for t in terms]
+    pm = ParameterModel.from_priors(GrowthLaw(*lengths, 0.5), PRIORS, {"c_xf": cfg.c_xf, "c_thetaM": cfg.c_thetaM},
+                                    terms=made, model=model)
+    fwd = ForwardModel(pm, stack, model)
+    rng = np.random.default_rng(11)
+    n = 7
+    values = {"k_xf": rng.uniform(2e6, 8e6, n), "k_thetaM": rng.uniform(2e5, 2e6, n), "g_xf": rng.uniform(0, 0.5, n),
+              "g_thetaM": rng.uniform(0, 0.5, n), "c_xf": np.full(n, cfg.c_xf), "c_thetaM": np.full(n, cfg.c_thetaM)}
+    # three distinct term values over seven sets, one of them the baseline
+    pick = np.array([0, 1, 1, 2, 0, 2, 1])
+    for t in made:
+        for p in t.parameters(model):
+            lo, hi = p.prior.bounds
+            choices = np.array([p.baseline, lo + 0.3 * (hi - lo), lo + 0.8 * (hi - lo)])
+            values[p.name] = choices[pick]
+    assert fwd._unique_sets(values, n)[0].size == 3  # the sharing is used
+    batch = fwd.frf(values)
+    alone = np.concatenate([fwd.frf({k: v[i:i + 1] for k, v in values.items()}) for i in range(n)])
+    np.testing.assert_allclose(batch, alone, rtol=1e-12, atol=0)

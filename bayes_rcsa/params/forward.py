@@ -76,6 +76,10 @@ class ForwardModel:
         self._substructure_terms = parameters.terms_of_kind("substructure")
         self._frf_terms = parameters.terms_of_kind("frf")
         self._holder_tip = None  # (1, n_lines, 2, 2), built on first use
+        structural = {t.name for t in self._spindle_terms + self._substructure_terms}
+        # sampled parameters that no spindle or substructure term reads (contact, growth, noise, FRF terms): sets
+        # that differ only in them share their substructures (see _unique_sets)
+        self._not_structural = {n for n in parameters.names if parameters[n].term not in structural}
 
     @property
     def n_lines(self) -> int:
@@ -120,10 +124,33 @@ class ForwardModel:
             subs = t.substructures(values, subs, self.context)
         return subs
 
+    def _unique_sets(self, values, n_sets: int):
+        """Sets with distinct structural-term values: (first index of each, inverse map), or None if all differ.
+
+        A grid over the contact (the optimiser's start search, a leave-one-length-out refit) varies only the
+        contact, so the spindle and holder coupling of one set serves them all: it is computed once per distinct
+        term value instead of once per set (the 2x2 inversions per line are most of the cost).
+        """
+        if n_sets <= 1:
+            return None
+        cols = [np.broadcast_to(np.asarray(v, dtype=float), (n_sets,)) for k, v in values.items()
+                if k not in self._not_structural and np.ndim(v) <= 1 and np.size(v) in (1, n_sets)]
+        if not cols:
+            return None
+        _, first, inverse = np.unique(np.column_stack(cols), axis=0, return_index=True, return_inverse=True)
+        if first.size == n_sets:
+            return None
+        return first, inverse.ravel()
+
     def _general(self, values, kx, kt, cx, ct, loss=(0.0, 0.0)) -> np.ndarray:
         base_spindle, base_holder, base_tool = self.stack.substructures()
-        subs = self.substructures(values)
         shape = kx.shape
+        unique = self._unique_sets(values, shape[0])
+        if unique is not None:
+            first, inverse = unique
+            values = {k: (np.asarray(v)[first] if np.ndim(v) == 1 and np.size(v) == shape[0] else v)
+                      for k, v in values.items()}
+        subs = self.substructures(values)
         cx = np.broadcast_to(np.asarray(cx, dtype=float), shape)
         ct = np.broadcast_to(np.asarray(ct, dtype=float), shape)
         same = subs.spindle is base_spindle and subs.holder is base_holder and subs.tool is base_tool
@@ -131,7 +158,8 @@ class ForwardModel:
             return self.stack.frf(kx, kt, cx, ct, *loss)  # every term at its baseline
         if same:
             # only something attached at the tip: the cached blocks stay shared by all sets
-            return self.stack.frf_tip(subs.tip, kx, kt, cx, ct, *loss)
+            tip = subs.tip if unique is None else self._per_set(subs.tip, unique)
+            return self.stack.frf_tip(tip, kx, kt, cx, ct, *loss)
         tool = subs.tool
         if subs.tip is not None:
             tool = add_end_impedance(tool, subs.tip[..., 0], subs.tip[..., 1])
@@ -142,4 +170,13 @@ class ForwardModel:
             holder_tip = self._holder_tip
         else:
             holder_tip = attach(subs.spindle, subs.holder)
-        return self.stack.frf_with(tool_point_coefficients(holder_tip, tool), kx, kt, cx, ct, *loss)
+        coef = tool_point_coefficients(holder_tip, tool)
+        if unique is not None:
+            coef = {k: self._per_set(v, unique) for k, v in coef.items()}
+        return self.stack.frf_with(coef, kx, kt, cx, ct, *loss)
+
+    @staticmethod
+    def _per_set(a: np.ndarray, unique) -> np.ndarray:
+        """Rows of the distinct sets back to one row per set; a batch axis of 1 is shared by all sets as it is."""
+        first, inverse = unique
+        return a[inverse] if first.size > 1 and np.shape(a)[0] == first.size else a
