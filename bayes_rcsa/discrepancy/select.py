@@ -29,6 +29,22 @@ Decision
   candidate by more than ``LN_BF_NAME``, the data hold an effect outside the
   library: nothing is named, and the supported candidates are reported as
   partial (``outranked_by_implausible``).
+* A candidate whose fit keeps a contact stiffness (``k_xf``, ``k_thetaM``) on
+  the *upper* bound of its prior where the baseline's fit had it too
+  (:func:`stiffness_held_on_upper_bound`) **and** still leaves a systematic
+  misfit above the noise floor is not named either, but reported as partial
+  (``contact_held_on_upper_bound``).  A joint as stiff as allowed together
+  with a misfit left over says that the measured structure is stiffer than
+  the declared one (a tool modulus above its data sheet, a larger diameter),
+  which no term makes; the term fits what is left around the bound.  On the
+  rotor bench a tool 10 % stiffer than declared was named
+  ``spindle_rotation_omitted`` (criterion 10.9, systematic gap 0.107 ->
+  0.044) with ``k_thetaM`` at 1e8 N m/rad in baseline and candidate alike.
+  A joint on its upper bound under a fit that leaves nothing systematic is a
+  rotationally rigid joint the data accept: the project's bench's spindle
+  file without rotations is fitted to the noise floor with ``k_thetaM`` on
+  1e8 (seed 16504) and is named.  A term that explains a stiffer structure
+  releases the joint and is unaffected.
 * The winner is the supported candidate with the largest criterion; the
   runner-up and the margin (difference of criteria) are reported.
 * Candidates whose criterion is within ``LN_BF_CONFOUNDED`` (= ln 10) of
@@ -49,7 +65,8 @@ from .screen import ScoreResult, embed_baseline
 
 __all__ = ["systematic_gap_change", "LN_BF_NAME", "LN_BF_CONFOUNDED", "MIN_GAP_REDUCTION", "Refit", "refit_candidate", "decide", "edge_parameters", "implausible_reasons",
            "separating_test", "gap", "systematic_gap", "fitted_systematic_gap", "GAP_LAGS", "MIN_SYSTEMATIC_REDUCTION",
-           "bound_warnings", "pair_outranked"]
+           "bound_warnings", "pair_outranked", "STIFFNESS_NAMES",
+           "stiffness_on_upper_bound", "stiffness_held_on_upper_bound"]
 
 LN_BF_NAME = math.log(100.0)
 LN_BF_CONFOUNDED = math.log(10.0)
@@ -245,6 +262,40 @@ def edge_parameters(fit: ModelFit, effect: str, rel: float = 0.01) -> list[str]:
     return out
 
 
+#: The joint's stiffnesses (N/m, N m/rad) whose upper prior bound means "as stiff as the prior allows".
+STIFFNESS_NAMES = ("k_xf", "k_thetaM")
+
+
+def stiffness_on_upper_bound(fit: ModelFit, rel: float = 0.01) -> list[str]:
+    """Contact stiffnesses (:data:`STIFFNESS_NAMES`) whose MAP lies on the upper bound of their prior.
+
+    Within ``rel`` of the prior's range in its sampling coordinate, as :func:`bound_warnings`; a parameter
+    fixed in the setup (not sampled) is never on a bound.
+    """
+    pm = fit.problem.parameters
+    bounds = fit.problem.priors.optimisation_bounds()
+    out = []
+    for j, name in enumerate(pm.names):
+        if name not in STIFFNESS_NAMES or not np.isfinite(fit.problem.priors[name].bounds[1]):
+            continue
+        lo, hi = bounds[j]
+        if abs(fit.theta[j] - hi) <= rel * (hi - lo):
+            out.append(name)
+    return out
+
+
+def stiffness_held_on_upper_bound(fit: ModelFit, baseline_upper) -> list[str]:
+    """The contact stiffnesses of ``fit`` on their upper bound that the baseline also had there.
+
+    Parameters
+    ----------
+    fit : a candidate's fit (baseline + term)
+    baseline_upper : iterable of str, :func:`stiffness_on_upper_bound` of the baseline's fit
+    """
+    held = set(baseline_upper)
+    return [n for n in stiffness_on_upper_bound(fit) if n in held] if held else []
+
+
 def implausible_reasons(fit: ModelFit, effect: str) -> list[str]:
     """The term's own physical-plausibility check (:meth:`ModelTerm.implausible`) at the fit's MAP."""
     from ..params.terms import get_term
@@ -318,7 +369,8 @@ def pair_outranked(ranked: list[Refit], implausible: dict, pair_criterion: float
     return None
 
 
-def decide(refits: list[Refit], gap_before: float, systematic_before: dict | None = None) -> dict:
+def decide(refits: list[Refit], gap_before: float, systematic_before: dict | None = None,
+           baseline_upper=()) -> dict:
     """Winner, runner-up, margin, confounded and partial candidates (see the module docstring).
 
     Parameters
@@ -328,10 +380,16 @@ def decide(refits: list[Refit], gap_before: float, systematic_before: dict | Non
     systematic_before : the baseline's :func:`systematic_gap` on the fitted lines, or None to skip the
         :data:`MIN_SYSTEMATIC_REDUCTION` rule (also skipped when that gap is at the noise floor: there is
         nothing systematic to halve, and the criterion alone decides)
+    baseline_upper : iterable of str
+        :func:`stiffness_on_upper_bound` of the model the candidates were refitted against (empty: the rule
+        of a joint held on its upper bound is not applied)
     """
     ranked = sorted(refits, key=lambda r: -r.criterion)
     edges = {r.effect: edge_parameters(r.fit, r.effect) for r in ranked}
     implausible = {r.effect: implausible_reasons(r.fit, r.effect) for r in ranked}
+    # a joint on its upper bound under a fit that leaves nothing systematic is a rigid joint, not a missing stiffness
+    held = {r.effect: [] if (r.systematic or {}).get("at_noise_floor") else
+            stiffness_held_on_upper_bound(r.fit, baseline_upper) for r in ranked}
     check = systematic_before is not None and not systematic_before["at_noise_floor"] and systematic_before["gap"] > 0
 
     def ratio(r: Refit) -> float | None:
@@ -339,8 +397,10 @@ def decide(refits: list[Refit], gap_before: float, systematic_before: dict | Non
 
     decisive = [r for r in ranked if r.criterion > LN_BF_NAME and r.gap <= (1 - MIN_GAP_REDUCTION) * gap_before
                 and not edges[r.effect] and not implausible[r.effect]]
-    supported = [r for r in decisive if ratio(r) is None or ratio(r) <= 1 - MIN_SYSTEMATIC_REDUCTION]
+    supported = [r for r in decisive if (ratio(r) is None or ratio(r) <= 1 - MIN_SYSTEMATIC_REDUCTION)
+                 and not held[r.effect]]
     partial = [{"effect": r.effect, "criterion": r.criterion, "systematic_gap_ratio": ratio(r)}
+               | ({"contact_held_on_upper_bound": held[r.effect]} if held[r.effect] else {})
                for r in decisive if r not in supported]
     # a physically impossible fit that explains the data decisively better than every possible one says that
     # the data hold an effect outside the library; the possible candidates are then partial explanations only
@@ -353,7 +413,7 @@ def decide(refits: list[Refit], gap_before: float, systematic_before: dict | Non
         best = ranked[0] if ranked else None
         return {"named": None, "runner_up": best.effect if best else None,
                 "margin": None, "confounded_with": [], "ranked": ranked, "edge_parameters": edges,
-                "implausible": implausible, "partial": partial}
+                "implausible": implausible, "partial": partial, "contact_held_on_upper_bound": held}
     win = supported[0]
     others = [r for r in ranked if r is not win]
     runner = others[0] if others else None
@@ -361,7 +421,7 @@ def decide(refits: list[Refit], gap_before: float, systematic_before: dict | Non
     return {"named": win.effect, "runner_up": runner.effect if runner else None,
             "margin": (win.criterion - runner.criterion) if runner else None,
             "confounded_with": confounded, "ranked": ranked, "edge_parameters": edges, "implausible": implausible,
-            "partial": partial}
+            "partial": partial, "contact_held_on_upper_bound": held}
 
 
 #: What separates two kinds of explanation (by the kinds of the two terms).

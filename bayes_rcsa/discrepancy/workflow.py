@@ -48,7 +48,8 @@ from .mode_shift import SHIFT_RULE, shifted_template_frequency
 from .noise import relative_noise_scale
 from .screen import embed_baseline, score_test
 from .select import (GAP_LAGS, LN_BF_NAME, MIN_SYSTEMATIC_REDUCTION, bound_warnings, decide, fitted_systematic_gap, gap,
-                     pair_outranked, refit_candidate, separating_test, systematic_gap, systematic_gap_change)
+                     pair_outranked, refit_candidate, separating_test, stiffness_held_on_upper_bound,
+                     stiffness_on_upper_bound, systematic_gap, systematic_gap_change)
 
 __all__ = ["DiscrepancyOptions", "DiscrepancyResult", "run_discrepancy", "write_discrepancy", "validate",
            "default_candidates", "remainder_terms", "REMAINDER_TERMS", "GAP_METRIC", "MIN_LINES_PER_PARAMETER"]
@@ -567,7 +568,8 @@ def _second_effect(setup, base_opts, first, cands, decision, options, say, requi
     problems = {c: _problem(setup, base_opts, [first.effect, c]) for c in rest}
     scores = sorted((score_test(fit, problems[c], c) for c in rest), key=lambda s: -s.statistic)
     refits = [refit_candidate(fit, problems[s.effect], s) for s in scores[: options.n_refit]]
-    dec = decide(refits, gap(fit.problem.likelihood.data, fit.model_frf()), fitted_systematic_gap(fit))
+    dec = decide(refits, gap(fit.problem.likelihood.data, fit.model_frf()), fitted_systematic_gap(fit),
+                 stiffness_on_upper_bound(fit))
     say(f"second round (with {first.effect}): " + ", ".join(f"{r.effect} {r.criterion:+.1f}" for r in dec["ranked"])
         + f" -> named: {dec['named']}")
     return {"ran": True, "reason": f"the named model leaves residuals correlated over {fit.correlation_length:.1f} "
@@ -617,7 +619,8 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
 
     t0 = time.perf_counter()
     gap_fit = gap(problem.likelihood.data, baseline.model_frf())
-    decision = decide(refits, gap_fit, fitted_systematic_gap(baseline))
+    base_upper = stiffness_on_upper_bound(baseline)
+    decision = decide(refits, gap_fit, fitted_systematic_gap(baseline), base_upper)
     if decision["named"] is not None and detection.adequate:
         # a decisive improvement by a physical term is itself evidence against the baseline
         win = next(r for r in refits if r.effect == decision["named"])
@@ -645,10 +648,12 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
             decision["named"] = named = None
             decision["confounded_with"] = []
     second: dict = {}
-    if named is None and decision.get("partial") and not decision["partial"][0].get("held_out_gap_grew"):
+    # a partial candidate that leaves the joint on its upper bound is no first half of a pair (select.py)
+    pair_first = [p for p in decision.get("partial", []) if not p.get("contact_held_on_upper_bound")]
+    if named is None and pair_first and not decision["partial"][0].get("held_out_gap_grew"):
         # each known effect alone explains only part: do two together explain it?  (e.g. a tip mass and a
         # spindle-file error; either alone removes less than half of the systematic gap)
-        part = decision["partial"][0]["effect"]
+        part = pair_first[0]["effect"]
         first = next(r for r in refits if r.effect == part)
         second = _second_effect(setup, base_opts, first, cands, decision, options, say, require_misfit=False)
         joint = next((r for r in second["refits"] if r.effect == second["named"]), None)
@@ -667,6 +672,15 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
                                 f"than the physically impossible {over}: an effect outside the library, not named")
             second["outranked_by_implausible"] = over
             joint = None
+        held = (stiffness_held_on_upper_bound(joint.fit, base_upper)
+                if joint is not None and not joint.systematic.get("at_noise_floor") else [])
+        if held:
+            say(f"{part} with {second['named']} keeps {', '.join(held)} on the upper bound of its prior: not named")
+            second["reason"] = (f"{part} with {second['named']} keeps {', '.join(held)} on the upper bound of its "
+                                "prior, as the baseline did, and leaves a systematic misfit: the measured structure is "
+                                "stiffer than the declared one allows, which neither term explains")
+            second["contact_held_on_upper_bound"] = held
+            joint = None
         if joint is not None and joint.fit.log_evidence - baseline.log_evidence > LN_BF_NAME and (
                 base_sys["at_noise_floor"] or joint.systematic["gap"] <= (1 - MIN_SYSTEMATIC_REDUCTION) * base_sys["gap"]):
             named = part
@@ -681,7 +695,7 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
             detection.adequate = False
         else:
             second = {**second, "named": None}
-            if second.get("ran") and "outranked_by_implausible" not in second:
+            if second.get("ran") and "outranked_by_implausible" not in second and "contact_held_on_upper_bound" not in second:
                 second["reason"] = f"{part} with a second known effect does not halve the systematic gap either"
     if named is not None:
         first = next(r for r in refits if r.effect == named)
@@ -722,6 +736,8 @@ def _second_round_report(second: dict) -> dict:
     out = {"ran": second["ran"], "reason": second["reason"], "named": second.get("named")}
     if "outranked_by_implausible" in second:
         out["outranked_by_implausible"] = second["outranked_by_implausible"]
+    if "contact_held_on_upper_bound" in second:
+        out["contact_held_on_upper_bound"] = second["contact_held_on_upper_bound"]
     if second["ran"]:
         dec = second["decision"]
         out.update({"candidates": [{"effect": r.effect, "score": r.score.statistic, "criterion": r.criterion,
@@ -920,6 +936,12 @@ def summary_markdown(report: dict) -> str:
             if part.get("held_out_gap_grew"):
                 lines.append(f"- `{part['effect']}` fits the fitted lengths decisively better but makes the "
                              "clamping lengths it was not fitted to worse: it does not carry, so it is not named")
+            elif part.get("contact_held_on_upper_bound"):
+                lines.append(f"- `{part['effect']}` improves the fit decisively but keeps "
+                             f"{', '.join(part['contact_held_on_upper_bound'])} on the stiffest value its prior "
+                             "allows, as the original model did, and leaves a systematic mismatch: the measured "
+                             "structure is stiffer than the declared one (tool modulus, diameter?), which this term "
+                             "does not explain")
             elif ratio is not None:
                 lines.append(f"- `{part['effect']}` improves the fit decisively but removes only "
                              f"{100 * (1 - ratio):.0f} % of the systematic mismatch: at most part of the explanation")
