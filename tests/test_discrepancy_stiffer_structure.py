@@ -76,8 +76,12 @@ def test_stiffness_on_upper_bound_reads_the_map_against_each_prior():
     for name in select.STIFFNESS_NAMES:
         both[pm.names.index(name)] = bounds[pm.names.index(name)][1]
     fit = SimpleNamespace(problem=problem, theta=both)
-    assert select.stiffness_held_on_upper_bound(fit, ["k_thetaM"]) == ["k_thetaM"]
-    assert select.stiffness_held_on_upper_bound(fit, []) == []
+    misfit = SimpleNamespace(fit=fit, systematic={"gap": 0.01, "at_noise_floor": False})
+    assert select.stiffness_held_on_upper_bound(misfit, ["k_thetaM"]) == ["k_thetaM"]
+    assert select.stiffness_held_on_upper_bound(misfit, []) == []
+    # nothing systematic left: the bound is a rigid joint the data accept
+    complete = SimpleNamespace(fit=fit, systematic={"gap": 0.0, "at_noise_floor": True})
+    assert select.stiffness_held_on_upper_bound(complete, ["k_thetaM"]) == []
 
 
 @pytest.mark.slow

@@ -284,16 +284,21 @@ def stiffness_on_upper_bound(fit: ModelFit, rel: float = 0.01) -> list[str]:
     return out
 
 
-def stiffness_held_on_upper_bound(fit: ModelFit, baseline_upper) -> list[str]:
-    """The contact stiffnesses of ``fit`` on their upper bound that the baseline also had there.
+def stiffness_held_on_upper_bound(refit: Refit, baseline_upper) -> list[str]:
+    """The contact stiffnesses a refit keeps on their upper bound, where the baseline had them, with a misfit left.
+
+    Empty when the refit leaves no systematic misfit (``refit.systematic["at_noise_floor"]``): a joint on its
+    upper bound under a complete fit is a rigid joint the data accept, not a missing stiffness.
 
     Parameters
     ----------
-    fit : a candidate's fit (baseline + term)
-    baseline_upper : iterable of str, :func:`stiffness_on_upper_bound` of the baseline's fit
+    refit : a candidate's (or a pair's) :class:`Refit`
+    baseline_upper : iterable of str, :func:`stiffness_on_upper_bound` of the fit it was refitted against
     """
     held = set(baseline_upper)
-    return [n for n in stiffness_on_upper_bound(fit) if n in held] if held else []
+    if not held or (refit.systematic or {}).get("at_noise_floor"):
+        return []
+    return [n for n in stiffness_on_upper_bound(refit.fit) if n in held]
 
 
 def implausible_reasons(fit: ModelFit, effect: str) -> list[str]:
@@ -387,9 +392,7 @@ def decide(refits: list[Refit], gap_before: float, systematic_before: dict | Non
     ranked = sorted(refits, key=lambda r: -r.criterion)
     edges = {r.effect: edge_parameters(r.fit, r.effect) for r in ranked}
     implausible = {r.effect: implausible_reasons(r.fit, r.effect) for r in ranked}
-    # a joint on its upper bound under a fit that leaves nothing systematic is a rigid joint, not a missing stiffness
-    held = {r.effect: [] if (r.systematic or {}).get("at_noise_floor") else
-            stiffness_held_on_upper_bound(r.fit, baseline_upper) for r in ranked}
+    held = {r.effect: stiffness_held_on_upper_bound(r, baseline_upper) for r in ranked}
     check = systematic_before is not None and not systematic_before["at_noise_floor"] and systematic_before["gap"] > 0
 
     def ratio(r: Refit) -> float | None:

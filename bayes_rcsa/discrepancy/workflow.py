@@ -672,8 +672,7 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
                                 f"than the physically impossible {over}: an effect outside the library, not named")
             second["outranked_by_implausible"] = over
             joint = None
-        held = (stiffness_held_on_upper_bound(joint.fit, base_upper)
-                if joint is not None and not joint.systematic.get("at_noise_floor") else [])
+        held = stiffness_held_on_upper_bound(joint, base_upper) if joint is not None else []
         if held:
             say(f"{part} with {second['named']} keeps {', '.join(held)} on the upper bound of its prior: not named")
             second["reason"] = (f"{part} with {second['named']} keeps {', '.join(held)} on the upper bound of its "
