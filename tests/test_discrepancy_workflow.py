@@ -425,6 +425,17 @@ def test_decision_rules_confounding_partial_and_separating_tests(monkeypatch):
     d = select.decide([refit("nonlinear_stiffness_law", 14.0, sys_gap=0.035)], 0.03, base_sys)
     assert d["named"] is None and d["partial"][0]["effect"] == "nonlinear_stiffness_law"
     assert d["partial"][0]["systematic_gap_ratio"] == pytest.approx(0.7)
+    # ... unless the refit leaves nothing systematic that can be told from noise: its gap estimate is then
+    # below its own resolution, and the ratio to a baseline gap just above the floor is noise (rotor bench,
+    # flute declared 0.80, seed 17032: 0.006 -> 0.0036 at resolution 0.0052 was partial and left the remainder)
+    floor = select.Refit("fluted_section", SimpleNamespace(statistic=1.0), None, 28.0, 0.02,
+                         {"gap": 0.0036, "at_noise_floor": True})
+    near = {"gap": 0.006, "at_noise_floor": False}
+    d = select.decide([floor], 0.03, near)
+    assert d["named"] == "fluted_section" and d["partial"] == []
+    above = select.Refit("fluted_section", SimpleNamespace(statistic=1.0), None, 28.0, 0.02,
+                         {"gap": 0.0036, "at_noise_floor": False})
+    assert select.decide([above], 0.03, near)["named"] is None  # the same ratio, resolved: partial
     # the rule is skipped when the baseline's systematic gap is already at the noise floor
     d = select.decide([refit("spindle_error", 8.0, sys_gap=0.0)], 0.03, {"gap": 0.0, "at_noise_floor": True})
     assert d["named"] == "spindle_error"

@@ -39,7 +39,7 @@ from ..inference.posterior import LogPosterior
 from ..inference.problem import Problem
 
 __all__ = ["ModelFit", "fit_baseline", "fit_variant", "whitened_residuals", "profile_noise", "laplace_draws",
-           "cluster_robust_covariance", "sandwich_covariance", "loewner_max", "with_robust_covariance"]
+           "cluster_robust_covariance", "sandwich_covariance", "loewner_max", "with_robust_covariance", "JOINT_STIFFNESSES", "rigid_side_columns"]
 
 
 @dataclass
@@ -302,14 +302,50 @@ def fit_variant(label: str, problem: Problem, starts: np.ndarray, tempering: flo
     return _finish(label, problem, best, tempering, n_eval)
 
 
+#: Contact stiffnesses of the tool/holder joint; in series with the tool, so the FRF is smooth in their compliance.
+JOINT_STIFFNESSES = ("k_xf", "k_thetaM")
+
+
+def rigid_side_columns(fit: ModelFit, rel: float = 0.01) -> list[int]:
+    """Positions in ``fit.physical`` of joint stiffnesses (log-uniform) whose MAP lies on the prior's upper bound.
+
+    Within ``rel`` of the prior's range in its sampling coordinate ``log10 k``.
+    """
+    prob = fit.problem
+    lo, hi = _bounds(prob, fit.physical)
+    out = []
+    for k, j in enumerate(fit.physical):
+        name = prob.parameters.names[j]
+        if name in JOINT_STIFFNESSES and prob.priors[name].kind == "log-uniform" \
+                and abs(fit.theta[j] - hi[k]) <= rel * (hi[k] - lo[k]):
+            out.append(k)
+    return out
+
+
 def laplace_draws(fit: ModelFit, rng: np.random.Generator, n: int = 400) -> np.ndarray:
-    """Draws (n, ndim) of the Laplace approximation, inside the prior support (rejection), noise at the MAP."""
+    """Draws (n, ndim) of the Laplace approximation, inside the prior support (rejection), noise at the MAP.
+
+    A joint stiffness whose MAP lies on its upper (rigid) bound (:func:`rigid_side_columns`) is drawn from
+    the Laplace approximation in its *compliance* ``c = 1/k`` rather than in ``u = log10 k``.  The joint is
+    in series with the tool, so near the rigid limit the FRF changes linearly with ``c`` and the likelihood
+    is close to Gaussian in ``c``; in ``u`` it is flat at the bound (``dH/du -> 0`` as ``k -> inf``) and
+    steep further down, so a Gaussian in ``u`` with the bound's small curvature puts draws decades below the
+    bound where the fit is destroyed.  Both approximations share the MAP and, to first order, the
+    covariance: a draw ``u* + du`` becomes ``u* - log10(1 - ln(10) du)``, i.e. the same Gaussian step
+    taken in ``c`` (``dc / c* = -ln(10) du``).
+    """
     cols = fit.physical
     lo, hi = _bounds(fit.problem, cols)
     chol = np.linalg.cholesky(fit.cov + np.diag(1e-18 * (hi - lo) ** 2))
+    rigid = rigid_side_columns(fit)
+    centre = fit.theta[cols]
     out = np.empty((0, fit.theta.size))
     for _ in range(50):
-        z = rng.standard_normal((2 * n, len(cols))) @ chol.T + fit.theta[cols]
+        z = rng.standard_normal((2 * n, len(cols))) @ chol.T + centre
+        if rigid:
+            step = 1.0 - math.log(10.0) * (z[:, rigid] - centre[rigid])
+            # step <= 0 is a negative compliance: beyond the rigid bound, rejected with the rest outside it
+            z[:, rigid] = np.where(step > 0, centre[rigid] - np.log10(np.where(step > 0, step, 1.0)), np.inf)
         ok = np.all((z >= lo) & (z <= hi), axis=1)
         t = np.repeat(fit.theta[None], int(ok.sum()), axis=0)
         t[:, cols] = z[ok]

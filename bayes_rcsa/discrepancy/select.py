@@ -60,7 +60,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .fit import ModelFit, fit_variant
+from .fit import JOINT_STIFFNESSES, ModelFit, fit_variant
 from .screen import ScoreResult, embed_baseline
 
 __all__ = ["systematic_gap_change", "LN_BF_NAME", "LN_BF_CONFOUNDED", "MIN_GAP_REDUCTION", "Refit", "refit_candidate", "decide", "edge_parameters", "implausible_reasons",
@@ -79,7 +79,8 @@ MIN_GAP_REDUCTION = 0.0
 #: remove.  An effect that explains less than half of the systematic disagreement is at most part of it: it is
 #: reported as a partial explanation and the remainder is handled as unexplained.  (On the bench the correct
 #: terms remove 70-99 %; with an effect outside the library and three clamping lengths the saturating law
-#: removed 33 % on the fitted lines while the gap at the held-out length grew.)
+#: removed 33 % on the fitted lines while the gap at the held-out length grew.)  A refit that leaves nothing
+#: systematic above its own resolution passes: the ratio of a gap below the floor to one just above it is noise.
 MIN_SYSTEMATIC_REDUCTION = 0.5
 
 
@@ -263,7 +264,7 @@ def edge_parameters(fit: ModelFit, effect: str, rel: float = 0.01) -> list[str]:
 
 
 #: The joint's stiffnesses (N/m, N m/rad) whose upper prior bound means "as stiff as the prior allows".
-STIFFNESS_NAMES = ("k_xf", "k_thetaM")
+STIFFNESS_NAMES = JOINT_STIFFNESSES
 
 
 def stiffness_on_upper_bound(fit: ModelFit, rel: float = 0.01) -> list[str]:
@@ -400,8 +401,14 @@ def decide(refits: list[Refit], gap_before: float, systematic_before: dict | Non
 
     decisive = [r for r in ranked if r.criterion > LN_BF_NAME and r.gap <= (1 - MIN_GAP_REDUCTION) * gap_before
                 and not edges[r.effect] and not implausible[r.effect]]
-    supported = [r for r in decisive if (ratio(r) is None or ratio(r) <= 1 - MIN_SYSTEMATIC_REDUCTION)
-                 and not held[r.effect]]
+    def halved(r: Refit) -> bool:
+        # a refit that leaves nothing systematic that can be told from noise has removed all the data can show:
+        # its gap estimate is then below its own resolution, and its ratio to a baseline gap just above the floor
+        # is noise (rotor bench, flute declared 0.80: 0.006 -> 0.0036 at resolution 0.0052, ratio 0.60)
+        q = ratio(r)
+        return q is None or q <= 1 - MIN_SYSTEMATIC_REDUCTION or bool(r.systematic.get("at_noise_floor"))
+
+    supported = [r for r in decisive if halved(r) and not held[r.effect]]
     partial = [{"effect": r.effect, "criterion": r.criterion, "systematic_gap_ratio": ratio(r)}
                | ({"contact_held_on_upper_bound": held[r.effect]} if held[r.effect] else {})
                for r in decisive if r not in supported]
