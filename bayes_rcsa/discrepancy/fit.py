@@ -39,7 +39,8 @@ from ..inference.posterior import LogPosterior
 from ..inference.problem import Problem
 
 __all__ = ["ModelFit", "fit_baseline", "fit_variant", "whitened_residuals", "profile_noise", "laplace_draws",
-           "cluster_robust_covariance", "sandwich_covariance", "loewner_max", "with_robust_covariance", "JOINT_STIFFNESSES", "rigid_side_columns"]
+           "cluster_robust_covariance", "sandwich_covariance", "loewner_max", "with_robust_covariance",
+           "JOINT_STIFFNESSES", "joints_on_upper_bound", "rigid_side_columns"]
 
 
 @dataclass
@@ -306,20 +307,38 @@ def fit_variant(label: str, problem: Problem, starts: np.ndarray, tempering: flo
 JOINT_STIFFNESSES = ("k_xf", "k_thetaM")
 
 
-def rigid_side_columns(fit: ModelFit, rel: float = 0.01) -> list[int]:
-    """Positions in ``fit.physical`` of joint stiffnesses (log-uniform) whose MAP lies on the prior's upper bound.
+def joints_on_upper_bound(problem: Problem, theta: np.ndarray, rel: float = 0.01) -> list[str]:
+    """Sampled joint stiffnesses (:data:`JOINT_STIFFNESSES`) of ``theta`` on the upper bound of their prior.
 
-    Within ``rel`` of the prior's range in its sampling coordinate ``log10 k``.
+    Within ``rel`` of the prior's range in its sampling coordinate (as the pile-up warnings); a prior without a
+    finite upper bound has none.
+
+    Parameters
+    ----------
+    problem : Problem
+    theta : (ndim,) sampling coordinates
+    """
+    names = problem.parameters.names
+    bounds = problem.priors.optimisation_bounds()
+    out = []
+    for j, name in enumerate(names):
+        if name not in JOINT_STIFFNESSES or not np.isfinite(problem.priors[name].bounds[1]):
+            continue
+        lo, hi = bounds[j]
+        if abs(theta[j] - hi) <= rel * (hi - lo):
+            out.append(name)
+    return out
+
+
+def rigid_side_columns(fit: ModelFit, rel: float = 0.01) -> list[int]:
+    """Positions in ``fit.physical`` of the log-uniform joint stiffnesses on their upper (rigid) bound.
+
+    :func:`joints_on_upper_bound`, restricted to priors whose sampling coordinate is ``log10 k``.
     """
     prob = fit.problem
-    lo, hi = _bounds(prob, fit.physical)
-    out = []
-    for k, j in enumerate(fit.physical):
-        name = prob.parameters.names[j]
-        if name in JOINT_STIFFNESSES and prob.priors[name].kind == "log-uniform" \
-                and abs(fit.theta[j] - hi[k]) <= rel * (hi[k] - lo[k]):
-            out.append(k)
-    return out
+    on = set(joints_on_upper_bound(prob, fit.theta, rel))
+    return [k for k, j in enumerate(fit.physical)
+            if prob.parameters.names[j] in on and prob.priors[prob.parameters.names[j]].kind == "log-uniform"]
 
 
 def laplace_draws(fit: ModelFit, rng: np.random.Generator, n: int = 400) -> np.ndarray:

@@ -60,7 +60,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .fit import JOINT_STIFFNESSES, ModelFit, fit_variant
+from .fit import JOINT_STIFFNESSES, ModelFit, fit_variant, joints_on_upper_bound
 from .screen import ScoreResult, embed_baseline
 
 __all__ = ["systematic_gap_change", "LN_BF_NAME", "LN_BF_CONFOUNDED", "MIN_GAP_REDUCTION", "Refit", "refit_candidate", "decide", "edge_parameters", "implausible_reasons",
@@ -271,18 +271,9 @@ def stiffness_on_upper_bound(fit: ModelFit, rel: float = 0.01) -> list[str]:
     """Contact stiffnesses (:data:`STIFFNESS_NAMES`) whose MAP lies on the upper bound of their prior.
 
     Within ``rel`` of the prior's range in its sampling coordinate, as :func:`bound_warnings`; a parameter
-    fixed in the setup (not sampled) is never on a bound.
+    fixed in the setup (not sampled) is never on a bound (:func:`.fit.joints_on_upper_bound`).
     """
-    pm = fit.problem.parameters
-    bounds = fit.problem.priors.optimisation_bounds()
-    out = []
-    for j, name in enumerate(pm.names):
-        if name not in STIFFNESS_NAMES or not np.isfinite(fit.problem.priors[name].bounds[1]):
-            continue
-        lo, hi = bounds[j]
-        if abs(fit.theta[j] - hi) <= rel * (hi - lo):
-            out.append(name)
-    return out
+    return joints_on_upper_bound(fit.problem, fit.theta, rel)
 
 
 def stiffness_held_on_upper_bound(refit: Refit, baseline_upper) -> list[str]:
