@@ -392,6 +392,7 @@ def decide(refits: list[Refit], gap_before: float, systematic_before: dict | Non
 
     decisive = [r for r in ranked if r.criterion > LN_BF_NAME and r.gap <= (1 - MIN_GAP_REDUCTION) * gap_before
                 and not edges[r.effect] and not implausible[r.effect]]
+
     def halved(r: Refit) -> bool:
         # a refit that leaves nothing systematic that can be told from noise has removed all the data can show:
         # its gap estimate is then below its own resolution, and its ratio to a baseline gap just above the floor
