@@ -265,12 +265,12 @@ def test_remainder_bias_moves_fitted_intervals_onto_the_data_and_interpolates_be
             assert md["uncorrected_model_interval"] == {"q05": 0.0, "q50": 0.0, "q95": 0.0}
 
 
-def _two_length_case(seed: int, fitted: dict, held: dict, resonance: bool) -> tuple[list, dict]:
+def _two_length_case(seed: int, fitted: dict, held: dict, resonance: bool) -> tuple[list, dict, list]:
     """Two fitted lengths (25, 40 mm), two held out; the measured modes' truth is model + the given bias (Hz).
 
     The fitted lengths' peaks carry 1 Hz of noise in the predictive draws (as in :func:`_bias_case`); with
     ``resonance`` each fitted mode also carries the estimate from its whole resonance, 0.1 Hz sd.  Returns the
-    corrected measurements and the truth per clamping length.
+    corrected measurements, the truth per clamping length and the correction's notes.
     """
     from bayes_rcsa.discrepancy.mode_bias import correct_mode_frequencies
 
@@ -284,8 +284,8 @@ def _two_length_case(seed: int, fitted: dict, held: dict, resonance: bool) -> tu
             md["measured_fit_hz"], md["measured_fit_sd_hz"] = truth[l] + 0.1 * rng.standard_normal(), 0.1
         elif not m["fitted"]:
             md["measured_hz"] = truth[l]
-    correct_mode_frequencies(meas, draws, rng)
-    return meas, truth
+    notes = correct_mode_frequencies(meas, draws, rng)
+    return meas, truth, notes
 
 
 def test_with_two_fitted_lengths_the_bend_scales_with_the_change_seen_at_the_resonances():
@@ -298,8 +298,11 @@ def test_with_two_fitted_lengths_the_bend_scales_with_the_change_seen_at_the_res
         # peaks alone, sd sqrt((2/3)^2 + (1/3)^2) x 1 Hz = 0.75 Hz at 30 mm; the peak-noise scale (the rule
         # before, still used when a resonance estimate is missing) adds its kernel: about 0.9 Hz
         exact = {0.025: 0.0, 0.040: 0.0}
-        new, _ = _two_length_case(seed, exact, dict.fromkeys(held, 0.0), resonance=True)
-        old, _ = _two_length_case(seed, exact, dict.fromkeys(held, 0.0), resonance=False)
+        new, _, notes_new = _two_length_case(seed, exact, dict.fromkeys(held, 0.0), resonance=True)
+        old, _, notes_old = _two_length_case(seed, exact, dict.fromkeys(held, 0.0), resonance=False)
+        # the outputs say where the assumed amplitude came from
+        assert "change seen at the measured resonances" in notes_new[0]
+        assert "the peak noise's: no resonance estimate" in notes_old[0]
         for m_new, m_old in zip(new, old):
             if not m_new["fitted"]:
                 sd_new, sd_old = m_new["modes"][0]["bias_hz"]["sd"], m_old["modes"][0]["bias_hz"]["sd"]
@@ -307,7 +310,7 @@ def test_with_two_fitted_lengths_the_bend_scales_with_the_change_seen_at_the_res
                 assert sd_new < 0.85 < sd_old, (seed, sd_new, sd_old)
         # an offset the same at both ends (20 Hz: a wrong modulus, a softer holder) has shown no course to bend:
         # carried by the line, unwidened
-        offset, _ = _two_length_case(seed, {0.025: 20.0, 0.040: 20.0}, dict.fromkeys(held, 20.0), resonance=True)
+        offset, _, _ = _two_length_case(seed, {0.025: 20.0, 0.040: 20.0}, dict.fromkeys(held, 20.0), resonance=True)
         for m in offset:
             md = m["modes"][0]
             assert md["bias_hz"]["mean"] == pytest.approx(20.0, abs=1.5) and md["covered_model_90"]
@@ -317,7 +320,7 @@ def test_with_two_fitted_lengths_the_bend_scales_with_the_change_seen_at_the_res
         # widens the held-out intervals to cover it; the peak-noise scale (1 Hz) misses it at both held-out lengths
         bend_fit, bend_held = {0.025: 0.0, 0.040: 10.0}, {0.030: 8.0, 0.035: 9.5}
         for resonance, covered in ((True, True), (False, False)):
-            meas, truth = _two_length_case(seed, bend_fit, bend_held, resonance=resonance)
+            meas, truth, _ = _two_length_case(seed, bend_fit, bend_held, resonance=resonance)
             for m in meas:
                 q = m["modes"][0]["model_interval"]
                 hit = q["q05"] <= truth[m["clamping_length"]] <= q["q95"]

@@ -334,7 +334,12 @@ def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Gen
                        "covered_predictive_90": bool(qp["q05"] <= fm <= qp["q95"])})
         y = np.median(y, axis=0)
         amp_median = math.sqrt(float(amp2[min(np.searchsorted(np.cumsum(amp_w), 0.5), amp2.size - 1)]))
+        source = ""
+        if np.unique(xl).size == 2 and len(xl) == 2:  # the amplitude is assumed, not estimated: say from what
+            source = (", the bias's change seen at the measured resonances"
+                      if _change_seen2((np.array(res_b), np.array(res_v))) is not None
+                      else ", the peak noise's: no resonance estimate at a fitted length")
         notes.append(f"mode {r + 1} ({direction}): bias {', '.join(f'{v:+.1f}' for v in y)} Hz at the fitted "
                      f"lengths {', '.join(f'{1e3 * v:g}' for v in xl)} mm (GP amplitude {amp_median:.1f} Hz"
-                     f"{' posterior median' if amp2.size > 1 else ''}, length scale {1e3 * lam:.1f} mm)")
+                     f"{' posterior median' if amp2.size > 1 else source}, length scale {1e3 * lam:.1f} mm)")
     return notes
