@@ -40,7 +40,7 @@ from ..inference.problem import Problem
 
 __all__ = ["ModelFit", "fit_baseline", "fit_variant", "whitened_residuals", "profile_noise", "laplace_draws",
            "cluster_robust_covariance", "sandwich_covariance", "loewner_max", "with_robust_covariance",
-           "JOINT_STIFFNESSES", "joints_on_upper_bound", "rigid_side_columns"]
+           "JOINT_STIFFNESSES", "joints_on_upper_bound", "rigid_side_columns", "truncated_by_prior"]
 
 
 @dataclass
@@ -327,6 +327,31 @@ def joints_on_upper_bound(problem: Problem, theta: np.ndarray, rel: float = 0.01
         lo, hi = bounds[j]
         if abs(theta[j] - hi) <= rel * (hi - lo):
             out.append(name)
+    return out
+
+
+def truncated_by_prior(fit: ModelFit, rel: float = 0.01) -> list[str]:
+    """Physical parameters whose MAP lies on a finite prior bound, where :func:`laplace_draws` is one-sided.
+
+    Within ``rel`` of the range (sampling coordinate) of either finite bound, a term's "absent" baseline
+    included.  The draws there are the Laplace Gaussian cut by the prior (rejection): every draw sits on one
+    side of the MAP, so a quantity that moves monotonically with such a parameter (a mode frequency with a
+    contact at its softest) can have the MAP's value at, or outside, the end of its draws' 90 % interval.
+    A joint on its rigid bound is excluded: its compliance draws (:func:`rigid_side_columns`) are one-sided by
+    construction and stay within a fraction of the bound's curvature.
+    """
+    names = fit.problem.parameters.names
+    lo, hi = _bounds(fit.problem, fit.physical)
+    rigid = set(rigid_side_columns(fit, rel))
+    out = []
+    for c, j in enumerate(fit.physical):
+        if c in rigid:
+            continue
+        width = hi[c] - lo[c]
+        if not np.isfinite(width):
+            continue
+        if any(np.isfinite(b) and abs(fit.theta[j] - b) <= rel * width for b in (lo[c], hi[c])):
+            out.append(names[j])
     return out
 
 

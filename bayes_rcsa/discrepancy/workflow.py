@@ -40,7 +40,7 @@ from ..model.modes import MODE_RULE, find_modes, match_modes, mode_windows, trac
 from ..params.forward import ForwardModel
 from ..params.terms import get_term, known_terms
 from .detect import TAU_MAX, UNMATCHED_REL_HEIGHT, Detection, detect_from_fit, transfer_failures
-from .fit import ModelFit, fit_baseline, fit_variant, laplace_draws, with_robust_covariance
+from .fit import ModelFit, fit_baseline, fit_variant, laplace_draws, truncated_by_prior, with_robust_covariance
 from .features import modes_near_features, unexplained_features
 from .predictive_scan import predictive_misfit_scan, predictive_window_statistic, predictive_z2
 from .mode_bias import BIAS_RULE, correct_mode_frequencies
@@ -246,7 +246,7 @@ def _noise_sd(prob: Problem, vals, measured: list, parts_map: list) -> list:
 
 
 def mode_entries(f: np.ndarray, measured: np.ndarray, h_map: np.ndarray, h_draws: np.ndarray,
-                 h_pred: np.ndarray, sigma: float = math.nan) -> dict:
+                 h_pred: np.ndarray, sigma: float = math.nan, truncated: tuple[str, ...] = ()) -> dict:
     """Every in-band mode of one measurement, matched one to one with the model's, with its intervals.
 
     Parameters
@@ -258,6 +258,9 @@ def mode_entries(f: np.ndarray, measured: np.ndarray, h_map: np.ndarray, h_draws
     sigma : float, the measurement's relative noise scale; with it every matched mode also gets
         ``measured_fit_hz`` / ``measured_fit_sd_hz``, the measured mode's frequency from its whole
         resonance (:mod:`.mode_shift`; NaN where that is not possible)
+    truncated : names of the parameters whose MAP lies on a prior bound (:func:`.fit.truncated_by_prior`).
+        The draws are then one-sided about the MAP, and its mode may lie outside their 90 % interval: such a
+        mode gets ``map_outside_interval`` (and the reason) instead of the bookkeeping error.
 
     Returns
     -------
@@ -269,8 +272,9 @@ def mode_entries(f: np.ndarray, measured: np.ndarray, h_map: np.ndarray, h_draws
     Raises
     ------
     ModelError
-        When a MAP mode frequency lies outside its own tracked interval by more than a line (the
-        bookkeeping of modes is broken; nothing downstream may then compare frequencies).
+        When a MAP mode frequency lies outside its own tracked interval by more than a line and no parameter
+        is on a prior bound (the bookkeeping of modes is broken; nothing downstream may then compare
+        frequencies).
     """
     mm = find_modes(f, measured)
     pm = find_modes(f, h_map)
@@ -288,7 +292,8 @@ def mode_entries(f: np.ndarray, measured: np.ndarray, h_map: np.ndarray, h_draws
     for i, j in pairs:
         q, qp = _quantiles(fd[:, i]), _quantiles(fp[:, i])
         fm = mm[j].frequency_hz
-        if np.isfinite(q["q05"]) and not (q["q05"] - df <= fmap[i] <= q["q95"] + df):
+        outside = bool(np.isfinite(q["q05"]) and not (q["q05"] - df <= fmap[i] <= q["q95"] + df))
+        if outside and not truncated:
             raise ModelError(f"mode bookkeeping: model mode {i} at {fmap[i]:.1f} Hz lies outside its own 90 % "
                              f"interval [{q['q05']:.1f}, {q['q95']:.1f}] Hz")
         # the point estimate is the median of the tracked draws, inside its own interval by construction (the
@@ -305,6 +310,11 @@ def mode_entries(f: np.ndarray, measured: np.ndarray, h_map: np.ndarray, h_draws
                       "covered_predictive_90": bool(qp["q05"] <= fm <= qp["q95"]),
                       "predictive_sd_hz": float(np.nanstd(fp[:, i])) if np.isfinite(fp[:, i]).sum() > 1 else math.nan,
                       "lost_draws": float(np.mean(~np.isfinite(fd[:, i]))),
+                      # the prior cuts the Laplace draws on one side of a MAP on its bound: the MAP's mode can
+                      # then lie beyond its draws' interval without any mix-up of modes
+                      "map_outside_interval": outside,
+                      "map_outside_reason": (f"{', '.join(truncated)} on a prior bound: the draws lie on one side "
+                                             "of the MAP" if outside else None),
                       "model_index": i, "measured_index": j})
     top_m = max(range(len(mm)), key=lambda j: mm[j].height) if mm else None
     top_p = max(range(len(pm)), key=lambda i: pm[i].height) if pm else None
@@ -347,6 +357,7 @@ def evaluate(fit: ModelFit, rng: np.random.Generator, n_draws: int = 200, correc
     dparts = stack.split(h_draws)
     noise = _noise_sd(prob, vals, measured, parts)
     per, tracked, z2, z2_win = [], [], [], []
+    truncated = tuple(truncated_by_prior(fit))
     used = {(o.configuration, o.source) for o in prob.observations}
     for j, ((cfg, frf), f, hm, hp, hd, (scale, floor2, coh)) in enumerate(
             zip(prob.all_measurements, freqs, measured, parts, dparts, noise)):
@@ -357,7 +368,7 @@ def evaluate(fit: ModelFit, rng: np.random.Generator, n_draws: int = 200, correc
         hd_rep, sd_rep = np.repeat(hd, NOISE_REPLICATES, axis=0), np.repeat(sd, NOISE_REPLICATES, axis=0)
         eps = (rng.standard_normal(hd_rep.shape) + 1j * rng.standard_normal(hd_rep.shape)) * (sd_rep / math.sqrt(2.0))
         sigma_own = relative_noise_scale(hm)
-        me = mode_entries(f, hm, hp, hd, hd_rep + eps, sigma_own)
+        me = mode_entries(f, hm, hp, hd, hd_rep + eps, sigma_own, truncated)
         z2.append(predictive_z2(hm, hd, sigma_own))
         z2_win.append(predictive_window_statistic(hm, hd, sigma_own) if scan else None)
         tracked.append(me.pop("tracked"))
@@ -779,6 +790,12 @@ def build_report(res: DiscrepancyResult) -> dict:
     usable, why = usable and not near, why + near
     grew = bool(a["gap"] > b["gap"] + a["gap_detail"]["resolution"])
     warnings = [f"final model: {w}" for w in on_bounds]
+    beyond = sorted({md["map_outside_reason"] for m in a["measurements"] for md in m["modes"]
+                     if md.get("map_outside_interval")})
+    if beyond:
+        # the point reported is the draws' median; the MAP's mode beyond their interval is the prior's cut, said here
+        warnings.append("final model: a mode of the best fit lies outside its own 90 % interval ("
+                        + "; ".join(beyond) + "); the frequencies reported are the draws' medians")
     if not usable:
         warnings.append("final model not usable for prediction: " + "; ".join(why))
     elif grew:
