@@ -42,8 +42,9 @@ length was fitted),
   them, measured from the measured modes' whole resonances (range² +
   the estimate's variance; the peak noise's variance where a fitted length
   lacks that estimate): the bias is assumed to bend between them by about
-  as much as it changes, and the outputs say that its course is untested.  It is estimated from the median over draws, not from
-  every draw: the draws' spread is parameter uncertainty, which the draws
+  as much as it changes, and the outputs say that its course is untested.
+  The amplitude is estimated from the median over draws, not from every
+  draw: the draws' spread is parameter uncertainty, which the draws
   themselves carry to every length, and counting it again in the bias's
   prior would count it twice.  With one fitted length the change with
   length is not seen at all, and the prior spread is the bias seen
