@@ -148,6 +148,9 @@ def test_mode_bookkeeping_error_is_caught_before_any_plot():
                    for x in 1 + 0.001 * rng.standard_normal(50)])
     with pytest.raises(ModelError, match="outside its own 90 % interval"):
         mode_entries(F, MEASURED, MODEL, hd, hd)
+    # a parameter on a prior bound excuses a MAP just beyond its one-sided draws, not 70 Hz beyond a 5-Hz interval
+    with pytest.raises(ModelError, match="outside its own 90 % interval"):
+        mode_entries(F, MEASURED, MODEL, hd, hd, truncated=("k_xf",))
 
 
 def test_a_map_on_a_prior_bound_may_lie_beyond_its_one_sided_draws_and_is_flagged_not_refused():
