@@ -528,6 +528,50 @@ def test_an_impossible_fit_far_better_than_every_possible_one_leaves_nothing_nam
     assert d["named"] == "spindle_error"
 
 
+def test_a_fit_on_the_edge_of_its_range_far_better_than_every_possible_one_leaves_nothing_named(monkeypatch):
+    """A candidate with a parameter on a bound its term declares the limit of the effect's physical range
+    (``range_limits``) that beats every supported one by more than ln 100 says that the data hold an effect larger than that term allows (or outside the library): the supported
+    candidate is not named but reported as partial, ``outranked_by_edge``.  Within ln 100, or with the edge fit
+    behind, the supported candidate is named as before."""
+    from types import SimpleNamespace
+
+    from bayes_rcsa.discrepancy import select
+
+    monkeypatch.setattr(select, "implausible_reasons", lambda fit, effect: [])
+    edge = ["flute_area_ratio", "flute_inertia_ratio"]
+    edges = {"fluted_section": edge, "extra_mode": ["extra_mode_frequency_hz", "extra_mode_damping_ratio"]}
+    monkeypatch.setattr(select, "edge_parameters", lambda fit, effect: edges.get(effect, []))
+    base = {"gap": 0.05, "at_noise_floor": False}
+
+    def refits(flute, damping, resonator=2.4):
+        return [select.Refit(e, SimpleNamespace(statistic=1.0), None, c, 0.02, {"gap": 0.005})
+                for e, c in (("fluted_section", flute), ("contact_damping", damping), ("joint_loss_factor", 13.4),
+                             ("extra_mode", resonator))]
+
+    # the project's bench, flute diameter 0.64 of nominal where 0.80 was declared (sweep seed 2000): the flute on
+    # the bounds of both its ratios 88.6, contact damping 15.0 (named before this rule)
+    d = select.decide(refits(88.6, 15.0), 0.03, base)
+    assert d["named"] is None
+    assert [q["effect"] for q in d["partial"][:2]] == ["contact_damping", "joint_loss_factor"]
+    assert d["partial"][0]["outranked_by_edge"] == "fluted_section" and "outranked_by_implausible" not in d["partial"][0]
+    assert d["partial"][0]["outranking_criterion"] == 88.6
+    assert d["edge_parameters"]["fluted_section"] == edge and d["range_limits_reached"]["fluted_section"] == edge
+    # a bound that is a chosen range, not a physical limit (a resonator at the band's edge stands for one beyond
+    # it, e.g. a spindle change), outranks nothing
+    d = select.decide(refits(5.0, 15.0, resonator=88.6), 0.03, base)
+    assert d["named"] == "contact_damping" and d["range_limits_reached"]["extra_mode"] == []
+    # ahead by less than ln 100: the possible candidate stays the name (fe spindle error 0.3: extra mode on its
+    # edge 29.2 against 27.8)
+    assert select.decide(refits(19.0, 15.0), 0.03, base)["named"] == "contact_damping"
+    assert select.decide(refits(5.0, 15.0), 0.03, base)["named"] == "contact_damping"
+    # the pair rule counts an edge-bound single fit as it counts an impossible one
+    assert select.pair_outranked(refits(88.6, 15.0), {}, 60.0, {"fluted_section": edge}) == "fluted_section"
+    assert select.pair_outranked(refits(88.6, 15.0), {}, 100.0, {"fluted_section": edge}) is None
+    assert select.pair_outranked(refits(88.6, 15.0), {}, 60.0) is None
+    assert select.outranked_key("fluted_section", {"fluted_section": ["q < 0.95"]}) == "outranked_by_implausible"
+    assert select.outranked_key("fluted_section", {"fluted_section": []}) == "outranked_by_edge"
+
+
 def test_a_possible_pair_outranked_by_an_impossible_single_fit_is_not_named(monkeypatch):
     """decide()'s outranking rule for two effects named together (select.pair_outranked): a pair that does not
     beat a physically impossible single fit by more than ln 10 (the confounding margin) is not named."""

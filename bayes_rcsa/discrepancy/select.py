@@ -28,7 +28,18 @@ Decision
   tool modulus error).  When such an impossible fit beats every supported
   candidate by more than ``LN_BF_NAME``, the data hold an effect outside the
   library: nothing is named, and the supported candidates are reported as
-  partial (``outranked_by_implausible``).
+  partial (``outranked_by_implausible``).  The same holds for a fit with a
+  parameter on a bound that its term declares the limit of the effect's
+  physical range (:func:`range_limits_reached`; ``outranked_by_edge``): the
+  data then hold an effect larger than that term's range allows (e.g. a
+  flute thinner than any real profile, the declared value far off) or one
+  outside the library, and a possible candidate that explains decisively
+  less is no credible name either.  On the project's bench a fluted
+  diameter 0.64 of the nominal one where 0.80 was declared (area 0.41 and
+  second moment 0.17 of the solid, beyond the profiles the term's range
+  covers) was named ``contact_damping`` (criterion 15.0, systematic gap
+  0.22 -> 0.075) while ``fluted_section`` on the bounds of both its ratios
+  scored 88.6 (gap 0.027).
 * A candidate whose fit keeps a contact stiffness (``k_xf``, ``k_thetaM``) on
   the *upper* bound of its prior where the baseline's fit had it too
   (:func:`stiffness_held_on_upper_bound`) **and** still leaves a systematic
@@ -63,7 +74,7 @@ import numpy as np
 from .fit import JOINT_STIFFNESSES, ModelFit, fit_variant, joints_on_upper_bound
 from .screen import ScoreResult, embed_baseline
 
-__all__ = ["systematic_gap_change", "LN_BF_NAME", "LN_BF_CONFOUNDED", "MIN_GAP_REDUCTION", "Refit", "refit_candidate", "decide", "edge_parameters", "implausible_reasons",
+__all__ = ["systematic_gap_change", "LN_BF_NAME", "LN_BF_CONFOUNDED", "MIN_GAP_REDUCTION", "Refit", "refit_candidate", "decide", "edge_parameters", "implausible_reasons", "outranked_key", "range_limits_reached",
            "separating_test", "gap", "systematic_gap", "fitted_systematic_gap", "GAP_LAGS", "MIN_SYSTEMATIC_REDUCTION",
            "bound_warnings", "pair_outranked", "STIFFNESS_NAMES",
            "stiffness_on_upper_bound", "stiffness_held_on_upper_bound"]
@@ -293,6 +304,18 @@ def stiffness_held_on_upper_bound(refit: Refit, baseline_upper) -> list[str]:
     return [n for n in stiffness_on_upper_bound(refit.fit) if n in held]
 
 
+def range_limits_reached(effect: str, edge: list[str]) -> list[str]:
+    """The parameters of ``edge`` (:func:`edge_parameters`) whose prior bound is the limit of what the effect can
+    physically be, as the term declares in ``range_limits`` (e.g. the area and second-moment ratios of a flute
+    section, whose bounds are those of real flute profiles).  A fit there needs the effect beyond its physical
+    range; a bound that is a chosen analysis range (a resonator's frequency at the band's edge, standing for one
+    beyond it) is not such a limit."""
+    from ..params.terms import get_term
+
+    declared = getattr(get_term(effect), "range_limits", ())
+    return [n for n in edge if n in declared]
+
+
 def implausible_reasons(fit: ModelFit, effect: str) -> list[str]:
     """The term's own physical-plausibility check (:meth:`ModelTerm.implausible`) at the fit's MAP."""
     from ..params.terms import get_term
@@ -341,8 +364,16 @@ def bound_warnings(fit: ModelFit, rel: float = 0.01) -> list[str]:
     return out
 
 
-def pair_outranked(ranked: list[Refit], implausible: dict, pair_criterion: float) -> str | None:
-    """The physically impossible single candidate that a possible pair of known effects does not clearly beat, or None.
+def outranked_key(effect: str, implausible: dict) -> str:
+    """Report key of a candidate outranked by ``effect``: ``outranked_by_implausible`` when ``effect``'s fit is
+    physically impossible by its term's own check, else ``outranked_by_edge`` (a parameter on the bound of its
+    physical range)."""
+    return "outranked_by_implausible" if implausible.get(effect) else "outranked_by_edge"
+
+
+def pair_outranked(ranked: list[Refit], implausible: dict, pair_criterion: float, edges: dict | None = None
+                   ) -> str | None:
+    """The impossible (or edge-bound) single candidate that a possible pair of known effects does not clearly beat, or None.
 
     :func:`decide`'s outranking rule, for two effects named together.  The pair path is entered only because
     each known effect alone explains part of the data; a pair that then explains the data no better than an
@@ -359,8 +390,12 @@ def pair_outranked(ranked: list[Refit], implausible: dict, pair_criterion: float
     ranked : the first round's refits (any order)
     implausible : {effect: list of reasons}, :func:`decide`'s ``implausible``
     pair_criterion : ln Z_pair - ln Z_baseline of the two effects fitted together
+    edges : {effect: list of parameter names}, :func:`decide`'s ``range_limits_reached``, optional: a single fit
+        with a parameter on the limit of its physical range outranks the pair by the same rule
     """
-    impossible = sorted((r for r in ranked if implausible.get(r.effect)), key=lambda r: -r.criterion)
+    edges = edges or {}
+    impossible = sorted((r for r in ranked if implausible.get(r.effect) or edges.get(r.effect)),
+                        key=lambda r: -r.criterion)
     if impossible and pair_criterion - impossible[0].criterion < LN_BF_CONFOUNDED:
         return impossible[0].effect
     return None
@@ -384,6 +419,7 @@ def decide(refits: list[Refit], gap_before: float, systematic_before: dict | Non
     ranked = sorted(refits, key=lambda r: -r.criterion)
     edges = {r.effect: edge_parameters(r.fit, r.effect) for r in ranked}
     implausible = {r.effect: implausible_reasons(r.fit, r.effect) for r in ranked}
+    limits = {r.effect: range_limits_reached(r.effect, edges[r.effect]) for r in ranked}
     held = {r.effect: stiffness_held_on_upper_bound(r, baseline_upper) for r in ranked}
     check = systematic_before is not None and not systematic_before["at_noise_floor"] and systematic_before["gap"] > 0
 
@@ -404,18 +440,22 @@ def decide(refits: list[Refit], gap_before: float, systematic_before: dict | Non
     partial = [{"effect": r.effect, "criterion": r.criterion, "systematic_gap_ratio": ratio(r)}
                | ({"contact_held_on_upper_bound": held[r.effect]} if held[r.effect] else {})
                for r in decisive if r not in supported]
-    # a physically impossible fit that explains the data decisively better than every possible one says that
-    # the data hold an effect outside the library; the possible candidates are then partial explanations only
-    impossible = [r for r in ranked if implausible[r.effect]]
-    if supported and impossible and impossible[0].criterion - supported[0].criterion > LN_BF_NAME:
+    # a physically impossible fit, or one that needs a parameter on the bound of its physical range, that explains
+    # the data decisively better than every possible one says that the data hold an effect outside the library
+    # (or larger than that term's range); the possible candidates are then partial explanations only
+    beyond = [r for r in ranked if implausible[r.effect] or limits[r.effect]]
+    if supported and beyond and beyond[0].criterion - supported[0].criterion > LN_BF_NAME:
+        over = beyond[0]
+        key = outranked_key(over.effect, implausible)
         partial = [{"effect": r.effect, "criterion": r.criterion, "systematic_gap_ratio": ratio(r),
-                    "outranked_by_implausible": impossible[0].effect} for r in supported] + partial
+                    key: over.effect, "outranking_criterion": over.criterion} for r in supported] + partial
         supported = []
     if not supported:
         best = ranked[0] if ranked else None
         return {"named": None, "runner_up": best.effect if best else None,
                 "margin": None, "confounded_with": [], "ranked": ranked, "edge_parameters": edges,
-                "implausible": implausible, "partial": partial, "contact_held_on_upper_bound": held}
+                "implausible": implausible, "partial": partial, "contact_held_on_upper_bound": held,
+                "range_limits_reached": limits}
     win = supported[0]
     others = [r for r in ranked if r is not win]
     runner = others[0] if others else None
@@ -423,7 +463,7 @@ def decide(refits: list[Refit], gap_before: float, systematic_before: dict | Non
     return {"named": win.effect, "runner_up": runner.effect if runner else None,
             "margin": (win.criterion - runner.criterion) if runner else None,
             "confounded_with": confounded, "ranked": ranked, "edge_parameters": edges, "implausible": implausible,
-            "partial": partial, "contact_held_on_upper_bound": held}
+            "partial": partial, "contact_held_on_upper_bound": held, "range_limits_reached": limits}
 
 
 #: What separates two kinds of explanation (by the kinds of the two terms).

@@ -48,7 +48,7 @@ from .mode_shift import SHIFT_RULE, shifted_template_frequency
 from .noise import relative_noise_scale
 from .screen import embed_baseline, score_test
 from .select import (GAP_LAGS, LN_BF_NAME, MIN_SYSTEMATIC_REDUCTION, bound_warnings, decide, fitted_systematic_gap, gap,
-                     pair_outranked, refit_candidate, separating_test, stiffness_held_on_upper_bound,
+                     outranked_key, pair_outranked, refit_candidate, separating_test, stiffness_held_on_upper_bound,
                      stiffness_on_upper_bound, systematic_gap, systematic_gap_change)
 
 __all__ = ["DiscrepancyOptions", "DiscrepancyResult", "run_discrepancy", "write_discrepancy", "validate",
@@ -678,14 +678,20 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
         # fit stands in for (a tool modulus below the declared one, fitted at three lengths, mimicked by a
         # spindle term plus a thinner flute)
         over = joint and pair_outranked(decision["ranked"], decision["implausible"],
-                                        joint.fit.log_evidence - baseline.log_evidence)
+                                        joint.fit.log_evidence - baseline.log_evidence,
+                                        decision["range_limits_reached"])
         if over:
-            say(f"{part} with {second['named']} is outranked by the impossible {over}: nothing named")
+            key = outranked_key(over, decision["implausible"])
+            what = ("the physically impossible" if key == "outranked_by_implausible"
+                    else "the edge-bound (a parameter on the bound of its physical range)")
+            say(f"{part} with {second['named']} is outranked by {what} {over}: nothing named")
             for q in decision["partial"]:
-                q.setdefault("outranked_by_implausible", over)
+                if "outranked_by_implausible" not in q and "outranked_by_edge" not in q:
+                    q[key] = over
             second["reason"] = (f"{part} with {second['named']} does not explain the data clearly better (by ln 10) "
-                                f"than the physically impossible {over}: an effect outside the library, not named")
-            second["outranked_by_implausible"] = over
+                                f"than {what} {over}: an effect outside the library (or beyond that term's range), "
+                                "not named")
+            second[key] = over
             joint = None
         held = stiffness_held_on_upper_bound(joint, base_upper) if joint is not None else []
         if held:
@@ -709,7 +715,8 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
             detection.adequate = False
         else:
             second = {**second, "named": None}
-            if second.get("ran") and "outranked_by_implausible" not in second and "contact_held_on_upper_bound" not in second:
+            if second.get("ran") and not ({"outranked_by_implausible", "outranked_by_edge",
+                                           "contact_held_on_upper_bound"} & set(second)):
                 second["reason"] = f"{part} with a second known effect does not halve the systematic gap either"
     if named is not None:
         first = next(r for r in refits if r.effect == named)
@@ -748,8 +755,9 @@ def _second_round_report(second: dict) -> dict:
     if not second:
         return {"ran": False, "reason": "nothing was named in the first round"}
     out = {"ran": second["ran"], "reason": second["reason"], "named": second.get("named")}
-    if "outranked_by_implausible" in second:
-        out["outranked_by_implausible"] = second["outranked_by_implausible"]
+    for key in ("outranked_by_implausible", "outranked_by_edge"):
+        if key in second:
+            out[key] = second[key]
     if "contact_held_on_upper_bound" in second:
         out["contact_held_on_upper_bound"] = second["contact_held_on_upper_bound"]
     if second["ran"]:
@@ -962,6 +970,20 @@ def summary_markdown(report: dict) -> str:
                              "allows, as the original model did, and leaves a systematic mismatch: the measured "
                              "structure is stiffer than the declared one (tool modulus, diameter?), which this term "
                              "does not explain")
+            elif part.get("outranked_by_edge") or part.get("outranked_by_implausible"):
+                by = part.get("outranked_by_edge") or part.get("outranked_by_implausible")
+                cand = next((c for c in report.get("candidates", []) if c["effect"] == by), {})
+                if part.get("outranked_by_edge"):
+                    why = (f"only with {', '.join(cand.get('parameters_on_prior_edge', [])) or 'a parameter'} on "
+                           "the limit of the physical range its prior allows: the effect is larger than that term "
+                           "allows (check the declared values it acts on) or lies outside the library")
+                else:
+                    why = (f"only with a fit that is physically impossible ({'; '.join(cand.get('implausible', []))}"
+                           "): it stands in for an effect outside the library")
+                crit = cand.get("criterion")
+                lines.append(f"- `{part['effect']}` improves the fit decisively, but `{by}` explains the data far "
+                             "better" + (f" (criterion {crit:+.1f} against {part['criterion']:+.1f})" if crit is not None
+                                         else "") + f", {why}; neither is named")
             elif ratio is not None:
                 lines.append(f"- `{part['effect']}` improves the fit decisively but removes only "
                              f"{100 * (1 - ratio):.0f} % of the systematic mismatch: at most part of the explanation")

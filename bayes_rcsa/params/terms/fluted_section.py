@@ -246,6 +246,10 @@ class FlutedSection(ModelTerm):
 
     name = "fluted_section"
     kind = "substructure"
+    #: the ratios' bounds are those of real flute profiles (module docstring), not a chosen range: a fit on one
+    #: needs a section no flute has, and a possible candidate it outranks decisively is no credible name
+    #: (discrepancy.select.range_limits_reached)
+    range_limits = ("flute_area_ratio", "flute_inertia_ratio")
     description = ("the fluted part of the tool has another area and bending stiffness than its declared "
                    "(effective or solid) circle")
 
