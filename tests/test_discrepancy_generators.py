@@ -150,6 +150,32 @@ def test_summary_of_an_unusable_result_writes_no_trustworthy_interval(modulus):
     assert rows and all("(not usable)" in line for line in rows if "no matching" not in line)
 
 
+def test_a_fit_on_the_limit_of_its_range_that_outranks_is_a_warning_and_a_summary_line(modulus):
+    """When a candidate on the limit of its term's physical range outranks the possible ones (select.decide,
+    ``outranked_by_edge``), the run's most useful hint is that effect beyond its range: it is a warning (printed and
+    in discrepancy.json) and a reason in summary.md; without it neither appears."""
+    import copy
+
+    from bayes_rcsa.discrepancy.workflow import build_report
+
+    res, _ = modulus
+    assert not any("limit of its physical range" in w for w in res.report["warnings"])
+    assert "limit of the physical range" not in summary_markdown(res.report)
+    over, other = res.refits[0], res.refits[1]
+    fake = copy.copy(res)
+    fake.decision = dict(res.decision, range_limits_reached={over.effect: ["flute_area_ratio", "flute_inertia_ratio"]},
+                         partial=[{"effect": other.effect, "criterion": other.criterion, "systematic_gap_ratio": 0.34,
+                                   "outranked_by_edge": over.effect, "outranking_criterion": over.criterion}])
+    report = build_report(fake)
+    hint = [w for w in report["warnings"] if "limit of its physical range" in w]
+    assert len(hint) == 1 and hint[0].startswith(over.effect) and "flute_area_ratio, flute_inertia_ratio" in hint[0]
+    assert f"(criterion {over.criterion:+.1f})" in hint[0] and "check the values the setup declares" in hint[0]
+    text = summary_markdown(report)
+    assert f"`{other.effect}` improves the fit decisively, but `{over.effect}` explains the data far better" in text
+    assert f"criterion {over.criterion:+.1f} against {other.criterion:+.1f}" in text
+    assert "limit of the physical range its prior allows" in text
+
+
 def test_summary_marks_held_out_intervals_of_a_two_length_remainder_as_resting_on_an_assumption(modulus):
     # two fitted lengths leave the remainder's bias between them a straight line by assumption (docs/
     # discrepancy.md, "Why the held-out rows miss"): its held-out rows say so, its fitted rows do not

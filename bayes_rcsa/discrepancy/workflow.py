@@ -808,6 +808,16 @@ def build_report(res: DiscrepancyResult) -> dict:
         # the point reported is the draws' median; the MAP's mode beyond their interval is the prior's cut, said here
         warnings.append("final model: a mode of the best fit lies outside its own 90 % interval ("
                         + "; ".join(beyond) + "); the frequencies reported are the draws' medians")
+    over_edge = sorted({q["outranked_by_edge"] for q in dec.get("partial", []) if q.get("outranked_by_edge")})
+    for e in over_edge:
+        # the most useful hint the run has: the effect is probably this one, larger than its physical range (a
+        # declared value far off), and nothing possible explains the data nearly as well
+        lim = dec.get("range_limits_reached", {}).get(e) or dec.get("edge_parameters", {}).get(e, [])
+        r = by_effect.get(e)
+        warnings.append(f"{e} explains the data far better than every candidate within its physical range"
+                        + (f" (criterion {r.criterion:+.1f})" if r is not None else "")
+                        + f", but only with {', '.join(lim)} on the limit of its physical range: check the values "
+                        "the setup declares for what it acts on; nothing is named")
     if not usable:
         warnings.append("final model not usable for prediction: " + "; ".join(why))
     elif grew:
