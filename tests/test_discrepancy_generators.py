@@ -174,6 +174,9 @@ def test_a_fit_on_the_limit_of_its_range_that_outranks_is_a_warning_and_a_summar
     assert f"`{other.effect}` improves the fit decisively, but `{over.effect}` explains the data far better" in text
     assert f"criterion {over.criterion:+.1f} against {other.criterion:+.1f}" in text
     assert "limit of the physical range its prior allows" in text
+    cand = next(c for c in report["candidates"] if c["effect"] == over.effect)
+    assert cand["parameters_on_range_limit"] == ["flute_area_ratio", "flute_inertia_ratio"]
+    assert "only with flute_area_ratio, flute_inertia_ratio on the limit" in text
 
 
 def test_summary_marks_held_out_intervals_of_a_two_length_remainder_as_resting_on_an_assumption(modulus):

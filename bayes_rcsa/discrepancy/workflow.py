@@ -779,6 +779,8 @@ def build_report(res: DiscrepancyResult) -> dict:
         cands.append({"effect": r.effect, "score": r.score.statistic, "criterion": r.criterion,
                       "parameters": {n: _quantiles(vals[n]) for n in pm.names if pm[n].term == r.effect},
                       "parameters_on_prior_edge": dec["edge_parameters"].get(r.effect, []),
+                      # of those, the ones whose bound the term declares the limit of its physical range
+                      "parameters_on_range_limit": dec.get("range_limits_reached", {}).get(r.effect, []),
                       "implausible": dec.get("implausible", {}).get(r.effect, []),
                       "gap_fitted_lines": r.gap, "systematic_gap_fitted_lines": r.systematic.get("gap"),
                       "score_p_value": r.score.p_value, "description": get_term(r.effect).description})
@@ -984,7 +986,8 @@ def summary_markdown(report: dict) -> str:
                 by = part.get("outranked_by_edge") or part.get("outranked_by_implausible")
                 cand = next((c for c in report.get("candidates", []) if c["effect"] == by), {})
                 if part.get("outranked_by_edge"):
-                    why = (f"only with {', '.join(cand.get('parameters_on_prior_edge', [])) or 'a parameter'} on "
+                    lim = cand.get("parameters_on_range_limit") or cand.get("parameters_on_prior_edge") or []
+                    why = (f"only with {', '.join(lim) or 'a parameter'} on "
                            "the limit of the physical range its prior allows: the effect is larger than that term "
                            "allows (check the declared values it acts on) or lies outside the library")
                 else:
