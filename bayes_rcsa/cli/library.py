@@ -54,9 +54,9 @@ def register(subparsers) -> None:
 
 
 def _default_max_steps() -> int:
-    from ..library.stage2 import Stage2Settings
+    from ..library.defaults import STAGE2_MAX_STEPS
 
-    return Stage2Settings().max_steps
+    return STAGE2_MAX_STEPS
 
 
 def run(args: argparse.Namespace) -> Summary:

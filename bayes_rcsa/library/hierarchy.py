@@ -28,6 +28,7 @@ import numpy as np
 from ..errors import SetupError
 from ..inference.diagnostics import chain_diagnostics
 from ..inference.sampler import SamplerSettings, run_ensemble
+from .defaults import STAGE2_MAX_STEPS
 from .population import Hyperprior
 
 __all__ = ["Group", "HyperFit", "TypeFit", "ChainQuality", "HyperPosterior", "Stage2Settings", "fit_hyper",
@@ -316,7 +317,7 @@ class Stage2Settings:
     n_burn: int = 400
     ess_target: float = 400.0
     chunk: int = 250
-    max_steps: int = 10000
+    max_steps: int = STAGE2_MAX_STEPS
     n_walkers: int | None = None
     tau_factor: float = 50.0
     tau_rtol: float = 0.05
