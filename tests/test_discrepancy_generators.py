@@ -177,6 +177,15 @@ def test_a_fit_on_the_limit_of_its_range_that_outranks_is_a_warning_and_a_summar
     cand = next(c for c in report["candidates"] if c["effect"] == over.effect)
     assert cand["parameters_on_range_limit"] == ["flute_area_ratio", "flute_inertia_ratio"]
     assert "only with flute_area_ratio, flute_inertia_ratio on the limit" in text
+    # the pair rule's case: a pair not clearly better than the edge-bound single fit, whose criterion is then not
+    # far above the partial candidate's own: "far better" would be false
+    close = dict(fake.decision["partial"][0], criterion=over.criterion - 1.0)
+    fake.decision = dict(fake.decision, partial=[close])
+    report = build_report(fake)
+    hint = [w for w in report["warnings"] if "limit of its physical range" in w]
+    assert len(hint) == 1 and "far better" not in hint[0] and "a pair included" in hint[0]
+    text = summary_markdown(report)
+    assert "far better" not in text and "explains the data as well as it does together with a second known effect" in text
 
 
 def test_summary_marks_held_out_intervals_of_a_two_length_remainder_as_resting_on_an_assumption(modulus):

@@ -816,7 +816,12 @@ def build_report(res: DiscrepancyResult) -> dict:
         # declared value far off), and nothing possible explains the data nearly as well
         lim = dec.get("range_limits_reached", {}).get(e) or dec.get("edge_parameters", {}).get(e, [])
         r = by_effect.get(e)
-        warnings.append(f"{e} explains the data far better than every candidate within its physical range"
+        # decide() outranks single candidates by more than ln 100; the pair rule, a pair by less than ln 10
+        rivals = [q["criterion"] for q in dec.get("partial", []) if q.get("outranked_by_edge") == e]
+        far = r is not None and bool(rivals) and r.criterion - max(rivals) > LN_BF_NAME
+        warnings.append(f"{e} explains the data "
+                        + ("far better than every candidate within its physical range" if far else
+                           "as well as the best explanation within the library's physical ranges, a pair included")
                         + (f" (criterion {r.criterion:+.1f})" if r is not None else "")
                         + f", but only with {', '.join(lim)} on the limit of its physical range: check the values "
                         "the setup declares for what it acts on; nothing is named")
@@ -994,9 +999,12 @@ def summary_markdown(report: dict) -> str:
                     why = (f"only with a fit that is physically impossible ({'; '.join(cand.get('implausible', []))}"
                            "): it stands in for an effect outside the library")
                 crit = cand.get("criterion")
-                lines.append(f"- `{part['effect']}` improves the fit decisively, but `{by}` explains the data far "
-                             "better" + (f" (criterion {crit:+.1f} against {part['criterion']:+.1f})" if crit is not None
-                                         else "") + f", {why}; neither is named")
+                far = crit is not None and crit - part["criterion"] > LN_BF_NAME
+                lines.append(f"- `{part['effect']}` improves the fit decisively, but `{by}` explains the data "
+                             + ("far better" if far else "as well as it does together with a second known effect")
+                             + (f" (criterion {crit:+.1f} against {part['criterion']:+.1f}"
+                                + ("" if far else " alone") + ")" if crit is not None else "")
+                             + f", {why}; neither is named")
             elif ratio is not None:
                 lines.append(f"- `{part['effect']}` improves the fit decisively but removes only "
                              f"{100 * (1 - ratio):.0f} % of the systematic mismatch: at most part of the explanation")
