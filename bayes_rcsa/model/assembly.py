@@ -319,7 +319,14 @@ class ConfigurationStack:
             params.append(v)
         n_sets = int(np.prod(np.broadcast_shapes(*(v.shape[:-1] if v.ndim else () for v in params)) or (1,)))
         shape = (n_sets, n_cfg)
-        kx, kt, cx, ct, hx, ht = (np.ascontiguousarray(np.broadcast_to(v, shape), dtype=float) for v in params)
+        # filled blocks, not np.broadcast_to views: this runs once per sampler step, and broadcast_to's
+        # Python-level set-up cost more than the kernel itself on the calibration test's two-length problems
+        blocks = []
+        for v in params:
+            b = np.empty(shape)
+            b[...] = v
+            blocks.append(b)
+        kx, kt, cx, ct, hx, ht = blocks
         out = np.empty((n_sets, self.n_lines), dtype=complex)
         tool_point_kernel(kx, kt, cx, ct, hx, ht, self._starts, self.omega, self._packed, out)
         return out

@@ -230,8 +230,9 @@ class ParameterModel:
         kx = self.growth.stiffness(values["k_xf"], values["g_xf"], lengths)
         kt = self.growth.stiffness(values["k_thetaM"], values["g_thetaM"], lengths)
         shape = kx.shape
-        cx = np.broadcast_to(np.asarray(values["c_xf"], dtype=float)[:, None], shape)
-        ct = np.broadcast_to(np.asarray(values["c_thetaM"], dtype=float)[:, None], shape)
+        cx, ct = np.empty(shape), np.empty(shape)
+        cx[...] = np.asarray(values["c_xf"], dtype=float)[:, None]
+        ct[...] = np.asarray(values["c_thetaM"], dtype=float)[:, None]
         contact = Contact(kx, kt, cx, ct)
         for t in self.terms_of_kind("joint"):
             contact = t.joint(values, contact, lengths, self.growth.l_a, self.growth.l_b)
