@@ -5,8 +5,11 @@ on the rotor bench with a slotted holder the remainder model's scale at
 40 mm was 0.07-0.13 against the bench's 2 %.  The scatter of a measured
 resonance peak, and with it the posterior-predictive interval of a measured
 mode and the observation variance of the mode-frequency bias, is set by the
-noise of the *measurement*, not by the misfit of the model.  This module
-estimates that noise without any model.
+noise of the *measurement*, not by the misfit of the model, nor by the
+part of the noise that a flexible model (the remainder's smooth FRF
+discrepancy) absorbs and so leaves out of its fitted scale.  This module
+estimates that noise without any model; the discrepancy workflow uses it
+alone for the measured peak's scatter.
 
 Second differences ``d_i = h_{i-1} - 2 h_i + h_{i+1}`` of a smooth FRF are
 small wherever the FRF varies slowly over three lines; circular complex
