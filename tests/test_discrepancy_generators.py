@@ -267,7 +267,7 @@ def test_the_peak_noise_is_the_measurement_s_own_not_the_final_model_s_fitted_sc
     # The scatter of a measured peak (the predictive intervals, the mode bias's observation variance) is the
     # measurement's noise.  The remainder's fitted scale is biased both ways: a misfit inflates it, and its
     # smooth FRF discrepancy absorbs part of the noise and deflates it; the smaller of the two, the rule before,
-    # took the deflated one (docs/discrepancy.md, "Why the fitted cells sit at 0.88-0.89").  The own estimate
+    # took the deflated one (docs/discrepancy.md, "Why the fitted cells sat at 0.88-0.89").  The own estimate
     # from second differences is 1.00-1.02 of the realised noise on both benches.
     from bayes_rcsa.discrepancy.fit import laplace_draws
     from bayes_rcsa.discrepancy.noise import relative_noise_scale
