@@ -1,18 +1,53 @@
 """bayes_rcsa: Bayesian receptance coupling substructure analysis for machine-tool dynamics.
 
-Layout (each sub-package one room of the pipeline):
+The workflows are functions of this package that return result objects
+(docs/api.md)::
 
-- :mod:`bayes_rcsa.model`     materials, sections, Timoshenko beams, coupling, RCSA assembly
-- :mod:`bayes_rcsa.io`        measurement, receptance and setup files (CSV, UFF58, TOML)
-- :mod:`bayes_rcsa.synthetic` an independent, richer finite-element bench with hidden effects
-- :mod:`bayes_rcsa.inference` priors, likelihood, emcee sampling, deterministic fits
-- :mod:`bayes_rcsa.posterior` predictions, credible intervals, identifiability
-- :mod:`bayes_rcsa.stability` milling stability lobes (ZOA, SDM), probabilistic lobes
-- :mod:`bayes_rcsa.cli`       the ``bayes-rcsa`` command line
+    import bayes_rcsa as br
+    setup = br.load_setup("setup.toml")
+    post = br.identify(setup, lengths=[0.025, 0.040], seed=1)
+    pred = post.predict([0.030])
+    lob = br.lobes(post, clamping_length=0.030, flutes=4, kt=790e6, kr=230e6, radial_immersion=0.7,
+                   speeds_rpm=np.linspace(5000, 30000, 400))
+
+Each result has ``save(folder)`` (the files of the matching ``bayes-rcsa``
+command), ``load(folder)``, ``to_dict()``, ``figures()`` and a notebook
+view.  The packages below hold the physics and the methods; docs/architecture.md
+draws how they stack.
 """
+
+from __future__ import annotations
 
 from .errors import BayesRCSAError, ConvergenceError, DataError, ModelError, SetupError
 
 __version__ = "0.1.0"
 
-__all__ = ["BayesRCSAError", "ConvergenceError", "DataError", "ModelError", "SetupError", "__version__"]
+_LAZY = {"load_setup": ("bayes_rcsa.io.setup", "load_setup")}
+
+
+def __getattr__(name: str):
+    # the workflows import numpy, scipy, emcee, ...: only when first used, so that `bayes-rcsa --help` and
+    # `import bayes_rcsa` stay light
+    from . import workflows
+
+    if name in workflows.EXPORTS:
+        return getattr(workflows, name)
+    if name in _LAZY:
+        import importlib
+
+        module, attr = _LAZY[name]
+        return getattr(importlib.import_module(module), attr)
+    raise AttributeError(f"module 'bayes_rcsa' has no attribute {name!r}")
+
+
+def __dir__():
+    from . import workflows
+
+    return sorted(set(globals()) | set(workflows.EXPORTS) | set(_LAZY))
+
+
+__all__ = ["BayesRCSAError", "ConvergenceError", "DataError", "ModelError", "SetupError", "__version__",
+           "load_setup", "Result", "identify", "Posterior", "predict", "Prediction", "lobes", "Lobes",
+           "discrepancy", "ModelCheck", "design", "Design", "update", "CutUpdate", "build_library", "Population",
+           "batch", "BatchRun", "report", "Report", "identifiability", "Identifiability", "identify_spindle",
+           "SpindleInterface", "synthesize", "Campaign", "simulate", "SimulatedFRF", "demo", "Demo"]

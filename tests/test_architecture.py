@@ -15,14 +15,15 @@ PACKAGE = ROOT / "bayes_rcsa"
 
 #: Layer of every top-level part of the package; a module may import from its own or a lower layer only.
 LAYERS = {
-    "errors": 0, "registry": 0,
+    "errors": 0, "registry": 0, "messages": 0, "stats": 0,
     "model": 1,
     "io": 2, "synthetic": 2, "spindle": 2,
-    "params": 3,
+    "params": 3, "store": 3,
     "inference": 4,
     "posterior": 5, "stability": 5, "discrepancy": 5, "design": 5,
     "report": 6, "batch": 6, "cuts": 6, "library": 6,
-    "cli": 7, "__main__": 8,
+    "workflows": 7,
+    "cli": 8, "__main__": 9,
 }
 
 

@@ -15,6 +15,8 @@ import math
 from pathlib import Path
 
 from ..errors import SetupError
+from ..messages import current_warnings, merge_warnings
+from ..workflows.result import check_output_directory
 
 __all__ = [
     "parse_float", "parse_float_list", "parse_frequency_grid", "positive_int", "nonnegative_int", "finite_float",
@@ -22,29 +24,9 @@ __all__ = [
     "check_output_directory", "command_warnings", "merge_warnings",
 ]
 
-#: Warnings issued while the current command runs (a stack: ``demo`` runs commands inside a command).  Filled by
-#: :func:`bayes_rcsa.cli.main.main`, which prints them only when the command succeeds (an error is one line).
-WARNING_BUFFERS: list[list[str]] = []
-
-
 def command_warnings() -> list[str]:
-    """The warnings issued so far by the running command (data plausibility, numerics), one line each.
-
-    Commands add them to the files they write (summary.json, lobes.json) so that every warning printed on
-    stderr also travels with the results.
-    """
-    return list(WARNING_BUFFERS[-1]) if WARNING_BUFFERS else []
-
-
-def merge_warnings(*groups) -> list[str]:
-    """The warnings of ``groups`` in order, each once (compared as one-line text)."""
-    out: list[str] = []
-    for group in groups:
-        for w in group:
-            text = " ".join(str(w).split())
-            if text not in out:
-                out.append(text)
-    return out
+    """The warnings issued so far by the running command (data plausibility, numerics), one line each."""
+    return current_warnings()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,36 +61,6 @@ def add_force_argument(parser, resumable: bool = False) -> None:
                         help="write into an existing non-empty output directory, replacing the files of an earlier "
                              "run (default: refuse" + (", unless --resume" if resumable else "") + ")")
 
-
-def check_output_directory(path, force: bool = False, resume: bool = False, resumable: bool = False,
-                           option: str = "--out") -> Path:
-    """Refuse to write into an existing non-empty output directory unless ``force`` (or ``resume``).
-
-    The one rule of every command that writes a directory: a new or empty
-    directory is used; a non-empty one only with ``--force`` (replace the
-    earlier run's files) or, for resumable commands, ``--resume`` (continue
-    it).  Commands call this under :func:`bayes_rcsa.io.atomic.directory_lock`
-    so that the answer cannot change before they write.
-
-    Parameters
-    ----------
-    path : path-like, the output directory
-    force, resume : bool, the command's ``--force`` / ``--resume``
-    resumable : bool, the command has ``--resume`` (named in the message)
-    option : str, option named in the message
-
-    Raises
-    ------
-    SetupError
-        ``"--out DIR: exists and is not empty; use --force to replace its contents"``.
-    """
-    from ..io.atomic import directory_is_empty
-
-    path = Path(path)
-    if force or resume or directory_is_empty(path):
-        return path
-    raise SetupError(f"{option} {path}: exists and is not empty; use --force to replace its contents"
-                     + (" or --resume to continue the run in it" if resumable else ""))
 
 #: Upper bound on the lines of a --freq grid: 1e6 complex lines are already 16 MB per FRF.
 MAX_FREQUENCY_LINES = 1_000_000

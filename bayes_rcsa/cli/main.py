@@ -27,7 +27,8 @@ import warnings
 
 from .. import __version__
 from ..errors import BayesRCSAError, OutputError
-from ._common import WARNING_BUFFERS, Summary, check_arguments, command_warnings, merge_warnings
+from ..messages import warning_log
+from ._common import Summary, check_arguments, command_warnings, merge_warnings
 
 __all__ = ["main", "build_parser", "COMMANDS", "HelpFormatter", "HELP_WIDTH"]
 
@@ -140,20 +141,8 @@ def _one_line_warnings(command: str):
     error line is printed (a warning issued on the way to a refusal would
     name a misleading cause).
     """
-    buffer: list[str] = []
-
-    def show(message, category, filename, lineno, file=None, line=None):
-        text = " ".join(str(message).split())
-        if text not in buffer:
-            buffer.append(text)
-
-    WARNING_BUFFERS.append(buffer)
-    try:
-        with warnings.catch_warnings():
-            warnings.showwarning = show
-            yield
-    finally:
-        WARNING_BUFFERS.pop()
+    with warning_log(echo=False) as buffer:
+        yield buffer
 
 
 #: Set by :func:`_run` when the command failed on the file system (see :func:`_unraisable_as_lines`).
