@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
 
-from ..errors import SetupError
+from ._arguments import prepare_run
 from ._common import Summary, command_warnings, merge_warnings, positive_int
 
 __all__ = ["register", "run"]
@@ -46,38 +45,6 @@ def register(subparsers) -> None:
     p.add_argument("--force", action="store_true", help="recompute every setup, finished or not")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=run)
-
-
-def _dask_executor(address: str):
-    try:
-        from distributed import Client
-    except ImportError:
-        raise SetupError(f"--scheduler {address}: Dask distributed is not installed "
-                         "(pip install 'bayes-rcsa[cluster]')") from None
-    try:
-        client = Client(address, timeout="20s")
-    except (OSError, TimeoutError) as exc:
-        raise SetupError(f"--scheduler {address}: cannot connect ({exc})") from None
-    return client, client.get_executor()
-
-
-def prepare_run(args: argparse.Namespace, marker: str, what: str):
-    """The checks and executor shared by ``batch`` and ``library``: (out, workers, client, executor).
-
-    ``--out`` must be new, empty, or hold an earlier run of this command (its file ``marker``) unless
-    ``--force``; ``--scheduler`` connects a Dask client (closed by the caller), else local processes.
-    """
-    from ..io.atomic import directory_is_empty
-
-    out = Path(args.out)
-    if not directory_is_empty(out) and not (out / marker).is_file() and not args.force:
-        raise SetupError(f"--out {out}: exists, is not empty and holds no earlier {what} run; use --force to "
-                         "write into it")
-    workers = args.workers or os.cpu_count() or 1
-    client = executor = None
-    if args.scheduler is not None:
-        client, executor = _dask_executor(args.scheduler)
-    return out, workers, client, executor
 
 
 def run(args: argparse.Namespace) -> Summary:

@@ -174,7 +174,7 @@ def _run_next_cut(args) -> Summary:
     from ..cuts.next_cut import parse_next_cut_target, run_next_cut, write_next_cut_outputs
     from ..io.atomic import directory_is_empty, directory_lock, new_output_directory
     from ..stability import CuttingConditions
-    from .lobes import parse_coefficient
+    from ._arguments import parse_coefficient
 
     missing = [o for o, v in (("--posterior", args.posterior), ("--speeds", args.speeds), ("--depths", args.depths),
                               ("--clamping-length", args.clamping_length), ("--kt", args.kt), ("--kr", args.kr),

@@ -101,7 +101,7 @@ def register(subparsers) -> None:
     lib.add_argument("--no-taps", action="store_true",
                      help="with --library: use no measurement; write a posterior.nc of population-predictive draws "
                           "(predict and lobes read it like any posterior)")
-    from .update import add_cut_arguments
+    from ._arguments import add_cut_arguments
 
     add_cut_arguments(p)
     p.set_defaults(func=run)

@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> Summary:
     from ..library.stage2 import Stage2Settings
     from ..library.stage1 import check_setups, collect, run_stage1
     from ..library.workflow import fit_library, write_library
-    from .batch import prepare_run
+    from ._arguments import prepare_run
     from .main import main as run_command
 
     jobs = load_manifest(args.manifest)

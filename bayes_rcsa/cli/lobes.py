@@ -14,13 +14,13 @@ import sys
 import numpy as np
 
 from ..errors import SetupError
+from ._arguments import (DEFAULT_SPEED_POINTS, add_cutting_arguments, cutting_from_arguments, parse_fraction,
+                         parse_speeds)
 from ._common import (Summary, add_force_argument, check_output_directory, command_warnings, merge_warnings,
-                      nonnegative_int, parse_float, parse_float_list, positive_int)
+                      nonnegative_int, parse_float, positive_int)
 
-__all__ = ["register", "run", "parse_speeds", "parse_fraction", "parse_coefficient", "add_cutting_arguments",
-           "cutting_from_arguments"]
+__all__ = ["register", "run"]
 
-DEFAULT_SPEED_POINTS = 400
 DEFAULT_BUDGET_S = 120.0
 
 
@@ -93,113 +93,6 @@ def register(subparsers) -> None:
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
     add_force_argument(p)
     p.set_defaults(func=run)
-
-
-# ------------------------------------------------------------------------------------------
-# argument helpers
-KT_HELP = ("tangential cutting-force coefficient in Pa (e.g. 790e6); an optional tolerance of the cutting-force level, "
-           "790e6±5%% (or +-5%%, or ±40e6), scales Kt and Kr together and is part of the recommendation's "
-           "neighbourhood; default with an updated posterior (bayes-rcsa update): its per-draw Kt and Kr")
-KR_HELP = "radial cutting-force coefficient in Pa (e.g. 230e6); default as --kt"
-
-
-def add_cutting_arguments(p, kt_help: str = KT_HELP, kr_help: str = KR_HELP, required: bool = False):
-    """The cutting-condition options of ``lobes`` (also used by ``update``); returns the argument group."""
-    cut = p.add_argument_group("cutting conditions")
-    cut.add_argument("--flutes", type=positive_int, required=True, metavar="N", help="number of teeth")
-    cut.add_argument("--kt", required=required, metavar="PA[±TOL]", help=kt_help)
-    cut.add_argument("--kr", required=required, metavar="PA[±TOL]" if required else "PA", help=kr_help)
-    cut.add_argument("--allow-unusual", action="store_true",
-                     help="proceed (with a warning) when Kt is outside 1e8-1e10 Pa or Kr/Kt outside 0.05-2, "
-                     "the ranges for metals that otherwise stop the run as a likely unit slip")
-    cut.add_argument("--immersion", metavar="R", help="radial depth / tool diameter in (0, 1], 1 = slotting")
-    cut.add_argument("--angles", metavar="ENTRY,EXIT", help="entry and exit angles in degrees instead of --immersion")
-    cut.add_argument("--milling", choices=("down", "up"), default="down", help="down (climb) or up milling (default down)")
-    cut.add_argument("--feed", choices=("x", "y"), default="x", help="feed direction (default x; the paper feeds in y)")
-    cut.add_argument("--pitch", metavar="DEG,...", help="variable pitch: angle (deg) from each tooth to the one ahead")
-    return cut
-
-
-def parse_speeds(text: str, option: str = "--speeds") -> np.ndarray:
-    """``START:STOP[:COUNT]`` rpm -> increasing grid of COUNT speeds (default 400)."""
-    parts = text.split(":")
-    if len(parts) not in (2, 3):
-        raise SetupError(f"{option} {text!r}: expected START:STOP[:COUNT] in rpm")
-    start = parse_float(parts[0], option, positive=True)
-    stop = parse_float(parts[1], option, positive=True)
-    count = DEFAULT_SPEED_POINTS
-    if len(parts) == 3:
-        try:
-            count = int(parts[2])
-        except ValueError:
-            raise SetupError(f"{option} {text!r}: COUNT must be an integer") from None
-    if stop <= start or count < 2:
-        raise SetupError(f"{option} {text!r}: expected STOP > START and COUNT >= 2")
-    from ..io.limits import check_count
-
-    check_count("speed_points", count, f"{option} {text!r}: COUNT")
-    return np.linspace(start, stop, count)
-
-
-def parse_fraction(text: str, option: str, lo: float, hi: float) -> float:
-    """``'2%'`` or ``'0.02'`` -> 0.02, required in [lo, hi]."""
-    t = text.strip()
-    value = parse_float(t[:-1], option) / 100 if t.endswith("%") else parse_float(t, option)
-    if not (lo <= value <= hi):
-        raise SetupError(f"{option} {text!r}: expected a fraction in [{lo:g}, {hi:g}] (e.g. 2% or 0.02)")
-    return value
-
-
-def parse_coefficient(text: str, option: str) -> tuple[float, float]:
-    """``'790e6'``, ``'790e6±5%'``, ``'790e6+-5%'`` or ``'790e6±40e6'`` -> (value Pa, relative tolerance)."""
-    t = text.strip().replace("+-", "±")
-    if "±" not in t:
-        return parse_float(t, option), 0.0
-    base, tol = t.split("±", 1)
-    value = parse_float(base, option)
-    if tol.strip().endswith("%"):
-        rel = parse_float(tol.strip()[:-1], option) / 100
-    else:
-        rel = parse_float(tol, option) / abs(value) if value else float("inf")
-    if not (0 <= rel < 0.5):
-        raise SetupError(f"{option} {text!r}: expected a tolerance below ±50 % (e.g. 790e6±5%)")
-    return value, rel
-
-
-def cutting_from_arguments(args, kr_tolerance: bool = False):
-    """(CuttingConditions, Kt tolerance, warnings) from the cutting options (and Kr tolerance if ``kr_tolerance``)."""
-    cutting, kt_tol, kr_tol, warnings = _cutting_and_tolerances(args, kr_tolerance)
-    return (cutting, kt_tol, kr_tol, warnings) if kr_tolerance else (cutting, kt_tol, warnings)
-
-
-def _cutting(args):
-    return cutting_from_arguments(args)
-
-
-def _cutting_and_tolerances(args, kr_tolerance: bool):
-    from ..stability import CuttingConditions
-    from ..stability.plausibility import check_cutting_coefficients
-
-    kt, kt_tol = parse_coefficient(args.kt, "--kt")
-    kr, kr_tol = parse_coefficient(args.kr, "--kr")
-    if kr_tol and not kr_tolerance:
-        raise SetupError(f"--kr {args.kr!r}: give the tolerance on --kt; it scales the cutting-force level (Kt and "
-                         "Kr together, Kr/Kt fixed)")
-    warnings = check_cutting_coefficients(kt, kr, allow_unusual=args.allow_unusual)
-    if (args.immersion is None) == (args.angles is None):
-        raise SetupError("give exactly one of --immersion (radial depth / diameter) and --angles ENTRY,EXIT (deg)")
-    kw = {}
-    if args.immersion is not None:
-        kw["radial_immersion"] = parse_float(args.immersion, "--immersion", positive=True)
-    else:
-        ang = parse_float_list(args.angles, "--angles")
-        if len(ang) != 2:
-            raise SetupError(f"--angles {args.angles!r}: expected ENTRY,EXIT in degrees")
-        kw["entry_angle"], kw["exit_angle"] = (np.radians(a) for a in ang)
-    if args.pitch is not None:
-        kw["pitch_angles"] = tuple(float(np.radians(a)) for a in parse_float_list(args.pitch, "--pitch", positive=True))
-    cutting = CuttingConditions(kt=kt, kr=kr, flutes=args.flutes, milling=args.milling, feed=args.feed, **kw)
-    return cutting, kt_tol, kr_tol, warnings
 
 
 def _posterior_coefficients(args):
@@ -304,7 +197,7 @@ def run(args: argparse.Namespace) -> Summary:
     from ..io.atomic import directory_is_empty, directory_lock, new_output_directory
 
     args, per_draw = _posterior_coefficients(args)
-    cutting, kt_tol, warnings = _cutting(args)
+    cutting, kt_tol, warnings = cutting_from_arguments(args)
     speeds = parse_speeds(args.speeds)
     level = parse_float(args.level if args.level is not None else "0.95", "--level", positive=True)
     if level > 1:

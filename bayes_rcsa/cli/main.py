@@ -23,7 +23,6 @@ import json
 import re
 import sys
 import textwrap
-import warnings
 
 from .. import __version__
 from ..errors import BayesRCSAError, OutputError

@@ -16,7 +16,8 @@ import numpy as np
 from ..errors import SetupError
 from ._common import Summary, add_force_argument, check_output_directory, command_warnings, merge_warnings, \
     nonnegative_int, parse_float, positive_int
-from .lobes import add_cutting_arguments, cutting_from_arguments, parse_fraction, parse_speeds
+from ._arguments import CUT_FLAGS, add_cutting_arguments, boundary_width, cutting_from_arguments, parse_fraction, \
+    parse_speeds
 
 __all__ = ["register", "run"]
 
@@ -86,17 +87,6 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _width(text: str):
-    from ..cuts import BoundaryWidth
-
-    if ":" in text:
-        lo, hi = text.split(":", 1)
-        return BoundaryWidth(parse_float(lo, "--boundary-width", positive=True),
-                             parse_float(hi, "--boundary-width", positive=True))
-    w = parse_float(text, "--boundary-width", positive=True)
-    return BoundaryWidth(w, w)
-
-
 def run(args: argparse.Namespace) -> Summary:
     from ..cuts import CoefficientPrior
     from ..cuts.mcmc import MCMCSettings
@@ -108,7 +98,7 @@ def run(args: argparse.Namespace) -> Summary:
 
     cutting, kt_tol, kr_tol, warnings = cutting_from_arguments(args, kr_tolerance=True)
     prior = CoefficientPrior.from_tolerances(cutting.kt, kt_tol, cutting.kr, kr_tol)
-    width = _width(args.boundary_width)
+    width = boundary_width(args.boundary_width)
     label_error = parse_float(args.label_error, "--label-error")
     if not (0 <= label_error < 0.5):
         raise SetupError(f"--label-error {args.label_error}: expected a probability in [0, 0.5)")
@@ -158,37 +148,10 @@ def run(args: argparse.Namespace) -> Summary:
                    warnings=tuple(doc["warnings"]))
 
 
-# ------------------------------------------------------------------------------------------
-# identify --cuts: the cut outcomes as an extra likelihood term of the identification
-_CUT_FLAGS = ("cut_clamping_length", "cut_tool", "cut_flutes", "cut_kt", "cut_kr", "cut_immersion", "cut_angles",
-              "cut_pitch", "cut_boundary_width", "cut_label_error")
-
-
-def add_cut_arguments(p) -> None:
-    """The ``--cuts`` group of ``identify`` (joint fit of hammer FRFs and cut outcomes)."""
-    from ..cuts import DEFAULT_BOUNDARY_WIDTH, DEFAULT_LABEL_ERROR
-
-    g = p.add_argument_group("cutting tests (joint fit with the hammer data; docs/stability.md)")
-    g.add_argument("--cuts", metavar="CSV", help="cut outcomes sampled together with the FRFs: "
-                   "spindle_speed_rpm,depth_m,outcome[,clamping_length_m,radial_immersion,feed_direction,tool]")
-    g.add_argument("--cut-clamping-length", metavar="M", help="clamping length of cuts without their own")
-    g.add_argument("--cut-tool", metavar="NAME", help="tool of cuts without their own")
-    g.add_argument("--cut-flutes", type=positive_int, metavar="N", help="number of teeth (required with --cuts)")
-    g.add_argument("--cut-kt", metavar="PA[±TOL]", help="K_t and the prior spread of the force level, e.g. 560e6±30%%")
-    g.add_argument("--cut-kr", metavar="PA[±TOL]", help="K_r and the prior spread of K_r/K_t, e.g. 170e6")
-    g.add_argument("--cut-immersion", metavar="R", help="radial immersion of cuts without their own, in (0, 1]")
-    g.add_argument("--cut-angles", metavar="ENTRY,EXIT", help="entry and exit angles in degrees instead")
-    g.add_argument("--cut-milling", choices=("down", "up"), default="down", help="down or up milling (default down)")
-    g.add_argument("--cut-feed", choices=("x", "y"), default="x", help="feed direction of cuts without their own")
-    g.add_argument("--cut-pitch", metavar="DEG,...", help="variable pitch (deg)")
-    g.add_argument("--cut-boundary-width", metavar="W|LO:HI", help=f"probit width (default {DEFAULT_BOUNDARY_WIDTH:g})")
-    g.add_argument("--cut-label-error", metavar="P", help=f"label error (default {DEFAULT_LABEL_ERROR:g})")
-
-
 def cut_term_from_arguments(args, problem, setup):
     """The :class:`~bayes_rcsa.cuts.joint.CutTerm` of ``identify --cuts`` (None without --cuts); checks everything."""
     if args.cuts is None:
-        given = [f"--{n.replace('_', '-')}" for n in _CUT_FLAGS if getattr(args, n, None) is not None]
+        given = [f"--{n.replace('_', '-')}" for n in CUT_FLAGS if getattr(args, n, None) is not None]
         if given:
             raise SetupError(f"{', '.join(given)} need(s) --cuts CSV")
         return None
@@ -214,7 +177,7 @@ def cut_term_from_arguments(args, problem, setup):
     cutting, kt_tol, kr_tol, warnings = cutting_from_arguments(ns, kr_tolerance=True)
     warn_all(warnings)
     prior = CoefficientPrior.from_tolerances(cutting.kt, kt_tol, cutting.kr, kr_tol)
-    width = _width(args.cut_boundary_width or "0.1")
+    width = boundary_width(args.cut_boundary_width or "0.1")
     label_error = DEFAULT_LABEL_ERROR if args.cut_label_error is None else parse_float(args.cut_label_error,
                                                                                        "--cut-label-error")
     if not (0 <= label_error < 0.5):

@@ -1,0 +1,195 @@
+"""Argument groups and parsers shared by several sub-commands (no command module imports another).
+
+The cutting conditions of ``lobes``, ``update`` and ``design --next-cut``, the
+``--cuts`` group of ``identify``, spindle-speed grids, fractions and
+coefficients with tolerances, and the executor options of ``batch`` and
+``library``.  Parsing only: numbers and names go to the workflows
+(:mod:`bayes_rcsa.workflows`), which build the domain objects.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SetupError
+from ._common import parse_float, parse_float_list, positive_int
+
+__all__ = ["DEFAULT_SPEED_POINTS", "KT_HELP", "KR_HELP", "add_cutting_arguments", "parse_speeds", "parse_fraction",
+           "parse_coefficient", "cutting_from_arguments", "boundary_width", "CUT_FLAGS", "add_cut_arguments",
+           "prepare_run", "dask_executor"]
+
+DEFAULT_SPEED_POINTS = 400
+
+KT_HELP = ("tangential cutting-force coefficient in Pa (e.g. 790e6); an optional tolerance of the cutting-force level, "
+           "790e6±5%% (or +-5%%, or ±40e6), scales Kt and Kr together and is part of the recommendation's "
+           "neighbourhood; default with an updated posterior (bayes-rcsa update): its per-draw Kt and Kr")
+KR_HELP = "radial cutting-force coefficient in Pa (e.g. 230e6); default as --kt"
+
+
+def add_cutting_arguments(p, kt_help: str = KT_HELP, kr_help: str = KR_HELP, required: bool = False):
+    """The cutting-condition options of ``lobes`` (also used by ``update``); returns the argument group."""
+    cut = p.add_argument_group("cutting conditions")
+    cut.add_argument("--flutes", type=positive_int, required=True, metavar="N", help="number of teeth")
+    cut.add_argument("--kt", required=required, metavar="PA[±TOL]", help=kt_help)
+    cut.add_argument("--kr", required=required, metavar="PA[±TOL]" if required else "PA", help=kr_help)
+    cut.add_argument("--allow-unusual", action="store_true",
+                     help="proceed (with a warning) when Kt is outside 1e8-1e10 Pa or Kr/Kt outside 0.05-2, "
+                     "the ranges for metals that otherwise stop the run as a likely unit slip")
+    cut.add_argument("--immersion", metavar="R", help="radial depth / tool diameter in (0, 1], 1 = slotting")
+    cut.add_argument("--angles", metavar="ENTRY,EXIT", help="entry and exit angles in degrees instead of --immersion")
+    cut.add_argument("--milling", choices=("down", "up"), default="down", help="down (climb) or up milling (default down)")
+    cut.add_argument("--feed", choices=("x", "y"), default="x", help="feed direction (default x; the paper feeds in y)")
+    cut.add_argument("--pitch", metavar="DEG,...", help="variable pitch: angle (deg) from each tooth to the one ahead")
+    return cut
+
+
+def parse_speeds(text: str, option: str = "--speeds") -> np.ndarray:
+    """``START:STOP[:COUNT]`` rpm -> increasing grid of COUNT speeds (default 400)."""
+    parts = text.split(":")
+    if len(parts) not in (2, 3):
+        raise SetupError(f"{option} {text!r}: expected START:STOP[:COUNT] in rpm")
+    start = parse_float(parts[0], option, positive=True)
+    stop = parse_float(parts[1], option, positive=True)
+    count = DEFAULT_SPEED_POINTS
+    if len(parts) == 3:
+        try:
+            count = int(parts[2])
+        except ValueError:
+            raise SetupError(f"{option} {text!r}: COUNT must be an integer") from None
+    if stop <= start or count < 2:
+        raise SetupError(f"{option} {text!r}: expected STOP > START and COUNT >= 2")
+    from ..io.limits import check_count
+
+    check_count("speed_points", count, f"{option} {text!r}: COUNT")
+    return np.linspace(start, stop, count)
+
+
+def parse_fraction(text: str, option: str, lo: float, hi: float) -> float:
+    """``'2%'`` or ``'0.02'`` -> 0.02, required in [lo, hi]."""
+    t = text.strip()
+    value = parse_float(t[:-1], option) / 100 if t.endswith("%") else parse_float(t, option)
+    if not (lo <= value <= hi):
+        raise SetupError(f"{option} {text!r}: expected a fraction in [{lo:g}, {hi:g}] (e.g. 2% or 0.02)")
+    return value
+
+
+def parse_coefficient(text: str, option: str) -> tuple[float, float]:
+    """``'790e6'``, ``'790e6±5%'``, ``'790e6+-5%'`` or ``'790e6±40e6'`` -> (value Pa, relative tolerance)."""
+    t = text.strip().replace("+-", "±")
+    if "±" not in t:
+        return parse_float(t, option), 0.0
+    base, tol = t.split("±", 1)
+    value = parse_float(base, option)
+    if tol.strip().endswith("%"):
+        rel = parse_float(tol.strip()[:-1], option) / 100
+    else:
+        rel = parse_float(tol, option) / abs(value) if value else float("inf")
+    if not (0 <= rel < 0.5):
+        raise SetupError(f"{option} {text!r}: expected a tolerance below ±50 % (e.g. 790e6±5%)")
+    return value, rel
+
+
+def cutting_from_arguments(args, kr_tolerance: bool = False):
+    """(CuttingConditions, Kt tolerance, warnings) from the cutting options (and Kr tolerance if ``kr_tolerance``)."""
+    cutting, kt_tol, kr_tol, warnings = _cutting_and_tolerances(args, kr_tolerance)
+    return (cutting, kt_tol, kr_tol, warnings) if kr_tolerance else (cutting, kt_tol, warnings)
+
+
+def _cutting_and_tolerances(args, kr_tolerance: bool):
+    from ..stability import CuttingConditions
+    from ..stability.plausibility import check_cutting_coefficients
+
+    kt, kt_tol = parse_coefficient(args.kt, "--kt")
+    kr, kr_tol = parse_coefficient(args.kr, "--kr")
+    if kr_tol and not kr_tolerance:
+        raise SetupError(f"--kr {args.kr!r}: give the tolerance on --kt; it scales the cutting-force level (Kt and "
+                         "Kr together, Kr/Kt fixed)")
+    warnings = check_cutting_coefficients(kt, kr, allow_unusual=args.allow_unusual)
+    if (args.immersion is None) == (args.angles is None):
+        raise SetupError("give exactly one of --immersion (radial depth / diameter) and --angles ENTRY,EXIT (deg)")
+    kw = {}
+    if args.immersion is not None:
+        kw["radial_immersion"] = parse_float(args.immersion, "--immersion", positive=True)
+    else:
+        ang = parse_float_list(args.angles, "--angles")
+        if len(ang) != 2:
+            raise SetupError(f"--angles {args.angles!r}: expected ENTRY,EXIT in degrees")
+        kw["entry_angle"], kw["exit_angle"] = (np.radians(a) for a in ang)
+    if args.pitch is not None:
+        kw["pitch_angles"] = tuple(float(np.radians(a)) for a in parse_float_list(args.pitch, "--pitch", positive=True))
+    cutting = CuttingConditions(kt=kt, kr=kr, flutes=args.flutes, milling=args.milling, feed=args.feed, **kw)
+    return cutting, kt_tol, kr_tol, warnings
+
+
+def boundary_width(text: str):
+    from ..cuts import BoundaryWidth
+
+    if ":" in text:
+        lo, hi = text.split(":", 1)
+        return BoundaryWidth(parse_float(lo, "--boundary-width", positive=True),
+                             parse_float(hi, "--boundary-width", positive=True))
+    w = parse_float(text, "--boundary-width", positive=True)
+    return BoundaryWidth(w, w)
+
+
+# ------------------------------------------------------------------------------------------
+# identify --cuts: the cut outcomes as an extra likelihood term of the identification
+CUT_FLAGS = ("cut_clamping_length", "cut_tool", "cut_flutes", "cut_kt", "cut_kr", "cut_immersion", "cut_angles",
+              "cut_pitch", "cut_boundary_width", "cut_label_error")
+
+
+def add_cut_arguments(p) -> None:
+    """The ``--cuts`` group of ``identify`` (joint fit of hammer FRFs and cut outcomes)."""
+    from ..cuts import DEFAULT_BOUNDARY_WIDTH, DEFAULT_LABEL_ERROR
+
+    g = p.add_argument_group("cutting tests (joint fit with the hammer data; docs/stability.md)")
+    g.add_argument("--cuts", metavar="CSV", help="cut outcomes sampled together with the FRFs: "
+                   "spindle_speed_rpm,depth_m,outcome[,clamping_length_m,radial_immersion,feed_direction,tool]")
+    g.add_argument("--cut-clamping-length", metavar="M", help="clamping length of cuts without their own")
+    g.add_argument("--cut-tool", metavar="NAME", help="tool of cuts without their own")
+    g.add_argument("--cut-flutes", type=positive_int, metavar="N", help="number of teeth (required with --cuts)")
+    g.add_argument("--cut-kt", metavar="PA[±TOL]", help="K_t and the prior spread of the force level, e.g. 560e6±30%%")
+    g.add_argument("--cut-kr", metavar="PA[±TOL]", help="K_r and the prior spread of K_r/K_t, e.g. 170e6")
+    g.add_argument("--cut-immersion", metavar="R", help="radial immersion of cuts without their own, in (0, 1]")
+    g.add_argument("--cut-angles", metavar="ENTRY,EXIT", help="entry and exit angles in degrees instead")
+    g.add_argument("--cut-milling", choices=("down", "up"), default="down", help="down or up milling (default down)")
+    g.add_argument("--cut-feed", choices=("x", "y"), default="x", help="feed direction of cuts without their own")
+    g.add_argument("--cut-pitch", metavar="DEG,...", help="variable pitch (deg)")
+    g.add_argument("--cut-boundary-width", metavar="W|LO:HI", help=f"probit width (default {DEFAULT_BOUNDARY_WIDTH:g})")
+    g.add_argument("--cut-label-error", metavar="P", help=f"label error (default {DEFAULT_LABEL_ERROR:g})")
+
+
+def prepare_run(args: argparse.Namespace, marker: str, what: str):
+    """The checks and executor shared by ``batch`` and ``library``: (out, workers, client, executor).
+
+    ``--out`` must be new, empty, or hold an earlier run of this command (its file ``marker``) unless
+    ``--force``; ``--scheduler`` connects a Dask client (closed by the caller), else local processes.
+    """
+    from ..io.atomic import directory_is_empty
+
+    out = Path(args.out)
+    if not directory_is_empty(out) and not (out / marker).is_file() and not args.force:
+        raise SetupError(f"--out {out}: exists, is not empty and holds no earlier {what} run; use --force to "
+                         "write into it")
+    workers = args.workers or os.cpu_count() or 1
+    client = executor = None
+    if args.scheduler is not None:
+        client, executor = dask_executor(args.scheduler)
+    return out, workers, client, executor
+
+
+def dask_executor(address: str):
+    try:
+        from distributed import Client
+    except ImportError:
+        raise SetupError(f"--scheduler {address}: Dask distributed is not installed "
+                         "(pip install 'bayes-rcsa[cluster]')") from None
+    try:
+        client = Client(address, timeout="20s")
+    except (OSError, TimeoutError) as exc:
+        raise SetupError(f"--scheduler {address}: cannot connect ({exc})") from None
+    return client, client.get_executor()
