@@ -1,4 +1,4 @@
-"""Regenerate the generated reference pages: docs/cli-reference.md and docs/api.md.
+"""Regenerate the generated reference pages: docs/cli-reference.md, docs/api.md and docs/architecture.md.
 
 Run from anywhere::
 
@@ -7,8 +7,12 @@ Run from anywhere::
 ``cli-reference.md`` is the ``--help`` text of ``bayes-rcsa`` and of every
 sub-command (fixed 100-column wrapping, so the output does not depend on the
 terminal); ``api.md`` lists, per package, every public name of its
-``__all__`` with the first line of its docstring.  ``tests/test_docs_reference.py``
-regenerates both in memory and fails when the committed files differ, so a
+``__all__`` with the first line of its docstring, after the top-level API
+(the workflow functions and their result objects); ``architecture.md`` draws
+the layers of tests/test_architecture.py (``LAYERS``, the one table the
+import rules are checked against), the imports each package really makes,
+and each package's own description (its ``__init__`` docstring).
+``tests/test_docs_reference.py`` regenerates all three in memory and fails when the committed files differ, so a
 changed help text or docstring is one command away from current docs.
 """
 
@@ -16,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.util
 import inspect
 import os
 import sys
@@ -132,7 +137,7 @@ def api_reference() -> str:
            "The public names of each package (its `__all__`), upstream packages first; a package may import "
            "only from the packages above it.  Full documentation is in the docstrings "
            "(`help(bayes_rcsa.inference.identify)`); [getting-started.md](getting-started.md) and "
-           "`examples/` show them in use.\n\n"]
+           "`examples/` show them in use.\n\n", top_level_api(), "# The packages\n\n"]
     for pkg in API_PACKAGES:
         mod = importlib.import_module(pkg)
         out.append(f"## `{pkg}`\n\n{_first_line(mod)}\n\n| name | kind | description |\n| --- | --- | --- |\n")
@@ -151,7 +156,119 @@ def api_reference() -> str:
     return "".join(out)
 
 
-PAGES = {"cli-reference.md": cli_reference, "api.md": api_reference}
+# ----------------------------------------------------------------------------------------------------------------
+# the top-level API (api.md's first section)
+
+def _signature(obj) -> str:
+    try:
+        sig = str(inspect.signature(obj))
+    except (TypeError, ValueError):
+        return "(...)"
+    return sig.replace("|", "\\|")
+
+
+def top_level_api() -> str:
+    """The workflows reachable from ``import bayes_rcsa``: each function with its signature, then the result classes."""
+    import bayes_rcsa
+    from bayes_rcsa import workflows
+    from bayes_rcsa.workflows.result import Result
+
+    funcs, classes = [], []
+    for name in sorted(workflows.EXPORTS):
+        obj = getattr(bayes_rcsa, name)
+        (classes if inspect.isclass(obj) else funcs).append((name, obj))
+    out = ["## The top-level API: `import bayes_rcsa`\n\n",
+           "Every job the command line does is one function of `bayes_rcsa` that returns a result object; the "
+           "`bayes-rcsa` commands only parse their options, call it, save the result and print one line.  Arguments "
+           "are keywords in SI units (metres, Pa, Hz; spindle speeds in rpm), files may be given as paths or as "
+           "loaded objects (`bayes_rcsa.load_setup(path)`, a `Posterior`).\n\n",
+           "| function | returns | what it does |\n| --- | --- | --- |\n"]
+    for name, obj in funcs:
+        ret = inspect.signature(obj).return_annotation
+        ret = ret if isinstance(ret, str) else getattr(ret, "__name__", "")
+        out.append(f"| `{name}` | `{ret}` | {_first_line(obj)} |\n")
+    out.append("\nSignatures:\n\n```python\n" + "".join(f"bayes_rcsa.{n}{_signature(o)}\n" for n, o in funcs)
+               + "```\n\n")
+    base = {m for m in vars(Result) if not m.startswith("__")}
+    out.append("Every result object is a `bayes_rcsa.Result`: `to_dict()` (the JSON document its command writes, SI "
+               "units, stable keys), `save(folder)` (exactly the files of its command) and `Result.load(folder)`, "
+               "`figures()` (matplotlib figures on request), `headline()` (printed names and units, also its "
+               "notebook view `_repr_html_`), `summary_line()` and `warnings` (every warning issued while it was "
+               "computed; also in its JSON).\n\n| result | what it holds | more |\n| --- | --- | --- |\n")
+    for name, obj in classes:
+        if obj is Result:
+            continue
+        extra = sorted(m for m, v in vars(obj).items() if not m.startswith("_") and m not in base
+                       and (callable(v) or isinstance(v, property)) and m not in ("load",))
+        out.append(f"| `{name}` | {_first_line(obj)} | {', '.join(f'`{m}`' for m in extra)} |\n")
+    out.append("\n")
+    return "".join(out)
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# architecture.md
+
+def _layer_table():
+    """``LAYERS`` and the import scanner of tests/test_architecture.py (the table the import rules are checked on)."""
+    spec = importlib.util.spec_from_file_location("test_architecture", DOCS.parent / "tests" / "test_architecture.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _description(part: str) -> str:
+    mod = importlib.import_module(f"bayes_rcsa.{part}") if part != "__main__" else None
+    doc = inspect.getdoc(mod) if mod is not None else "`python3 -m bayes_rcsa`: runs the command line."
+    return (doc or "").strip()
+
+
+def architecture() -> str:
+    """Markdown text of docs/architecture.md: layers, real imports and every package's description."""
+    arch = _layer_table()
+    layers: dict[int, list[str]] = {}
+    for part, layer in arch.LAYERS.items():
+        layers.setdefault(layer, []).append(part)
+    edges: dict[str, set[str]] = {p: set() for p in arch.LAYERS}
+    for me, other, _target, _names, _f in arch._imports():
+        if me in edges and other in arch.LAYERS and other != me:
+            edges[me].add(other)
+    diagram = []
+    for layer in sorted(layers, reverse=True):
+        diagram.append(f" {layer:>5}  {' · '.join(layers[layer])}")
+        if layer:
+            diagram.append("        ▲")
+    out = [_HEADER.format(cmd=COMMAND), "# Architecture: the layers and the room map\n\n",
+           "`bayes_rcsa` is a pipeline of packages stacked in layers.  A module may import from its own layer or "
+           "from the layers *below* it, never from above; no two packages import each other (no cycle, whatever "
+           "the length); no module imports another package's `_private` names.  `tests/test_architecture.py` holds "
+           "the layer table (`LAYERS`) and checks these rules on every import of the source; this page is "
+           "generated from that table, from the imports the source really makes, and from each package's own "
+           "description (its `__init__` docstring), so it cannot drift.\n\n",
+           "Read it bottom-up: the physics (`model`) knows nothing of files, parameters or sampling; `params` says "
+           "what is sampled and how it enters the model; `inference` samples it; the products of a posterior "
+           "(`posterior`, `stability`, `discrepancy`, `design`) sit above; the scale-out and reporting packages "
+           "above those; `workflows` is the public API (one function per job, each returning a result object); "
+           "`cli` only parses, calls one workflow and prints.\n\n",
+           "```text\n layer  packages (higher layers import lower ones)\n", "\n".join(diagram), "\n```\n\n",
+           "The one object that travels from the setup to every product is the parameter model "
+           "(`bayes_rcsa.params.ParameterModel`): built from the setup's `[contact]`, `[priors]` and `[model]` "
+           "tables, used by the likelihood through `params.ForwardModel`, written into `posterior.nc` by "
+           "`bayes_rcsa.store` and read back with the draws, so that predictions, lobes and reports never rebuild "
+           "the problem to know what was sampled or fixed.  How to extend the model (a model term, a likelihood "
+           "term, a stability method, a writer): [extending.md](extending.md).\n\n",
+           "## The packages\n\n| layer | package | imports (really, from the source) |\n| --- | --- | --- |\n"]
+    for layer in sorted(layers):
+        for part in layers[layer]:
+            deps = ", ".join(f"`{d}`" for d in sorted(edges[part], key=lambda d: (arch.LAYERS[d], d))) or "—"
+            out.append(f"| {layer} | [`{part}`](#{part.strip('_')}) | {deps} |\n")
+    out.append("\n")
+    for layer in sorted(layers):
+        for part in layers[layer]:
+            out.append(f"### {part}\n\nLayer {layer}.  {_description(part)}\n\n")
+    return "".join(out)
+
+
+PAGES = {"cli-reference.md": cli_reference, "api.md": api_reference, "architecture.md": architecture}
 
 
 def main() -> int:

@@ -125,3 +125,102 @@ def test_no_private_names_imported_from_another_package():
         if private_module or private_names:
             bad.append(f"{f.relative_to(ROOT)} imports {'.'.join(target)} {private_names or ''}")
     assert not bad, "\n".join(bad)
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# The command line is a thin shell over bayes_rcsa.workflows (issue #41)
+
+CLI = PACKAGE / "cli"
+#: modules of cli/ that are not sub-commands (shared parsing, the program itself)
+CLI_SHARED = {"__init__", "_common", "_arguments", "main"}
+#: what a sub-command may import outside ``register`` (which may also import constants and registries for its help)
+CLI_ALLOWED = {("workflows",), ("errors",), ("messages",), ("cli", "_common"), ("cli", "_arguments")}
+#: lines of code (no docstring, comments or blank lines) of a sub-command's ``run``
+RUN_BUDGET = 40
+
+
+def _command_modules():
+    return sorted(f for f in CLI.glob("*.py") if f.stem not in CLI_SHARED)
+
+
+def _absolute(f: Path, node: ast.ImportFrom) -> tuple[str, ...]:
+    base = list(f.relative_to(ROOT).with_suffix("").parts[:-1])
+    if node.level:
+        base = base[: len(base) - (node.level - 1)]
+        return tuple(base + (node.module.split(".") if node.module else []))
+    return tuple((node.module or "").split("."))
+
+
+def _code_lines(func: ast.FunctionDef, source: list[str]) -> int:
+    body = func.body
+    if body and isinstance(body[0], ast.Expr) and isinstance(getattr(body[0], "value", None), ast.Constant):
+        body = body[1:]  # the docstring
+    if not body:
+        return 0
+    lines = source[body[0].lineno - 1: func.end_lineno]
+    return sum(1 for ln in lines if ln.strip() and not ln.strip().startswith("#"))
+
+
+def test_no_command_module_imports_another_command():
+    commands = {f.stem for f in _command_modules()}
+    bad = []
+    for f in _command_modules():
+        for node in ast.walk(ast.parse(f.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                target = _absolute(f, node)
+                names = [a.name for a in node.names]
+                hit = ({target[2]} if target[:2] == ("bayes_rcsa", "cli") and len(target) > 2 else set()) | (
+                    set(names) if target == ("bayes_rcsa", "cli") else set())
+                if hit & commands - {f.stem}:
+                    bad.append(f"{f.name} imports cli.{sorted(hit & commands)}")
+    assert not bad, "\n".join(bad)
+
+
+def test_every_command_run_only_parses_calls_a_workflow_and_prints():
+    """Outside ``register``, a sub-command imports only the workflows, errors and the shared parsing modules, and its
+    ``run`` fits the budget: the job (checks of values, domain objects, files) lives in ``bayes_rcsa.workflows``."""
+    bad = []
+    for f in _command_modules():
+        text = f.read_text()
+        tree = ast.parse(text)
+        source = text.splitlines()
+        register = next((n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name == "register"), None)
+        inside_register = set(map(id, ast.walk(register))) if register is not None else set()
+        for node in ast.walk(tree):
+            if id(node) in inside_register or not isinstance(node, (ast.Import, ast.ImportFrom)):
+                continue
+            if isinstance(node, ast.Import):
+                mods = [tuple(a.name.split(".")) for a in node.names]
+            else:
+                mods = [_absolute(f, node)]
+            for m in mods:
+                if m[0] != "bayes_rcsa":
+                    continue
+                if not any(m[1:1 + len(a)] == a for a in CLI_ALLOWED):
+                    bad.append(f"{f.name}:{node.lineno} imports {'.'.join(m)}")
+        run = next((n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name == "run"), None)
+        if run is None:
+            bad.append(f"{f.name}: no run()")
+        elif _code_lines(run, source) > RUN_BUDGET:
+            bad.append(f"{f.name}: run() has {_code_lines(run, source)} lines of code (budget {RUN_BUDGET})")
+    assert not bad, "\n".join(bad)
+
+
+def test_every_workflow_is_public_from_the_top_level_and_returns_a_result():
+    import inspect
+
+    import bayes_rcsa
+    from bayes_rcsa import workflows
+    from bayes_rcsa.workflows.result import Result
+
+    for name in workflows.EXPORTS:
+        obj = getattr(bayes_rcsa, name)
+        assert obj is getattr(workflows, name), name
+        if inspect.isclass(obj):
+            assert issubclass(obj, Result), name
+            for method in ("to_dict", "save", "load", "headline", "summary_line"):
+                assert getattr(obj, method) is not getattr(Result, method), f"{name}.{method} is not implemented"
+        else:
+            ret = inspect.signature(obj).return_annotation
+            ret = getattr(workflows, ret) if isinstance(ret, str) else ret
+            assert inspect.isclass(ret) and issubclass(ret, Result), f"{name} returns {ret!r}, not a Result"

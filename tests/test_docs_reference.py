@@ -1,6 +1,6 @@
-"""The generated reference pages (docs/cli-reference.md, docs/api.md) are current.
+"""The generated reference pages (docs/cli-reference.md, docs/api.md, docs/architecture.md) are current.
 
-Both are regenerated in memory by docs/gen_reference.py and compared with the committed files;
+All three are regenerated in memory by docs/gen_reference.py and compared with the committed files;
 a changed help text or docstring fails here until ``python3 docs/gen_reference.py`` is run.
 """
 
@@ -21,7 +21,7 @@ def _generator():
     return module
 
 
-@pytest.mark.parametrize("page", ["cli-reference.md", "api.md"])
+@pytest.mark.parametrize("page", ["cli-reference.md", "api.md", "architecture.md"])
 def test_generated_reference_page_is_current(page):
     gen = _generator()
     fresh = gen.PAGES[page]()
@@ -52,3 +52,18 @@ def test_api_reference_lists_every_public_name():
     for pkg in gen.API_PACKAGES:
         for name in importlib.import_module(pkg).__all__:
             assert f"| `{name}` |" in text, (pkg, name)
+
+
+def test_architecture_page_describes_every_layer_part_and_api_page_starts_with_the_top_level_api():
+    gen = _generator()
+    arch = gen._layer_table()
+    text = (DOCS / "architecture.md").read_text(encoding="utf-8")
+    for part, layer in arch.LAYERS.items():
+        assert f"### {part}\n\nLayer {layer}.  " in text, part
+        # a description of its own, not only a heading
+        assert len(gen._description(part)) >= 40, f"bayes_rcsa.{part} needs a docstring that describes it"
+    api = (DOCS / "api.md").read_text(encoding="utf-8")
+    top = api.index("## The top-level API: `import bayes_rcsa`")
+    assert top < api.index("# The packages")
+    for name in ("identify", "predict", "lobes", "discrepancy", "design", "build_library", "update", "report"):
+        assert f"| `{name}` |" in api[top:api.index("# The packages")], name

@@ -1,4 +1,14 @@
-"""Posterior predictions: quantities derived from identified contact parameters."""
+"""Posterior predictions: quantities derived from identified contact parameters.
+
+* :mod:`.draws` -- :class:`PosteriorDraws` (a parameter model plus its draws), read from posterior.nc through
+  :mod:`bayes_rcsa.store`;
+* :mod:`.predict`, :mod:`.prediction_outputs` -- credible intervals of tool-point FRFs and natural frequencies at
+  any clamping length, and their files;
+* :mod:`.identifiability`, :mod:`.study` -- single- vs multi-length fits: contraction, ridges, Fisher information,
+  transfer errors;
+* :mod:`.setup_match` -- a posterior used with another setup (changed geometry or material) says so;
+* :mod:`.growth_prior`, :mod:`.plots`, :mod:`.report`.
+"""
 
 from ..model.natural_frequencies import NATURAL_FREQUENCY_RULE, natural_frequency
 
