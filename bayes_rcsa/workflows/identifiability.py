@@ -114,10 +114,12 @@ class Identifiability(Result):
                          + ("" if f.get("converged", True) else " (NOT converged)")))
             for name, p in f["parameters"].items():
                 if name in _NAMES:
+                    c = fmt_contraction(p.get("contraction"))
                     rows.append((f"  {_NAMES[name]}", f"{_readable(p['verdict'])} "
-                                 f"(contraction {fmt_contraction(p.get('contraction'))})"))
-            if f.get("transfer_error_pct") is not None:
-                rows.append(("  transfer error of the natural frequency", f"{f['transfer_error_pct']:.2g} %"))
+                                 f"({c if c.startswith('prior') else f'contraction {c}'})"))
+            errors = [v for v in (f.get("transfer_error_pct") or {}).values() if v is not None]
+            if errors:  # {length: mean |error| over directions} at the lengths the fit did not see
+                rows.append(("  natural frequency error at the other lengths", f"{np.mean(errors):.2g} % (mean)"))
         return rows
 
     def summary_line(self) -> str:
