@@ -18,23 +18,11 @@ from bayes_rcsa.workflows.identifiability import Identifiability
 from bayes_rcsa.workflows.simulate import SimulatedFRF
 from bayes_rcsa.workflows.spindle import SpindleInterface
 from bayes_rcsa.workflows.synthesize import Campaign
+from test_synthetic_cli import SMALL as BENCH  # noqa: E402  (2 lengths x 1 direction, 301 lines)
 
 SIM = dict(clamping_length=0.03, kx=2e6, ktheta=5e5, cx=1.0, ctheta=0.5)
 SIM_ARGS = ["--clamping-length", "0.03", "--kx", "2e6", "--ktheta", "5e5", "--cx", "1", "--ctheta", "0.5"]
 INTERNAL = ("k_xf", "k_thetaM", "c_xf", "c_thetaM", "g_xf")
-
-# 2 lengths x 1 direction on a 301-line grid (as tests/test_synthetic_cli.py)
-BENCH = """
-[campaign]
-clamping_lengths = [0.025, 0.035]
-directions = ["x"]
-[frequency]
-start = 600.0
-stop = 1500.0
-step = 3.0
-[hidden_effects]
-tip_mass = true
-"""
 
 
 def _files(folder) -> dict:
