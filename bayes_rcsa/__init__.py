@@ -28,13 +28,15 @@ _LAZY = {"load_setup": ("bayes_rcsa.io.setup", "load_setup")}
 def __getattr__(name: str):
     # the workflows import numpy, scipy, emcee, ...: only when first used, so that `bayes-rcsa --help` and
     # `import bayes_rcsa` stay light
+    import importlib
+
     from . import workflows
 
     if name in workflows.EXPORTS:
-        return getattr(workflows, name)
+        # from the defining module: once bayes_rcsa.workflows.simulate is imported, the package attribute
+        # `simulate` is that module, not the function of the same name
+        return getattr(importlib.import_module(f"{workflows.__name__}.{workflows.EXPORTS[name]}"), name)
     if name in _LAZY:
-        import importlib
-
         module, attr = _LAZY[name]
         return getattr(importlib.import_module(module), attr)
     raise AttributeError(f"module 'bayes_rcsa' has no attribute {name!r}")

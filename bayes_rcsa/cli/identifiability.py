@@ -6,8 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ._common import (Summary, add_force_argument, check_output_directory, nonnegative_int, parse_float_list,
-                      positive_int, sampler_int)
+from ._common import Summary, add_force_argument, check_output_directory, nonnegative_int, parse_float_list, positive_int
 
 __all__ = ["register", "run"]
 
@@ -37,8 +36,6 @@ quick look (reported as not converged).
 """
 
 
-
-
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "identifiability",
@@ -65,35 +62,17 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    from ..inference.sampler import SamplerSettings
-    from ..io.atomic import directory_lock, new_output_directory
-    from ..io.setup import load_setup
-    from ..posterior.study import run_study, write_study
+    from ..workflows.identifiability import identifiability
 
-    setup = load_setup(args.setup)
     lengths = parse_float_list(args.lengths, "--lengths", positive=True) if args.lengths is not None else None
-    table = dict(setup.extra.get("sampler", {}) or {})
-    pick = lambda cli, key, default: cli if cli is not None else sampler_int(table, key, default, setup.path)  # noqa: E731
-    settings = SamplerSettings(
-        n_walkers=pick(args.walkers, "walkers", None),
-        max_steps=pick(args.max_steps, "max_steps", 20000),
-        check_every=pick(args.check_every, "check_every", 250),
-        progress=not args.quiet,
-    )
-    with directory_lock(args.out):
-        check_output_directory(args.out, args.force)  # before hours of sampling, not after
-        study = run_study(setup, lengths, settings, seed=args.seed, verbose=not args.quiet)
-        with new_output_directory(args.out):
-            write_study(study, args.out, plots=not args.no_plots, posteriors=not args.no_posteriors, seed=args.seed)
+    check_output_directory(args.out, args.force)  # before hours of sampling, not after (checked again on saving)
+    result = identifiability(args.setup, lengths=lengths, seed=args.seed, max_steps=args.max_steps,
+                             walkers=args.walkers, check_every=args.check_every, progress=not args.quiet)
+    result.save(args.out, force=args.force, plots=not args.no_plots, posteriors=not args.no_posteriors)
     if not args.quiet:
-        for line in study.document["findings"]:
+        for line in result.findings:
             print(line, file=sys.stderr)
-    fits = study.document["fits"]
-    not_converged = [f["name"] for f in fits if not f.get("converged", True)]
-    return Summary(
-        f"{len(fits)} fit(s){'' if not not_converged else f', {len(not_converged)} NOT converged'}; "
-        f"results in {args.out}",
-        {"out": str(args.out), "identifiability": str(args.out / "identifiability.json"),
-         "report": str(args.out / "identifiability.md"), "fits_not_converged": not_converged},
-        warnings=tuple(f"fit {n} did not converge: its verdicts are not reliable" for n in not_converged),
-    )
+    return Summary(result.summary_line(),
+                   {"out": str(args.out), "identifiability": str(args.out / "identifiability.json"),
+                    "report": str(args.out / "identifiability.md"), **result.summary_data()},
+                   warnings=result.warnings)

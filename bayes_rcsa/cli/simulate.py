@@ -3,13 +3,7 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
-
-from ..errors import SetupError
 from ._common import Summary, add_force_argument, parse_float, parse_frequency_grid
-
-ORDER = 20
-
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -36,42 +30,13 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    from ..io import load_setup
-    from ..io.writers import frf_writer_for, write_frf
-    from ..model import FRF, Configuration
+    from ..workflows.simulate import SimulatedFRF, simulate
 
-    cl = parse_float(args.clamping_length, "--clamping-length", positive=True)
-    kx = parse_float(args.kx, "--kx", positive=True)
-    kt = parse_float(args.ktheta, "--ktheta", positive=True)
-    cx = parse_float(args.cx, "--cx")
-    ct = parse_float(args.ctheta, "--ctheta")
-    if cx < 0 or ct < 0:
-        raise SetupError("--cx/--ctheta: expected damping >= 0")
-    frf_writer_for(args.out)  # refuse an unknown output type before computing anything
-    if Path(args.out).exists() and not args.force:
-        raise SetupError(f"--out {args.out}: exists; use --force to replace it")
+    numbers = dict(clamping_length=parse_float(args.clamping_length, "--clamping-length", positive=True),
+                   kx=parse_float(args.kx, "--kx", positive=True), ktheta=parse_float(args.ktheta, "--ktheta", positive=True),
+                   cx=parse_float(args.cx, "--cx"), ctheta=parse_float(args.ctheta, "--ctheta"))
+    SimulatedFRF.check_output(args.out, args.force)  # an unknown output type or an existing file: before any work
     freq = parse_frequency_grid(args.freq) if args.freq is not None else None
-    setup = load_setup(args.setup, load_data=False, load_spindle=True)
-    tool = args.tool
-    if tool is None:
-        if len(setup.tools) != 1:
-            raise SetupError(f"--tool: the setup defines several tools {sorted(setup.tools)}; name one")
-        tool = next(iter(setup.tools))
-    model = setup.model()
-    if freq is None:
-        freq = model.spindle_receptance(args.direction).frequency_hz
-    config = Configuration(cl, args.direction, tool)
-    h = model.frf(config, freq, kx, kt, cx, ct)
-    comments = [
-        f"bayes-rcsa simulate: {setup.name}",
-        f"tool={tool} direction={args.direction} clamping_length={cl!r} m",
-        f"k_xf={kx!r} N/m k_thetaM={kt!r} N*m/rad c_xf={cx!r} N*s/m c_thetaM={ct!r} N*m*s/rad",
-    ]
-    write_frf(args.out, FRF(freq, h, source=args.out), comments=comments)
-    i_peak = int(abs(h).argmax())
-    return Summary(
-        f"wrote {args.out} ({freq.size} lines, {freq[0]:g}-{freq[-1]:g} Hz; largest |h| {abs(h[i_peak]):.3g} m/N "
-        f"at {freq[i_peak]:g} Hz)",
-        {"out": str(args.out), "n_lines": int(freq.size), "peak_hz": float(freq[i_peak]),
-         "peak_abs_m_per_n": float(abs(h[i_peak]))},
-    )
+    result = simulate(args.setup, direction=args.direction, tool=args.tool, frequency_hz=freq, **numbers)
+    result.save(args.out, force=args.force)
+    return Summary(result.summary_line(), {"out": str(args.out), **result.summary_data()}, warnings=result.warnings)

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ._common import Summary, add_force_argument, check_output_directory, command_warnings, nonnegative_int
+from ._common import Summary, add_force_argument, check_output_directory, nonnegative_int
 
 __all__ = ["register", "run"]
 
@@ -66,54 +66,15 @@ def register(subparsers) -> None:
 
 
 def run(args) -> Summary:
-    from ..errors import SetupError
-    from ..spindle.artifact import load_artifact
-    from ..spindle.identification import estimated_cpu_seconds, identify_directions
-    from ..spindle.outputs import write_outputs
+    from ..workflows.spindle import identify_spindle
 
-    if args.seed < 0:
-        raise SetupError(f"--seed {args.seed}: expected an integer >= 0")
-    if args.max_modes is not None and not 1 <= args.max_modes <= 20:
-        raise SetupError(f"--max-modes {args.max_modes}: expected an integer in [1, 20]")
-    setup = load_artifact(args.artifact)
-    directions = args.directions or tuple(sorted(setup.measurements))
-    missing = [d for d in directions if d not in setup.measurements]
-    if missing:
-        raise SetupError(f"--directions: {args.artifact} has no measurement for {missing}; measured: "
-                         f"{sorted(setup.measurements)}")
-    if args.workers < 1:
-        raise SetupError(f"--workers {args.workers}: expected an integer >= 1")
-    from ..io.atomic import directory_is_empty, directory_lock, new_output_directory
-
-    if not args.force and not directory_is_empty(args.out):
-        check_output_directory(args.out)  # refused before the identification runs (checked again under the lock)
-    workers = min(args.workers, len(directions))
-    bar = None
+    check_output_directory(args.out, args.force)  # refused before the identification runs (checked again on saving)
+    result = identify_spindle(args.artifact, samples=args.samples, seed=args.seed, directions=args.directions,
+                              max_modes=args.max_modes, workers=args.workers, progress=not args.quiet)
+    result.save(args.out, force=args.force, plots=not args.no_plots)
     if not args.quiet:
-        from ..stability.progress import ProgressBar, format_seconds
-
-        per = estimated_cpu_seconds(args.samples)
-        rounds = -(-len(directions) // workers)  # directions run side by side in `workers` processes
-        print(f"spindle: {', '.join(directions)}: inverse coupling, modal smoothing"
-              + (f", {args.samples} bootstrap samples each" if args.samples else "")
-              + f" ({workers} worker process{'es' if workers > 1 else ''}): estimated "
-              f"{format_seconds(per * rounds)}", file=sys.stderr)
-        bar = ProgressBar("spindle")
-    try:
-        results = identify_directions(setup, directions, n_samples=args.samples, seed=args.seed,
-                                      max_modes=args.max_modes, workers=workers, progress=bar)
-    finally:
-        if bar is not None:
-            bar.close()
-    warns = command_warnings()  # every warning printed also goes into spindle_summary.json
-    with directory_lock(args.out), new_output_directory(check_output_directory(args.out, args.force)):
-        summary = write_outputs(setup, results, args.out, plots=not args.no_plots, seed=args.seed, warnings=warns)
-    if not args.quiet:
-        for d, s in summary["directions"].items():
+        for d, s in result.summary["directions"].items():
             bands = ", ".join(f"{lo:g}-{hi:g} Hz" for lo, hi in s["unreliable_bands_hz"]) or "none"
             print(f"spindle: {d}: {s['modal_model']['n_modes']} modes, reduced chi2 {s['reduced_chi2']:.3g}, "
                   f"unreliable bands: {bands}", file=sys.stderr)
-    files = {d: f"spindle_{d}.csv" for d in results}
-    written = [*files.values(), *([summary["samples_file"]] if summary["samples_file"] else [])]  # --samples 0: none
-    return Summary(f"wrote {', '.join(written)} in {args.out}",
-                   {"out": str(args.out), "spindle_files": files, "samples": summary["samples_file"]})
+    return Summary(result.summary_line(), {"out": str(args.out), **result.summary_data()}, warnings=result.warnings)

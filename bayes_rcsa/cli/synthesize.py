@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
+from pathlib import Path
 
-from ._common import Summary, add_force_argument, check_output_directory, nonnegative_int
+from ..errors import SetupError
+from ._common import Summary, add_force_argument, check_output_directory, nonnegative_int, parse_float
 
 
 def register(subparsers) -> None:
@@ -37,54 +38,24 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    import numpy as np
-
-    from pathlib import Path
-
-    from ..errors import SetupError
-    from ..io.atomic import directory_lock
-    from ..synthetic import generate_campaign, load_bench_config, write_campaign
+    from ..workflows.synthesize import synthesize
 
     check_output_directory(Path(args.out), args.force)  # before anything is generated
-    from ..synthetic.library import load_library_config
-
-    library = load_library_config(args.config)  # a [library] table: a tool library instead of one campaign
-    if library is not None:
-        return _run_library(args, *library)
-    config = load_bench_config(args.config)
-    seed = config.seed if args.seed is None else args.seed
-    if seed < 0:
-        raise SetupError(f"--seed {seed}: expected an integer >= 0")
-    if args.artifact and args.cuts:
-        raise SetupError("--cuts writes cutting tests of a tool-point campaign; it cannot be combined with --artifact")
-    if args.artifact:
-        from ..synthetic.artifact import default_bench_artifact, generate_artifact_tests, write_artifact_tests
-
-        tests = generate_artifact_tests(config, default_bench_artifact(), np.random.default_rng(seed))
-        with directory_lock(args.out):
-            path = write_artifact_tests(tests, args.out, overwrite=args.force, seed=seed)
-        return Summary(f"wrote {len(tests.frfs)} artifact FRFs, the true flange receptances and {path.name} to "
-                       f"{path.parent} (seed {seed})",
-                       {"out": str(path.parent), "artifact": str(path), "n_frfs": len(tests.frfs), "seed": seed})
-    cuts = _generate_cuts(args, config, seed)  # before anything is written: a bad cut option leaves no output
-    campaign = generate_campaign(config, np.random.default_rng(seed))
-    campaign = dataclasses.replace(campaign, truth={**campaign.truth, "seed": seed})
-    with directory_lock(args.out):
-        setup_path = write_campaign(campaign, args.out, overwrite=args.force)
-        if cuts is not None:
-            from ..synthetic.cuts import write_cuts
-
-            write_cuts(cuts, setup_path.parent, seed)
-    effects = ", ".join(f"{k}={v:g}" for k, v in campaign.truth["hidden_effects"].items()) or "none"
-    return Summary(
-        f"wrote {len(campaign.measurements)} tool-point FRFs, {len(campaign.spindle)} spindle file(s), "
-        f"{setup_path.name} and truth.json to {setup_path.parent} (seed {seed}; hidden effects: {effects})"
-        + ("" if cuts is None else f"; {cuts.speed_rpm.size} cuts ({int(cuts.stable.sum())} stable) in cuts.csv, "
-           f"their truth in cuts_truth.json"),
-        {"out": str(setup_path.parent), "setup": str(setup_path), "n_measurements": len(campaign.measurements),
-         "seed": seed, "hidden_effects": dict(campaign.truth["hidden_effects"]),
-         "n_cuts": 0 if cuts is None else int(cuts.speed_rpm.size)},
-    )
+    cut = {} if not args.cuts else dict(  # parsed only with --cuts (the cut options have no effect without it)
+        cut_length=None if args.cut_length is None else parse_float(args.cut_length, "--cut-length", positive=True),
+        cut_speeds=_cut_range(args.cut_speeds, "--cut-speeds"), cut_depths=_cut_range(args.cut_depths, "--cut-depths"),
+        cut_kt=parse_float(args.cut_kt, "--cut-kt", positive=True),
+        cut_kr=parse_float(args.cut_kr, "--cut-kr", positive=True),
+        cut_kt_error=parse_float(args.cut_kt_error, "--cut-kt-error"),
+        cut_kr_error=parse_float(args.cut_kr_error, "--cut-kr-error"), cut_flutes=args.cut_flutes,
+        cut_immersion=parse_float(args.cut_immersion, "--cut-immersion", positive=True), cut_milling=args.cut_milling,
+        cut_feed=args.cut_feed, cut_label_noise=parse_float(args.cut_label_noise, "--cut-label-noise"),
+        cut_truth=args.cut_truth, cut_layout=args.cut_layout)
+    result = synthesize(args.config, seed=args.seed, artifact=args.artifact, cuts=args.cuts, **cut)
+    path = result.save(args.out, force=args.force)
+    key = {"campaign": "setup", "artifact": "artifact", "library": "manifest"}[result.kind]
+    return Summary(result.summary_line(), {"out": str(path.parent), key: str(path), **result.summary_data()},
+                   warnings=result.warnings)
 
 
 # --------------------------------------------------------- cutting tests (issue #23) --
@@ -117,9 +88,7 @@ def _add_cut_arguments(p) -> None:
 
 
 def _cut_range(text: str, option: str) -> tuple[float, float]:
-    from ..errors import SetupError
-    from ._common import parse_float
-
+    """``LO:HI`` -> (lo, hi) with 0 < lo < hi."""
     parts = text.split(":")
     if len(parts) != 2:
         raise SetupError(f"{option} {text!r}: expected LO:HI")
@@ -127,59 +96,3 @@ def _cut_range(text: str, option: str) -> tuple[float, float]:
     if hi <= lo:
         raise SetupError(f"{option} {text!r}: expected LO < HI")
     return lo, hi
-
-
-def _generate_cuts(args, config, seed: int):
-    """The cut campaign of the --cut-* options, or None without --cuts."""
-    if not args.cuts:
-        return None
-    import numpy as np
-
-    from ..errors import SetupError
-    from ..synthetic.cuts import CutPlan, generate_cuts
-    from ._common import parse_float
-
-    length = config.clamping_lengths[0] if args.cut_length is None else parse_float(args.cut_length, "--cut-length",
-                                                                                     positive=True)
-    plan = CutPlan(
-        n_cuts=args.cuts, clamping_length=length, speed_range=_cut_range(args.cut_speeds, "--cut-speeds"),
-        depth_range=_cut_range(args.cut_depths, "--cut-depths"),
-        kt_assumed=parse_float(args.cut_kt, "--cut-kt", positive=True),
-        kr_assumed=parse_float(args.cut_kr, "--cut-kr", positive=True),
-        kt_error=parse_float(args.cut_kt_error, "--cut-kt-error"), kr_error=parse_float(args.cut_kr_error,
-                                                                                         "--cut-kr-error"),
-        flutes=args.cut_flutes, radial_immersion=parse_float(args.cut_immersion, "--cut-immersion", positive=True),
-        milling=args.cut_milling, feed=args.cut_feed,
-        label_noise=parse_float(args.cut_label_noise, "--cut-label-noise"), layout=args.cut_layout)
-    truth = {}
-    if args.cut_truth == "sdm":
-        from ..cuts.truth import SDM_TRUTH, sdm_true_limit
-
-        truth = {"true_limit": sdm_true_limit(plan), "truth_method": SDM_TRUTH}
-    # the cuts' own stream (seed + 1 spawned) so that --cuts does not change the hammer-test noise
-    return generate_cuts(config, plan, np.random.default_rng([seed, 23]), **truth)
-
-
-# --------------------------------------------------------- tool libraries (issue #20) --
-def _run_library(args, base, spec) -> Summary:
-    """``synthesize CONFIG`` with a ``[library]`` table: a whole synthetic tool library."""
-    from ..errors import SetupError
-    from ..io.atomic import directory_lock
-    from ..synthetic.library import generate_library, write_library
-
-    if args.artifact or args.cuts:
-        raise SetupError(f"{args.config}: [library] writes a tool library; it cannot be combined with "
-                         f"{'--artifact' if args.artifact else '--cuts'}")
-    seed = base.seed if args.seed is None else args.seed
-    library = generate_library(spec, base, seed)
-    with directory_lock(args.out):
-        manifest = write_library(library, args.out, overwrite=args.force)
-    specials = [c.name for c in library.combinations if c.special is not None]
-    types = ", ".join(spec.holder_types)
-    return Summary(
-        f"wrote a tool library of {len(library.combinations)} holder-tool combinations ({types}; "
-        f"special: {', '.join(specials) or 'none'}), {manifest.name} and library.json to {manifest.parent} "
-        f"(seed {seed})",
-        {"out": str(manifest.parent), "manifest": str(manifest), "n_combinations": len(library.combinations),
-         "holder_types": list(spec.holder_types), "special": specials, "seed": seed},
-    )

@@ -28,11 +28,19 @@ __all__ = [
     "natural_frequency_plot",
     "corner_overlay",
     "forest_plot",
+    "corner_overlay_figure",
+    "forest_figure",
+    "save_plot",
 ]
 
 METADATA_KEY = "bayes_rcsa.numbers"
 FIT_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown", "tab:pink",
               "tab:olive", "tab:cyan", "tab:gray")
+
+
+def save_plot(fig, path, numbers: dict) -> dict:
+    """Write ``fig`` to ``path`` as PNG (atomically) with ``numbers`` in its metadata; returns ``numbers``."""
+    return _save(fig, path, numbers)
 
 
 def _save(fig, path, numbers: dict) -> dict:
@@ -262,13 +270,18 @@ def _hpd_thresholds(hist: np.ndarray, masses: Sequence[float]) -> list[float]:
 
 def corner_overlay(groups: Sequence[Mapping], labels: Sequence[str], path, levels: Sequence[float] = (0.5, 0.9),
                    bins: int = 40, fit_order: Sequence[str] | None = None) -> dict:
+    """:func:`corner_overlay_figure` written to ``path`` (PNG, its numbers in the metadata); returns the numbers."""
+    return save_plot(*corner_overlay_figure(groups, labels, levels, bins, fit_order), path)
+
+
+def corner_overlay_figure(groups: Sequence[Mapping], labels: Sequence[str], levels: Sequence[float] = (0.5, 0.9),
+                          bins: int = 40, fit_order: Sequence[str] | None = None) -> tuple:
     """Corner plots of several posteriors overlaid, one corner per group, identical axes and levels.
 
     Parameters
     ----------
     groups : sequence of {"title": str, "datasets": {fit name: (n, p) array}}
     labels : p axis labels
-    path : output PNG
     levels : credible masses of the 2-D contours (highest-density regions,
         the same for every fit and group)
     bins : histogram bins per axis (the same edges for every fit)
@@ -276,8 +289,8 @@ def corner_overlay(groups: Sequence[Mapping], labels: Sequence[str], path, level
 
     Returns
     -------
-    dict with the common ``ranges`` (p, 2), ``levels`` and per group and fit
-    the posterior ``q05``/``q50``/``q95`` of every coordinate.
+    (Figure, dict): the figure and the numbers drawn: the common ``ranges`` (p, 2), ``levels`` and per group
+    and fit the posterior ``q05``/``q50``/``q95`` of every coordinate.
     """
     p = len(labels)
     names = list(fit_order) if fit_order else sorted({n for g in groups for n in g["datasets"]})
@@ -343,11 +356,16 @@ def corner_overlay(groups: Sequence[Mapping], labels: Sequence[str], path, level
 
     handles = [Line2D([], [], color=colors[n], label=n) for n in names]
     fig.legend(handles=handles, loc="lower center", ncol=min(len(names), 6), fontsize=7, frameon=False)
-    return _save(fig, path, {"kind": "corner_overlay", "labels": list(labels), "ranges": ranges.tolist(),
-                             "levels": list(levels), "groups": out_groups})
+    return fig, {"kind": "corner_overlay", "labels": list(labels), "ranges": ranges.tolist(), "levels": list(levels),
+                 "groups": out_groups}
 
 
 def forest_plot(panels: Sequence[Mapping], path, fit_order: Sequence[str] | None = None, title: str = "") -> dict:
+    """:func:`forest_figure` written to ``path`` (PNG, its numbers in the metadata); returns the numbers."""
+    return save_plot(*forest_figure(panels, fit_order, title), path)
+
+
+def forest_figure(panels: Sequence[Mapping], fit_order: Sequence[str] | None = None, title: str = "") -> tuple:
     """Forest plot: per row, each fit's median with 50 % (thick) and 90 % (thin) intervals.
 
     Parameters
@@ -355,11 +373,10 @@ def forest_plot(panels: Sequence[Mapping], path, fit_order: Sequence[str] | None
     panels : sequence of {"title", "xlabel", "rows": [{"label", "fits": {name:
         {"q05", "q25", "q50", "q75", "q95"}}, "reference": float or None}]}
         ``reference`` (e.g. a measurement or 0 % error) is drawn as a mark.
-    path : output PNG
 
     Returns
     -------
-    dict: the panels as drawn.
+    (Figure, dict): the figure and the panels as drawn.
     """
     names = list(fit_order) if fit_order else sorted({n for pnl in panels for r in pnl["rows"] for n in r["fits"]})
     colors = {n: FIT_COLORS[i % len(FIT_COLORS)] for i, n in enumerate(names)}
@@ -398,4 +415,4 @@ def forest_plot(panels: Sequence[Mapping], path, fit_order: Sequence[str] | None
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout(rect=(0, 0.08, 1, 0.95 if title else 1))
-    return _save(fig, path, {"kind": "forest", "panels": drawn})
+    return fig, {"kind": "forest", "panels": drawn}

@@ -47,7 +47,7 @@ from .predict import PredictionTarget, predict
 from .prediction_outputs import influence_summary, undetermined_statement
 
 __all__ = ["FitSpec", "FitAnalysis", "Study", "plan_fits", "run_fit", "analyse_fit", "run_study", "write_study", "fmt_contraction",
-           "study_document"]
+           "study_document", "study_figures"]
 
 _LENGTH_MATCH = 1e-7
 ANALYSIS_MAX_DRAWS = 1000  # draws pushed through the model for the influence analysis of each fit
@@ -337,6 +337,17 @@ def _q(x) -> dict:
 
 
 def _plots(study: Study, out: Path, rng: np.random.Generator) -> dict:
+    from .plots import save_plot
+
+    return {name: save_plot(fig, out / name, numbers) for name, (fig, numbers) in study_figures(study, rng).items()}
+
+
+def study_figures(study: Study, rng: np.random.Generator) -> dict:
+    """``{"corner_overlay.png": (Figure, numbers), "forest.png": (Figure, numbers)}`` of the study.
+
+    ``rng`` draws the subsets of each fit's draws shown (seeded with the study's seed, so that the
+    figures and their numbers are the same every time they are made).
+    """
     from . import plots as P
 
     fits = study.fits
@@ -357,8 +368,7 @@ def _plots(study: Study, out: Path, rng: np.random.Generator) -> dict:
         groups.append({"title": f"stiffness at {_mm(length)} mm", "datasets": data})
         for n in forest_k:
             forest_k[n].append(rows[n])
-    corner = P.corner_overlay(groups, ["log10 k_xf (N/m)", "log10 k_thetaM (N m/rad)"], out / "corner_overlay.png",
-                              fit_order=names)
+    corner = P.corner_overlay_figure(groups, ["log10 k_xf (N/m)", "log10 k_thetaM (N m/rad)"], fit_order=names)
     err_rows = []
     keys = sorted({(r["clamping_length"], r["direction"]) for f in fits for r in f.entry["transfer"]})
     for length, d in keys:
@@ -369,11 +379,11 @@ def _plots(study: Study, out: Path, rng: np.random.Generator) -> dict:
                     row["fits"][f.spec.name] = {"q05": r["error_q05_pct"], "q50": r["error_q50_pct"],
                                                 "q95": r["error_q95_pct"], "fitted": r["used_in_fit"]}
         err_rows.append(row)
-    forest = P.forest_plot([
+    forest = P.forest_figure([
         {"title": "contact stiffness k_xf", "xlabel": "log10 k_xf (N/m)", "rows": forest_k["k_xf"]},
         {"title": "contact stiffness k_thetaM", "xlabel": "log10 k_thetaM (N m/rad)", "rows": forest_k["k_thetaM"]},
         {"title": "dominant natural frequency", "xlabel": "(predicted - measured) / measured (%)", "rows": err_rows},
-    ], out / "forest.png", fit_order=names, title="Posterior medians, 50 % and 90 % intervals per fit")
+    ], fit_order=names, title="Posterior medians, 50 % and 90 % intervals per fit")
     return {"corner_overlay.png": corner, "forest.png": forest}
 
 

@@ -25,9 +25,12 @@ from .artifact import ArtifactSetup
 from .identification import SpindleIdentification
 from .uncertainty import SpindleSamples, save_spindle_samples
 
-__all__ = ["write_outputs", "SUMMARY_FORMAT"]
+__all__ = ["write_outputs", "spindle_samples", "summary_document", "output_files", "SUMMARY_FORMAT", "SUMMARY_FILE",
+           "SAMPLES_FILE"]
 
 SUMMARY_FORMAT = "bayes_rcsa.spindle_summary/1"
+SUMMARY_FILE = "spindle_summary.json"
+SAMPLES_FILE = "spindle_samples.npz"
 
 
 def _reliability_csv(result: SpindleIdentification) -> str:
@@ -44,8 +47,62 @@ def _reliability_csv(result: SpindleIdentification) -> str:
     return "\n".join(lines) + "\n"
 
 
+def spindle_samples(setup: ArtifactSetup, results: Mapping[str, SpindleIdentification],
+                    seed: int | None = None) -> SpindleSamples | None:
+    """The bootstrap samples of every direction as one :class:`SpindleSamples` (``None`` without samples).
+
+    Raises
+    ------
+    SetupError
+        The directions were tested on different frequency grids (the samples hold one grid).
+    """
+    if not results or not all(r.samples is not None for r in results.values()):
+        return None
+    first = next(iter(results.values()))
+    for d, r in results.items():
+        if r.frequency_hz.shape != first.frequency_hz.shape or not np.allclose(r.frequency_hz, first.frequency_hz,
+                                                                               rtol=1e-12, atol=0):
+            raise SetupError(
+                f"{setup.path}: directions {first.direction!r} and {d!r} were tested on different frequency "
+                "grids, but the samples file holds one grid; run them separately (--directions) or "
+                "re-measure on one grid"
+            )
+    meta = {"artifact_file": str(setup.path), "seed": seed,
+            "n_modes": {d: r.fit.model.n_modes for d, r in results.items()},
+            "noise_inflation": {d: r.inflation for d, r in results.items()}}
+    return SpindleSamples(first.frequency_hz, {d: r.smoothed for d, r in results.items()},
+                          {d: r.samples for d, r in results.items()}, meta, source=SAMPLES_FILE)
+
+
+def output_files(results: Mapping[str, SpindleIdentification], plots: bool = True, samples: bool = False) -> list[str]:
+    """Names of the files :func:`write_outputs` writes, in the order of spindle_summary.json's ``files``."""
+    files = []
+    for d in results:
+        files += [f"spindle_{d}.csv", f"spindle_{d}_raw.csv", f"spindle_{d}_reliability.csv"]
+        if plots:
+            files += [f"spindle_{d}.png", f"artifact_{d}.png"]
+    return files + ([SAMPLES_FILE] if samples else []) + [SUMMARY_FILE]
+
+
+def summary_document(setup: ArtifactSetup, results: Mapping[str, SpindleIdentification], seed: int | None = None,
+                     plots: bool = True, samples: bool = False, warnings: Sequence[str] = ()) -> dict:
+    """The content of spindle_summary.json (``samples``: spindle_samples.npz is written)."""
+    return {
+        "format": SUMMARY_FORMAT,
+        "artifact": {"file": str(setup.path), "name": setup.name,
+                     "point_distances_from_free_end_m": list(setup.artifact.point_distances),
+                     "artifact_length_m": setup.artifact.total_length},
+        "seed": seed,
+        "directions": {d: r.summary() for d, r in results.items()},
+        "samples_file": SAMPLES_FILE if samples else None,
+        "files": output_files(results, plots, samples),
+        "warnings": list(warnings),
+    }
+
+
 def write_outputs(setup: ArtifactSetup, results: Mapping[str, SpindleIdentification], out_dir,
-                  plots: bool = True, seed: int | None = None, warnings: Sequence[str] = ()) -> dict:
+                  plots: bool = True, seed: int | None = None, warnings: Sequence[str] = (),
+                  samples: SpindleSamples | None = None) -> dict:
     """Write every output file; return the summary dict (also written as JSON).
 
     Parameters
@@ -59,10 +116,11 @@ def write_outputs(setup: ArtifactSetup, results: Mapping[str, SpindleIdentificat
     warnings : sequence of str
         The warnings the command printed (data checks of the artifact FRFs included), recorded as
         ``"warnings"`` in spindle_summary.json.
+    samples : SpindleSamples, optional
+        :func:`spindle_samples` of ``results`` when already made (made here otherwise).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    files = []
     for d, r in results.items():
         s = r.summary()
         head = [
@@ -78,44 +136,16 @@ def write_outputs(setup: ArtifactSetup, results: Mapping[str, SpindleIdentificat
         write_spindle_csv(out / raw_name, PointReceptance(r.frequency_hz, r.raw, source=raw_name), comments=[
             f"RAW line-by-line inverse coupling, direction {d} (noisy; use spindle_{d}.csv in setups)",
         ])
-        rel_name = f"spindle_{d}_reliability.csv"
-        atomic_write_text(out / rel_name, _reliability_csv(r))
-        files += [name, raw_name, rel_name]
+        atomic_write_text(out / f"spindle_{d}_reliability.csv", _reliability_csv(r))
         if plots:
             from .plots import receptance_plot, reproduction_plot
 
             receptance_plot(r, out / f"spindle_{d}.png")
             reproduction_plot(r, out / f"artifact_{d}.png")
-            files += [f"spindle_{d}.png", f"artifact_{d}.png"]
-    samples_file = None
-    if all(r.samples is not None for r in results.values()):
-        first = next(iter(results.values()))
-        for d, r in results.items():
-            if r.frequency_hz.shape != first.frequency_hz.shape or not np.allclose(r.frequency_hz, first.frequency_hz,
-                                                                                   rtol=1e-12, atol=0):
-                raise SetupError(
-                    f"{setup.path}: directions {first.direction!r} and {d!r} were tested on different frequency "
-                    "grids, but the samples file holds one grid; run them separately (--directions) or "
-                    "re-measure on one grid"
-                )
-        meta = {"artifact_file": str(setup.path), "seed": seed,
-                "n_modes": {d: r.fit.model.n_modes for d, r in results.items()},
-                "noise_inflation": {d: r.inflation for d, r in results.items()}}
-        samples = SpindleSamples(first.frequency_hz, {d: r.smoothed for d, r in results.items()},
-                                 {d: r.samples for d, r in results.items()}, meta, source="spindle_samples.npz")
-        save_spindle_samples(out / "spindle_samples.npz", samples)
-        samples_file = "spindle_samples.npz"
-        files.append(samples_file)
-    summary = {
-        "format": SUMMARY_FORMAT,
-        "artifact": {"file": str(setup.path), "name": setup.name,
-                     "point_distances_from_free_end_m": list(setup.artifact.point_distances),
-                     "artifact_length_m": setup.artifact.total_length},
-        "seed": seed,
-        "directions": {d: r.summary() for d, r in results.items()},
-        "samples_file": samples_file,
-        "files": files + ["spindle_summary.json"],
-        "warnings": list(warnings),
-    }
-    atomic_write_text(out / "spindle_summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
+    if samples is None:
+        samples = spindle_samples(setup, results, seed)
+    if samples is not None:
+        save_spindle_samples(out / SAMPLES_FILE, samples)
+    summary = summary_document(setup, results, seed, plots, samples is not None, warnings)
+    atomic_write_text(out / SUMMARY_FILE, json.dumps(summary, indent=2, allow_nan=False) + "\n")
     return summary

@@ -9,7 +9,7 @@ import numpy as np
 from .identification import SpindleIdentification
 from ..io.figures import new_figure as _figure, save_png as _save
 
-__all__ = ["receptance_plot", "reproduction_plot"]
+__all__ = ["receptance_plot", "reproduction_plot", "receptance_figure", "reproduction_figure"]
 
 _ENTRIES = (("h", 0, 0, "m/N"), ("l = n", 0, 1, "1/N"), ("p", 1, 1, "rad/(N m)"))
 
@@ -26,12 +26,21 @@ def _shade(ax, bands) -> None:
 
 
 def receptance_plot(result: SpindleIdentification, path, truth: np.ndarray | None = None) -> Path:
-    """Raw (line-by-line) vs smoothed flange receptances, magnitude and phase.
+    """:func:`receptance_figure` written to ``path`` (PNG)."""
+    return _save(receptance_figure(result, truth), path)
+
+
+def reproduction_plot(result: SpindleIdentification, path) -> Path:
+    """:func:`reproduction_figure` written to ``path`` (PNG)."""
+    return _save(reproduction_figure(result), path)
+
+
+def receptance_figure(result: SpindleIdentification, truth: np.ndarray | None = None):
+    """Raw (line-by-line) vs smoothed flange receptances, magnitude and phase (a matplotlib Figure).
 
     Parameters
     ----------
     result : SpindleIdentification
-    path : path-like, PNG
     truth : (n_freq, 2, 2) complex, optional
         A known flange block to overlay (synthetic checks).
 
@@ -72,11 +81,11 @@ def receptance_plot(result: SpindleIdentification, path, truth: np.ndarray | Non
     fig.suptitle(f"flange receptance, direction {result.direction} (red: unreliable inversion, "
                  f"relative std > {result.threshold:g})", fontsize=10)
     fig.tight_layout()
-    return _save(fig, path)
+    return fig
 
 
-def reproduction_plot(result: SpindleIdentification, path) -> Path:
-    """Measured hammer tests vs those predicted by coupling the smoothed block to the artifact."""
+def reproduction_figure(result: SpindleIdentification):
+    """Measured hammer tests vs those predicted by coupling the smoothed block to the artifact (a Figure)."""
     f = result.frequency_hz
     fig = _figure(9, 7)
     axes = fig.subplots(3, 1, sharex=True)
@@ -89,4 +98,4 @@ def reproduction_plot(result: SpindleIdentification, path) -> Path:
     axes[-1].set_xlabel("frequency [Hz]")
     fig.suptitle(f"artifact hammer tests, direction {result.direction}", fontsize=10)
     fig.tight_layout()
-    return _save(fig, path)
+    return fig
