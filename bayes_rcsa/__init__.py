@@ -22,7 +22,7 @@ from .errors import BayesRCSAError, ConvergenceError, DataError, ModelError, Set
 
 __version__ = "0.1.0"
 
-_LAZY = {"load_setup": ("bayes_rcsa.io.setup", "load_setup")}
+_LAZY = {"load_setup": ("bayes_rcsa.io.setup", "load_setup"), "example_setup": ("bayes_rcsa.data", "example_setup")}
 
 
 def __getattr__(name: str):
@@ -49,7 +49,7 @@ def __dir__():
 
 
 __all__ = ["BayesRCSAError", "ConvergenceError", "DataError", "ModelError", "SetupError", "__version__",
-           "load_setup", "Result", "identify", "Posterior", "predict", "Prediction", "lobes", "Lobes",
+           "load_setup", "example_setup", "Result", "identify", "Posterior", "predict", "Prediction", "lobes", "Lobes",
            "discrepancy", "ModelCheck", "design", "Design", "update", "CutUpdate", "build_library", "Population",
            "batch", "BatchRun", "report", "Report", "identifiability", "Identifiability", "identify_spindle",
            "SpindleInterface", "synthesize", "Campaign", "simulate", "SimulatedFRF", "demo", "Demo"]
