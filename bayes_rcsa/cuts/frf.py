@@ -60,6 +60,7 @@ def posterior_dynamics(setup_path, posterior_path, setups, n_draws: int | None, 
         A clamping length the posterior cannot predict, a setup without X and Y spindle files.
     """
     from ..io import load_setup
+    from ..io.frf import overlap_mask
     from ..posterior import load_posterior
     from ..posterior.growth_prior import transfer_draws
     from ..posterior.prediction_outputs import check_prediction_lengths, posterior_status
@@ -76,8 +77,7 @@ def posterior_dynamics(setup_path, posterior_path, setups, n_draws: int | None, 
         raise SetupError(f"cuts at a clamping length the posterior cannot predict: {exc}") from None
     draws = transfer_draws(draws, setup, lengths, rng)
     sx, sy = setup.spindle["x"].frequency_hz, setup.spindle["y"].frequency_hz
-    lo, hi = max(sx[0], sy[0]), min(sx[-1], sy[-1])
-    f = sx[(sx >= lo) & (sx <= hi)]
+    f = sx[overlap_mask(sx, sy)]
     model = setup.model()
     caches = configuration_caches(model, setups, f)
     frfs = frfs_of_draws(draws, model, caches)

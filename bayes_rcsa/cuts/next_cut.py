@@ -48,6 +48,7 @@ import numpy as np
 
 from ..design.estimators import weighted_widths
 from ..errors import DataError, SetupError
+from ..stats.weights import MIN_ESS, effective_sample_size, normalise_log_weights
 from .likelihood import DEFAULT_BOUNDARY_WIDTH, DEFAULT_LABEL_ERROR, chatter_probability
 
 __all__ = ["NextCutTarget", "parse_next_cut_target", "CandidateCut", "NextCutResult", "p_stable_matrix",
@@ -306,7 +307,7 @@ def rank_next_cuts(target: NextCutTarget, cand_speed_rpm, cand_depth_m, cand_lim
     if edge:
         warnings.append(edge)
     return NextCutResult(target, cands, current, share, float(risk_budget), float(boundary_width),
-                         float(1.0 / np.sum(w**2)), warnings)
+                         effective_sample_size(w, normalised=True), warnings)
 
 
 def _edge_warning(best: CandidateCut | None, cs: np.ndarray, ca: np.ndarray) -> str:
@@ -361,7 +362,6 @@ def run_next_cut(setup_path, posterior_path, cutting, clamping_length: float, pr
     from .data import check_supported, cut_groups, prepare_cuts
     from .frf import posterior_dynamics
     from .likelihood import CutGroup, CutLikelihood, inverse_limits_at_cuts
-    from .update import effective_sample_size
 
     rng = np.random.default_rng(seed)
     s_axis = np.unique(np.asarray(cand_speeds_rpm, dtype=float))
@@ -416,10 +416,9 @@ def run_next_cut(setup_path, posterior_path, cutting, clamping_length: float, pr
         inv_c = inverse_limits_at_cuts(groups, cuts.n_cuts, prior, method)
         check_supported(cuts, inv_c)
         logw = CutLikelihood(inv_c, cuts.depth_m, cuts.chatter, label_error)(draw, u, node, boundary_width)
-        weights = np.exp(logw - np.max(logw))
-        weights /= weights.sum()
+        weights = normalise_log_weights(logw, refuse=False)  # no weight at all: refused by rank_next_cuts
         ess = effective_sample_size(np.bincount(draw, weights, n_d))
-        if ess < 30:
+        if ess < MIN_ESS:
             warnings.append(f"warning: the {cuts.n_cuts} cut(s) so far leave {ess:.0f} effective hammer draws of {n_d}; "
                             "the ranking rests on few draws (use more --draws)")
         so_far = (cuts.speed_rpm, cuts.depth_m, ~cuts.chatter)

@@ -31,6 +31,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConvergenceError, SetupError
+from ..stats import weights as _weights
+from ..stats.weights import MIN_ESS_UPDATE, effective_sample_size
 from .coefficients import CoefficientPrior
 from .likelihood import BoundaryWidth, CutLikelihood, chatter_probability
 
@@ -40,8 +42,9 @@ __all__ = ["UpdateSettings", "UpdateResult", "importance_update", "systematic_re
 
 #: Coefficient (and width) draws per hammer draw: the level scales exactly, so many are cheap.
 DEFAULT_PARTICLES_PER_DRAW = 32
-#: Fewer effective hammer draws than this and the update is refused.
-DEFAULT_MIN_ESS = 50.0
+#: Fewer effective hammer draws than this and the update is refused (default of ``--min-ess``; why 50:
+#: :data:`bayes_rcsa.stats.weights.MIN_ESS_UPDATE`).
+DEFAULT_MIN_ESS = MIN_ESS_UPDATE
 
 
 @dataclass(frozen=True)
@@ -111,13 +114,6 @@ class UpdateResult:
     particle_width: np.ndarray | None = None
 
 
-def effective_sample_size(weights) -> float:
-    """Kish's ESS 1 / Σ w² of normalised weights."""
-    w = np.asarray(weights, dtype=float)
-    w = w / w.sum()
-    return float(1.0 / np.sum(w * w))
-
-
 def systematic_resample(weights, n: int, rng: np.random.Generator) -> np.ndarray:
     """``n`` indices drawn by systematic resampling (one uniform; low variance), sorted."""
     w = np.asarray(weights, dtype=float)
@@ -139,13 +135,10 @@ def weighted_quantile(values, weights, q) -> np.ndarray:
 
 
 def normalise_log_weights(logw: np.ndarray) -> np.ndarray:
-    """exp(logw) / sum, computed stably; ConvergenceError when every weight is zero."""
-    m = np.max(logw)
-    if not np.isfinite(m):
-        raise ConvergenceError("every particle has zero likelihood under the cut outcomes; the cuts contradict the "
-                               "posterior entirely")
-    w = np.exp(logw - m)
-    return w / w.sum()
+    """exp(logw) / sum (n,), computed stably (:func:`bayes_rcsa.stats.weights.normalise_log_weights`);
+    ConvergenceError when every particle's weight is zero."""
+    return _weights.normalise_log_weights(logw, reason="every particle has zero likelihood under the cut outcomes; "
+                                          "the cuts contradict the posterior entirely")
 
 
 def importance_update(likelihood: CutLikelihood, prior: CoefficientPrior, width: BoundaryWidth,

@@ -39,12 +39,15 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
+from ..stats.weights import MIN_ESS, effective_sample_size, normalise_log_weights
+
 __all__ = ["ESS_MIN", "Z90", "NoiseLevel", "WidthEstimate", "weighted_widths", "unweighted_width",
            "simulate_measurements", "log_likelihoods", "importance_widths", "finite_difference_jacobian",
            "laplace_widths"]
 
-#: Median importance-weight ESS below which the re-weighting is declared collapsed.
-ESS_MIN = 30.0
+#: Median importance-weight ESS below which the re-weighting is declared collapsed (the package's least ESS of a
+#: weighted estimate, :data:`bayes_rcsa.stats.weights.MIN_ESS`).
+ESS_MIN = MIN_ESS
 #: z of the 95 % quantile of the standard normal: a 90 % central interval is 2 * Z90 standard deviations wide.
 Z90 = 1.6448536269514722
 
@@ -209,10 +212,8 @@ def importance_widths(h: np.ndarray, target: np.ndarray, noise: NoiseLevel, floo
     y = simulate_measurements(h[idx], noise, floor2, rng)
     ll = log_likelihoods(y, h, noise, floor2)
     ll[np.arange(m), idx] = -np.inf  # leave the true draw out of its own posterior
-    ll -= np.max(ll, axis=1, keepdims=True)
-    w = np.exp(ll)
-    w /= np.sum(w, axis=1, keepdims=True)
-    ess = 1.0 / np.sum(w**2, axis=1)
+    w = normalise_log_weights(ll, axis=1, refuse=False)
+    ess = effective_sample_size(w, axis=1, normalised=True)
     widths = weighted_widths(target, w)
     mean, err = _mean_and_error(widths)
     med = float(np.median(ess))

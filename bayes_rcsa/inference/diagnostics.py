@@ -21,7 +21,7 @@ import numpy as np
 
 from ..io.atomic import atomic_path
 
-__all__ = ["chain_diagnostics", "pareto_smoothed_log_weights", "build_inference_data", "inference_data_from_dict",
+__all__ = ["chain_diagnostics", "build_inference_data", "inference_data_from_dict",
            "write_netcdf", "read_netcdf"]
 
 
@@ -73,25 +73,6 @@ def chain_diagnostics(chain: np.ndarray) -> dict[str, np.ndarray]:
         tail = az.ess(ds, method="tail")
     get = lambda d: np.array([float(d[f"p{j}"].values) for j in range(nd)])  # noqa: E731
     return {"rhat": get(rhat), "ess_bulk": get(bulk), "ess_tail": get(tail)}
-
-
-def pareto_smoothed_log_weights(log_weights: np.ndarray) -> tuple[np.ndarray, float]:
-    """Pareto-smoothed importance-sampling log weights and the shape ``k`` of the fitted tail (Vehtari et al.).
-
-    Parameters
-    ----------
-    log_weights : (n,) unnormalised log importance weights (finite)
-
-    Returns
-    -------
-    (n,) smoothed log weights normalised to sum to one, and ``k`` (above 0.7 the estimate is unreliable).
-    """
-    with warnings.catch_warnings(), np.errstate(over="ignore"):
-        warnings.simplefilter("ignore", UserWarning)  # ArviZ warns on a large k itself; the caller reports it
-        # its tail-length heuristic overflows exp() for a few extreme weights, harmlessly (inf -> weight 0)
-        warnings.simplefilter("ignore", RuntimeWarning)
-        lw, k = _az().psislw(np.asarray(log_weights, dtype=float))
-    return np.asarray(lw, dtype=float), float(np.asarray(k))
 
 
 def build_inference_data(

@@ -13,8 +13,9 @@ Verdicts:
 * ``"consistent"``: every end agrees within :data:`TOLERANCE_SD` posterior standard deviations;
 * ``"disagrees"``: some end does not (named, with both values): the chain's interval is not to be trusted
   there;
-* ``"unreliable"``: the Pareto shape ``k`` exceeds 0.7 or the weights' ESS is below :data:`MIN_ESS` (the
-  t proposal does not cover the posterior, e.g. a second mode far from the draws): no verdict.
+* ``"unreliable"``: the Pareto shape ``k`` exceeds 0.7 (:data:`bayes_rcsa.stats.weights.PARETO_K_MAX`) or the
+  weights' ESS is below :data:`MIN_ESS` (the t proposal does not cover the posterior, e.g. a second mode far from
+  the draws): no verdict.
 """
 
 from __future__ import annotations
@@ -24,7 +25,9 @@ import math
 import numpy as np
 from scipy import stats
 
-from .diagnostics import pareto_smoothed_log_weights
+from ..stats.weights import (MIN_ESS_COVARIANCE, MIN_ESS_INTERVAL_END, MIN_ESS_PER_DIMENSION, PARETO_K_MAX,
+                             effective_sample_size, importance_reliable, normalise_log_weights,
+                             pareto_smoothed_log_weights)
 from .posterior import LogPosterior
 
 __all__ = ["importance_tail_check", "importance_resample", "check_identification", "TOLERANCE_SD", "MIN_ESS",
@@ -35,13 +38,14 @@ __all__ = ["importance_tail_check", "importance_resample", "check_identification
 #: is smaller; 0.4 sd is four times the former (well-mixed long chains of the library bench differ by
 #: 0.14-0.30 sd), while the benchmark's missed tail of k_thetaM is 0.57 sd.
 TOLERANCE_SD = 0.4
-#: Smallest effective sample size of the smoothed weights for a verdict.
-MIN_ESS = 1000
+#: Smallest effective sample size of the smoothed weights for a verdict (why 1000:
+#: :data:`bayes_rcsa.stats.weights.MIN_ESS_INTERVAL_END`).
+MIN_ESS = MIN_ESS_INTERVAL_END
 TAIL_CHECK_RULE = ("importance sampling of the same log posterior from a multivariate t (3 degrees of freedom, "
                    "twice the covariance of the draws, refitted once to a weighted pilot), Pareto-smoothed weights; "
                    "the 5 % and 95 % points of every parameter compared with the chain's: "
                    f"agreement within {TOLERANCE_SD} posterior sd; no verdict "
-                   f"when the Pareto shape k > 0.7 or the weights' ESS < {MIN_ESS}")
+                   f"when the Pareto shape k > {PARETO_K_MAX:g} or the weights' ESS < {MIN_ESS}")
 
 
 def _weighted_quantiles(x: np.ndarray, w: np.ndarray, qs) -> np.ndarray:
@@ -72,16 +76,16 @@ def _importance(log_posterior, theta: np.ndarray, rng: np.random.Generator, n: i
             return x[ok], np.full(int(ok.sum()), 1.0 / max(int(ok.sum()), 1)), math.nan, 0.0, int(ok.sum())
         x = x[ok]
         lw, k = pareto_smoothed_log_weights(lp[ok] - prop.logpdf(x))
-        w = np.exp(lw - lw.max())
-        w /= w.sum()
+        w = normalise_log_weights(lw, refuse=False)
         # refit the proposal to the pilot where the pilot's weights carry enough draws to estimate a covariance
-        if m < n and 1.0 / np.sum(w * w) >= max(100, 10 * x.shape[1]):
+        if m < n and effective_sample_size(w, normalised=True) >= max(MIN_ESS_COVARIANCE,
+                                                                      MIN_ESS_PER_DIMENSION * x.shape[1]):
             mu_p = w @ x
             cov_p = (w[:, None] * (x - mu_p)).T @ (x - mu_p)
             ev = np.linalg.eigvalsh(cov_p)
             if np.all(np.isfinite(cov_p)) and ev.min() > 1e-12 * ev.max():
                 mu, cov = mu_p, cov_p
-    return x, w, k, float(1.0 / np.sum(w * w)), int(ok.sum())
+    return x, w, k, effective_sample_size(w, normalised=True), int(ok.sum())
 
 
 def importance_resample(log_posterior, theta: np.ndarray, rng: np.random.Generator, size: int, n: int = 100_000,
@@ -97,7 +101,7 @@ def importance_resample(log_posterior, theta: np.ndarray, rng: np.random.Generat
     ``reason``.
     """
     x, w, k, ess, n_in = _importance(log_posterior, np.asarray(theta, dtype=float), rng, n, df, scale, batch)
-    if not (n_in >= MIN_ESS and k <= 0.7 and ess >= MIN_ESS):
+    if not (n_in >= MIN_ESS and importance_reliable(k, ess, MIN_ESS)):
         return {"draws": None, "pareto_k": k, "ess": ess, "used": False,
                 "reason": f"importance sampling unreliable here (Pareto shape k = {k:.2f}, weights' ESS {ess:.0f}, "
                           f"{n_in} of {n} draws inside the prior)"}
@@ -143,9 +147,9 @@ def importance_tail_check(log_posterior, theta: np.ndarray, names, rng: np.rando
     for j, name in enumerate(names):
         out["parameters"][name] = {"chain": [float(v) for v in q_ch[:, j]], "importance": [float(v) for v in q_is[:, j]],
                                    "shift_sd": float(shift[j])}
-    if not (k <= 0.7 and ess >= MIN_ESS):
-        return {**out, "verdict": "unreliable", "reason": f"Pareto shape k = {k:.2f} (> 0.7 is unreliable) or weights' "
-                f"ESS {ess:.0f} < {MIN_ESS}: the t proposal does not cover the posterior"}
+    if not importance_reliable(k, ess, MIN_ESS):
+        return {**out, "verdict": "unreliable", "reason": f"Pareto shape k = {k:.2f} (> {PARETO_K_MAX:g} is "
+                f"unreliable) or weights' ESS {ess:.0f} < {MIN_ESS}: the t proposal does not cover the posterior"}
     bad = [names[j] for j in np.flatnonzero(shift > TOLERANCE_SD)]
     if not bad:
         return {**out, "verdict": "consistent", "reason": f"every 5 % and 95 % point within {TOLERANCE_SD} sd"}

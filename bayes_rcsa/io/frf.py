@@ -4,11 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import DataError
 from ..model.receptance import FRF
 from .checks import check_passive
 
-__all__ = ["read_frf", "FRF_SUFFIXES"]
+__all__ = ["read_frf", "overlap_mask", "FRF_SUFFIXES"]
 
 _CSV = (".csv",)
 _UFF = (".uff", ".unv", ".uf")
@@ -58,3 +60,22 @@ def read_frf(path, point: bool = True) -> FRF:
     raise DataError(
         f"{path}: unsupported FRF file type {path.suffix or '(no suffix)'!r}; expected one of {', '.join(FRF_SUFFIXES)}"
     )
+
+
+def overlap_mask(frequency_x_hz, frequency_y_hz) -> np.ndarray:
+    """X's lines inside the band both grids cover (X and Y measured or exported on different grids).
+
+    Parameters
+    ----------
+    frequency_x_hz : (n_x,) Hz, increasing
+    frequency_y_hz : (n_y,) Hz, increasing
+
+    Returns
+    -------
+    (n_x,) bool: ``max(fx[0], fy[0]) <= fx <= min(fx[-1], fy[-1])``; ``frequency_x_hz[mask]`` is the common grid
+    (Y is interpolated onto it where the grids differ)
+    """
+    fx = np.asarray(frequency_x_hz, dtype=float)
+    fy = np.asarray(frequency_y_hz, dtype=float)
+    lo, hi = max(fx[0], fy[0]), min(fx[-1], fy[-1])
+    return (fx >= lo) & (fx <= hi)

@@ -28,6 +28,7 @@ import dataclasses
 
 import numpy as np
 
+from ..stats.weights import MIN_ESS, effective_sample_size, normalise_log_weights
 from .population import covariate
 
 __all__ = ["two_stage_log_weights", "site_log_integrals", "systematic_resample", "reweight_exact",
@@ -36,8 +37,9 @@ __all__ = ["two_stage_log_weights", "site_log_integrals", "systematic_resample",
 #: Smallest effective sample size of the two-stage weights, as a fraction of the hyperparameter draws, for the
 #: re-weighted result to replace the surrogate's (below it a handful of draws would carry the result).
 EXACT_ESS_FRACTION = 0.1
-#: Smallest effective number of stage-1 draws (median over the hyperparameter draws) behind a setup's site average.
-SITE_ESS_MIN = 30.0
+#: Smallest effective number of stage-1 draws (median over the hyperparameter draws) behind a setup's site average
+#: (the package's least ESS of a weighted estimate, :data:`bayes_rcsa.stats.weights.MIN_ESS`).
+SITE_ESS_MIN = MIN_ESS
 #: ``exact="auto"`` re-weights only if setups x stage-1 draws x hyperparameter draws stays below this (a few
 #: seconds on one core; a 12-combination library with 2,000 draws each and 8,000 hyperparameter draws is 1.9e8).
 EXACT_MAX_PAIRS = 4e8
@@ -181,12 +183,11 @@ def reweight_exact(fit, setups, rng: np.random.Generator, mode="auto", max_draws
             return fit, info
     lw, site = two_stage_log_weights(fit, setups, max_draws)
     ok = np.isfinite(lw)
-    w = np.where(ok, np.exp(lw - (lw[ok].max() if ok.any() else 0.0)), 0.0)
-    if not ok.any() or w.sum() <= 0:
+    if not ok.any():
         info.update(sound=False, reason="no finite two-stage weight; the Gaussian-surrogate result")
         return fit, info
-    w /= w.sum()
-    ess = float(1.0 / np.sum(w * w))
+    w = normalise_log_weights(np.where(ok, lw, -np.inf))  # a non-finite weight counts as zero
+    ess = effective_sample_size(w, normalised=True)
     med = {n: float(np.median(v)) for n, v in site.items()}
     worst = min(med, key=med.get)
     info.update(weight_ess=ess, weight_ess_fraction=ess / H, site_ess_median_min=med[worst], site_ess_setup=worst)

@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConvergenceError, SetupError
+from ..stats.weights import MIN_ESS, effective_sample_size, normalise_log_weights
 from .exact import reweight_exact
 from .hierarchy import Group, HyperFit, Stage2Settings, TypeFit, _factor, _forward, fit_hyper
 from .population import Hyperprior
@@ -49,8 +50,9 @@ __all__ = ["SetupDraws", "Stage2Settings", "TypeFit", "Stage2Result", "surrogate
            "fit_population", "pooled_weights",
            "ESS_MIN"]
 
-#: Smallest importance ESS of a setup's re-weighted stage-1 draws for its pooled estimate to be reported.
-ESS_MIN = 30.0
+#: Smallest importance ESS of a setup's re-weighted stage-1 draws for its pooled estimate to be reported (the
+#: package's least ESS of a weighted estimate, :data:`bayes_rcsa.stats.weights.MIN_ESS`).
+ESS_MIN = MIN_ESS
 
 
 @dataclass(frozen=True)
@@ -182,9 +184,7 @@ def pooled_weights(setup: SetupDraws, theta: np.ndarray, x: float, max_draws: in
     top = lp.max(axis=0)
     ln_pop = top + np.log(np.mean(np.exp(lp - top), axis=0))
     ln_w = ln_pop - setup.ln_prior(z)
-    ln_w = np.where(np.isfinite(ln_w), ln_w, -np.inf)
-    w = np.exp(ln_w - np.max(ln_w))
-    return z, w / np.sum(w)
+    return z, normalise_log_weights(np.where(np.isfinite(ln_w), ln_w, -np.inf), refuse=False)
 
 
 @dataclass
@@ -288,7 +288,7 @@ def fit_population(setups, hyper: Hyperprior, rng: np.random.Generator, settings
         flat = fit.flat
         sub = flat[rng.choice(flat.shape[0], size=min(n_weight_draws, flat.shape[0]), replace=False)]
         z, w = pooled_weights(s, sub, x)
-        ess = float(1.0 / np.sum(w * w))
+        ess = effective_sample_size(w, normalised=True)
         row = {"name": s.name, "holder_type": s.holder_type, "diameter_m": s.diameter, "ess": ess,
                "n_draws": int(z.shape[0]), "refused": None}
         own = np.quantile(s.z, [0.05, 0.5, 0.95], axis=0)

@@ -54,11 +54,12 @@ def common_frequency_grid(frf_x, frf_y):
     -------
     frequency_hz (n,), gx (n,), gy (n,)
     """
+    from ..io.frf import overlap_mask
+
     fx, fy = frf_x.frequency_hz, frf_y.frequency_hz
     if fx.shape == fy.shape and np.allclose(fx, fy, rtol=1e-12, atol=0):
         return fx, frf_x.values, frf_y.values
-    lo, hi = max(fx[0], fy[0]), min(fx[-1], fy[-1])
-    keep = (fx >= lo) & (fx <= hi)
+    keep = overlap_mask(fx, fy)
     if keep.sum() < 2:
         raise DataError(
             f"{frf_x.source} ({fx[0]:g}-{fx[-1]:g} Hz) and {frf_y.source} ({fy[0]:g}-{fy[-1]:g} Hz) do not share a frequency band"
@@ -100,6 +101,7 @@ def measured_frf_draws(spec_x: str, spec_y: str, averages: int | None, n_draws: 
         ``source["notes"]`` holds the warnings (one line each).  ``measured`` carries the two
         :class:`~bayes_rcsa.stability.measured.MeasuredDirection` objects.
     """
+    from ..io.frf import overlap_mask
     from .measured import draw_measured_frf, interpolate_lines, read_measured_direction
 
     mx = read_measured_direction(spec_x, averages, "--measured-x", exact)
@@ -113,8 +115,7 @@ def measured_frf_draws(spec_x: str, spec_y: str, averages: int | None, n_draws: 
     fx, fy = mx.frequency_hz, my.frequency_hz
     f = fx
     if not (fx.shape == fy.shape and np.allclose(fx, fy, rtol=1e-12, atol=0)):
-        lo, hi = max(fx[0], fy[0]), min(fx[-1], fy[-1])
-        keep = (fx >= lo) & (fx <= hi)
+        keep = overlap_mask(fx, fy)
         if keep.sum() < 2:
             raise DataError(f"{mx.files[0]} ({fx[0]:g}-{fx[-1]:g} Hz) and {my.files[0]} ({fy[0]:g}-{fy[-1]:g} Hz) "
                             "do not share a frequency band")
@@ -172,6 +173,7 @@ def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_dr
     FRFInput with (n_draws, n_freq) draws
     """
     from ..io import load_setup
+    from ..io.frf import overlap_mask
     from ..model import Configuration
     from ..posterior import load_posterior, predictive_frf
     from ..posterior.growth_prior import transfer_draws
@@ -195,8 +197,7 @@ def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_dr
     # a single-length fit carries the growth law's prior to other lengths (multi-length draws pass unchanged)
     draws = transfer_draws(draws, setup, [clamping_length], rng)
     sx, sy = setup.spindle["x"].frequency_hz, setup.spindle["y"].frequency_hz
-    lo, hi = max(sx[0], sy[0]), min(sx[-1], sy[-1])
-    f = sx[(sx >= lo) & (sx <= hi)]
+    f = sx[overlap_mask(sx, sy)]
     model = setup.model()
     hx = predictive_frf(draws, model, Configuration(clamping_length, "x", tool), f)
     hy = predictive_frf(draws, model, Configuration(clamping_length, "y", tool), f)

@@ -32,13 +32,9 @@ import math
 import numpy as np
 
 from ..errors import SetupError
+from ..stats.noise import noise_sigma
 
-__all__ = ["noise_sigma", "coherence", "add_measurement_noise", "line_average_offsets"]
-
-
-def noise_sigma(values: np.ndarray, relative: float, floor: float) -> np.ndarray:
-    """Standard deviation of the complex noise per line, (n_freq,) m/N."""
-    return relative * np.abs(values) + floor
+__all__ = ["coherence", "add_measurement_noise", "line_average_offsets"]
 
 
 def coherence(values: np.ndarray, sigma: np.ndarray, n_averages: int) -> np.ndarray:
