@@ -3,7 +3,10 @@
 Case of issue 2: 64 contact parameter sets x 2 clamping lengths x 800
 frequency lines.  Prints median times and ratios against a naive loop (one
 parameter set and one frequency at a time, numpy.linalg.inv per 2x2 block),
-measured in the same run.  Run: ``python benchmarks/forward.py``.
+measured in the same run.  Then (issue 41) the spindle samples as an input
+of the forward model: ``posterior.predict`` of 300 draws at 3 clamping
+lengths with and without 50 spindle samples, and ``ForwardModel.frf`` of
+the same draws on a 3-length stack.  Run: ``python benchmarks/forward.py``.
 """
 
 from __future__ import annotations
@@ -11,8 +14,10 @@ from __future__ import annotations
 import numpy as np
 
 from _bench_setup import example_model, median_time
-from bayes_rcsa.model import Configuration, ConfigurationStack
+from bayes_rcsa.model import Configuration, ConfigurationStack, PointReceptance
 from bayes_rcsa.params import ForwardModel, GrowthLaw, LogUniform, ParameterModel, Uniform
+from bayes_rcsa.posterior import PosteriorDraws, PredictionTarget, predict
+from bayes_rcsa.spindle import SpindleSamples, assign_samples
 
 N_SETS, N_FREQ, LENGTHS = 64, 800, (0.025, 0.040)
 
@@ -79,6 +84,53 @@ def main() -> None:
     print(f"{'ForwardModel.frf, no terms':<44}{t_base * 1e3:>11.3f} ms{t_base / t_kernel:>11.2f}x of the kernel")
     print(f"{'ForwardModel.frf, tip_mass term':<44}{t_tip * 1e3:>11.3f} ms{t_tip / t_base:>11.2f}x of no terms")
     print(f"target: tip mass within 3x of no terms -> {'met' if t_tip <= 3 * t_base else 'NOT met'}")
+    spindle_samples_section(model)
+
+
+def spindle_samples_section(model, n_draws: int = 300, n_samples: int = 50,
+                            lengths=(0.025, 0.0325, 0.040)) -> None:
+    """predict and ForwardModel.frf with and without spindle samples (issue 41: one forward path)."""
+    rng = np.random.default_rng(41)
+    f = model.spindle["x"].frequency_hz
+    nominal = model.spindle["x"].interpolate(f)
+    # samples: the flange modes moved by a relative 2 % sd (stiffer / softer bearings)
+    blocks = np.stack([PointReceptance(f, nominal).interpolate(np.clip(f / (1 + e), f[0], f[-1]))
+                       for e in 0.02 * rng.standard_normal(n_samples)])
+    samples = SpindleSamples(f, {"x": nominal}, {"x": blocks}, source="benchmark samples")
+    growth = GrowthLaw(0.025, 0.040, 0.5)
+    priors = {"k_xf": LogUniform(1e5, 1e9), "k_thetaM": LogUniform(1e4, 1e8), "g_xf": Uniform(0, 0.5),
+              "g_thetaM": Uniform(0, 0.5)}
+    pm = ParameterModel.from_priors(growth, priors, {"c_xf": 10.0, "c_thetaM": 5e-4})
+    values = {"k_xf": 1.8e6 * np.exp(0.01 * rng.standard_normal(n_draws)),
+              "k_thetaM": 4.5e5 * np.exp(0.05 * rng.standard_normal(n_draws)),
+              "g_xf": rng.uniform(0.4, 0.5, n_draws), "g_thetaM": rng.uniform(0.0, 0.5, n_draws)}
+    draws = PosteriorDraws(pm, values, "multi", (0.025, 0.040))
+    freq = np.linspace(300.0, 4000.0, N_FREQ)
+    targets = [PredictionTarget(Configuration(l), freq) for l in lengths]
+    plain = lambda: predict(draws, model, targets)  # noqa: E731
+    mixed = lambda: predict(draws, model, targets, spindle_samples=samples, rng=np.random.default_rng(0))  # noqa: E731
+    plain(), mixed()  # warm up
+    t_plain = median_time(plain, repeats=5)
+    t_mixed = median_time(mixed, repeats=5)
+    stack = ConfigurationStack([model.precompute(Configuration(l), freq) for l in lengths])
+    assignment = assign_samples(n_draws, n_samples, rng)
+    fm_plain = ForwardModel(pm, stack, model)
+    v = draws.values
+    t_fm_plain = median_time(lambda: fm_plain.frf(v), repeats=9, number=5)
+    # a new model each time: the per-sample stacks (coupling and coefficients) are built once per model
+    t_fm_first = median_time(lambda: ForwardModel(pm, stack, model, spindle_samples=samples).frf(v, assignment),
+                             repeats=5)
+    fm_mixed = ForwardModel(pm, stack, model, spindle_samples=samples)
+    fm_mixed.frf(v, assignment)
+    t_fm_cached = median_time(lambda: fm_mixed.frf(v, assignment), repeats=9, number=5)
+    print()
+    print(f"Spindle samples: {n_draws} draws x {len(lengths)} clamping lengths x {N_FREQ} lines, {n_samples} samples")
+    print(f"{'predict, setup spindle':<44}{t_plain * 1e3:>11.1f} ms")
+    print(f"{'predict, spindle samples':<44}{t_mixed * 1e3:>11.1f} ms{t_mixed / t_plain:>11.2f}x")
+    print(f"{'ForwardModel.frf (3-length stack), plain':<44}{t_fm_plain * 1e3:>11.2f} ms")
+    print(f"{'  with samples, stacks built (first call)':<44}{t_fm_first * 1e3:>11.2f} ms"
+          f"{t_fm_first / t_fm_plain:>11.2f}x")
+    print(f"{'  with samples, stacks cached':<44}{t_fm_cached * 1e3:>11.2f} ms{t_fm_cached / t_fm_plain:>11.2f}x")
 
 
 if __name__ == "__main__":

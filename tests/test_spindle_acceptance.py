@@ -17,10 +17,11 @@ import pytest
 from bayes_rcsa.cli.main import main
 from bayes_rcsa.io import read_spindle_csv, write_frf_csv
 from bayes_rcsa.io.toml_writer import dump_toml
-from bayes_rcsa.model import FRF, Configuration, PointReceptance, ToolPointModel
+from bayes_rcsa.model import FRF, Configuration, ConfigurationStack, PointReceptance, ToolPointModel
+from bayes_rcsa.params import ForwardModel, GrowthLaw, LogUniform, ParameterModel
 from bayes_rcsa.spindle import is_passive, is_reciprocal, load_artifact, load_spindle_samples
 from bayes_rcsa.spindle.identification import identify_direction
-from bayes_rcsa.spindle.uncertainty import SpindleSamples, variant_stacks
+from bayes_rcsa.spindle.uncertainty import SpindleSamples
 from bayes_rcsa.synthetic import default_bench_config, true_contact, true_tool_point_frf
 from bayes_rcsa.synthetic.artifact import default_bench_artifact, generate_artifact_tests, write_artifact_tests
 
@@ -124,8 +125,13 @@ def test_spindle_uncertainty_widens_tool_point_intervals_and_covers_the_truth(ca
     samples = SpindleSamples(f, {DIRECTION: r.smoothed}, {DIRECTION: r.samples})
     model = ToolPointModel(cfg.holder, {"tool": cfg.tool}, {DIRECTION: samples.receptance(DIRECTION)})
     without = peak_frequency(fine, model.precompute(conf, fine).frf(kx, kt, c["c_xf"], c["c_thetaM"]))
-    stacks = variant_stacks(model, samples, [conf], [fine])
-    with_ = np.concatenate([peak_frequency(fine, st.frf(kx, kt, c["c_xf"], c["c_thetaM"])) for st in stacks])
+    # every draw with every sample: the draws repeated once per sample, sample j for the j-th copy
+    pm = ParameterModel.from_priors(GrowthLaw(cl, cl), {"k_xf": LogUniform(1e5, 1e9), "k_thetaM": LogUniform(1e3, 1e8)},
+                                    {"c_xf": c["c_xf"], "c_thetaM": c["c_thetaM"], "g_xf": 0.0, "g_thetaM": 0.0})
+    forward = ForwardModel(pm, ConfigurationStack([model.precompute(conf, fine)]), model, spindle_samples=samples)
+    values = {"k_xf": np.tile(kx, N_SAMPLES), "k_thetaM": np.tile(kt, N_SAMPLES),
+              **{name: np.full(n * N_SAMPLES, v) for name, v in pm.fixed.items()}}
+    with_ = peak_frequency(fine, forward.frf(values, np.repeat(np.arange(N_SAMPLES), n)))
 
     lo0, hi0 = np.quantile(without, [0.025, 0.975])
     lo1, hi1 = np.quantile(with_, [0.025, 0.975])

@@ -22,10 +22,7 @@ from bayes_rcsa.spindle.noise import estimate_relative_noise
 from bayes_rcsa.spindle.rotations import finite_difference_block, free_end_block
 from bayes_rcsa.spindle.smoothing import ModalModel, is_passive, is_reciprocal, passivity_margin
 from bayes_rcsa.spindle.substructure import artifact_receptances
-from bayes_rcsa.spindle.uncertainty import (
-    SpindleSamples, assign_samples, load_spindle_samples, mixed_frf, mixed_stack_frf, save_spindle_samples,
-    spindle_model_variants, variant_stacks,
-)
+from bayes_rcsa.spindle.uncertainty import SpindleSamples, assign_samples, load_spindle_samples, save_spindle_samples
 
 STEEL = Material(200e9, 7850.0, 0.29, 0.002, name="steel")
 F = np.arange(200.0, 4001.0, 10.0)
@@ -231,10 +228,12 @@ def tool_model(spindle: PointReceptance) -> ToolPointModel:
 
 
 def test_mixing_uses_each_draws_own_spindle_sample():
+    from bayes_rcsa.model import ConfigurationStack
+    from bayes_rcsa.params import ForwardModel, GrowthLaw, LogUniform, ParameterModel
+
     s = make_samples(4)
     model = tool_model(s.receptance("x"))
-    variants = spindle_model_variants(model, s)
-    assert len(variants) == 4
+    variants = [ToolPointModel(model.holder, model.tools, s.spindle(j)) for j in range(4)]
     assert np.array_equal(variants[2].spindle["x"].block, s.samples["x"][2])
     cfg = Configuration(0.03, "x")
     f = np.arange(600.0, 1400.0, 4.0)
@@ -242,11 +241,12 @@ def test_mixing_uses_each_draws_own_spindle_sample():
     kt = np.full(6, 4.5e5)
     assignment = assign_samples(6, 4, np.random.default_rng(0))
     assert sorted(np.bincount(assignment, minlength=4)) == [1, 1, 2, 2]  # balanced
-    mixed = mixed_frf(model, s, cfg, f, kx, kt, 10.0, 5e-4, assignment=assignment)
+    pm = ParameterModel.from_priors(GrowthLaw(0.03, 0.03), {"k_xf": LogUniform(1e5, 1e9), "k_thetaM": LogUniform(1e3, 1e8)},
+                                    {"c_xf": 10.0, "c_thetaM": 5e-4, "g_xf": 0.0, "g_thetaM": 0.0})
+    forward = ForwardModel(pm, ConfigurationStack([model.precompute(cfg, f)]), model, spindle_samples=s)
+    mixed = forward.frf({"k_xf": kx, "k_thetaM": kt, **{n: np.full(6, v) for n, v in pm.fixed.items()}}, assignment)
     for i, j in enumerate(assignment):
         ref = variants[j].precompute(cfg, f).frf(kx[i], kt[i], 10.0, 5e-4)
         np.testing.assert_allclose(mixed[i], ref, rtol=1e-12)
-    stacks = variant_stacks(model, s, [cfg], [f])
-    np.testing.assert_allclose(mixed_stack_frf(stacks, assignment, kx, kt, 10.0, 5e-4), mixed, rtol=1e-12)
     with pytest.raises(SetupError):
-        mixed_frf(model, s, cfg, f, kx, kt)  # neither assignment nor rng
+        forward.frf({"k_xf": kx, "k_thetaM": kt, **{n: np.full(6, v) for n, v in pm.fixed.items()}}, assignment[:5])

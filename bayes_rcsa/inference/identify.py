@@ -334,26 +334,15 @@ def _predicted_natural_frequencies(problem: Problem, stack: ConfigurationStack, 
     assignment from ``rng``), so the intervals include the spindle uncertainty.
     """
     pm = problem.parameters
-    forward = ForwardModel(pm, stack, problem.model)
+    forward = ForwardModel(pm, stack, problem.model, spindle_samples=spindle_samples)
     out = np.empty((theta.shape[0], len(problem.all_measurements)))
-    stacks = assignment = None
+    assignment = None
     if spindle_samples is not None:
-        if pm.terms:
-            raise SetupError(f"--spindle-uncertainty with model terms {list(pm.term_names)} is not supported yet: "
-                             f"run without one of them")
-        from ..spindle.uncertainty import assign_samples, variant_stacks
+        from ..spindle.uncertainty import assign_samples
 
-        stacks = variant_stacks(problem.model, spindle_samples, [c.configuration for c in stack.caches],
-                                [c.frequency_hz for c in stack.caches])
         assignment = assign_samples(theta.shape[0], spindle_samples.n_samples, rng)
     for a in range(0, theta.shape[0], batch):
-        values = pm.values(theta[a : a + batch])
-        if stacks is None:
-            h = forward.frf(values)
-        else:
-            from ..spindle.uncertainty import mixed_stack_frf
-
-            h = mixed_stack_frf(stacks, assignment[a : a + batch], *forward.contact(values))
+        h = forward.frf(pm.values(theta[a : a + batch]), None if assignment is None else assignment[a : a + batch])
         for j, (part, cache) in enumerate(zip(stack.split(h), stack.caches)):
             out[a : a + batch, j] = natural_frequency(cache.frequency_hz, part)
     return out
@@ -579,8 +568,7 @@ def _summarise(problem: Problem, seed: int, settings: SamplerSettings, spindle_s
     evals = lp_full.n_evaluations + lp.n_evaluations
     summary = _common_summary(problem, seed)
     if spindle_samples is not None:
-        summary["spindle_uncertainty"] = {"file": spindle_samples.source, "n_samples": spindle_samples.n_samples,
-                                          "directions": spindle_samples.directions}
+        summary["spindle_uncertainty"] = spindle_samples.describe()
     summary.update({
         "converged": bool(chain.converged),
         "stop_reason": chain.reason,

@@ -22,7 +22,7 @@ and ``B = E11 + 1/ktheta``::
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -152,6 +152,29 @@ class CachedConfiguration:
         """
         comp = contact_compliance(self.omega, k_xf, k_thetaM, c_xf, c_thetaM, h_xf, h_thetaM)
         return attach(self.holder_tip, self.tool, comp)
+
+    def with_spindle(self, spindle: np.ndarray) -> "CachedConfiguration":
+        """The same configuration with another flange receptance (e.g. a bootstrap sample of the spindle).
+
+        Only the spindle + holder coupling and the fast-path coefficients are
+        recomputed; the holder and tool two-ports (the beam receptances, most
+        of :meth:`ToolPointModel.precompute`'s cost) are shared.  Gives what
+        ``precompute`` of a model with that spindle gives, bit for bit.
+
+        Parameters
+        ----------
+        spindle : (n_freq, 2, 2) complex
+            Flange block ``[[h, l], [n, p]]`` on this cache's lines (m/N, 1/N, rad/N, rad/(N m)).
+        """
+        if self.holder is None:
+            raise SetupError(f"{self.configuration.label()}: the cache was built without its substructures "
+                             "(use ToolPointModel.precompute)")
+        spindle = np.asarray(spindle, dtype=complex)
+        if spindle.shape != (self.frequency_hz.size, 2, 2):
+            raise SetupError(f"{self.configuration.label()}: spindle block of shape {spindle.shape}; expected "
+                             f"({self.frequency_hz.size}, 2, 2)")
+        holder_tip = attach(spindle, self.holder)
+        return replace(self, **tool_point_coefficients(holder_tip, self.tool), holder_tip=holder_tip, spindle=spindle)
 
 
 def _fast_h(omega, t22, e00, e11, g, p, q, r, kx, kt, cx, ct, hx=0.0, ht=0.0):

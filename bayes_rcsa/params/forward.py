@@ -22,20 +22,38 @@ sets into tool-point FRFs on every line of a
    compiled batched kernel evaluates them;
 3. the *frf* terms act on the assembled FRFs.
 
+Spindle samples.  Built with ``spindle_samples`` (bootstrap samples of the
+flange receptance, :class:`bayes_rcsa.spindle.SpindleSamples`), the model
+evaluates every parameter set with its own sample (``frf(values,
+spindle_sample=index)``): the flange receptance ``S`` and the spindle +
+holder coupling are the only parts that depend on the spindle, so each
+sample gets a copy of the stack with them recomputed
+(:meth:`CachedConfiguration.with_spindle`, built on first use and kept) while
+the holder and tool two-ports stay shared.  The sets are grouped by sample
+and each group runs steps 1-2 above on its sample's stack, so every model
+term acts exactly as without samples (a spindle term on the sample's
+flange); the *frf* terms then act once on all sets.  Directions the samples
+do not cover keep the model's own spindle.
+
 Everything is vectorised over parameter sets and lines; no Python loop runs
-per set or per line.
+per set or per line (only one per spindle sample present in a batch).
 """
 
 from __future__ import annotations
 
-from typing import Mapping
+import copy
+from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
+from ..errors import SetupError
 from ..model.assembly import ConfigurationStack, ToolPointModel, tool_point_coefficients
 from ..model.coupling import add_end_impedance, attach
 from .model import ParameterModel
 from .terms import Contact, Substructures, TermContext
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..spindle.uncertainty import SpindleSamples
 
 __all__ = ["ForwardModel"]
 
@@ -51,18 +69,29 @@ class ForwardModel:
         substructures the terms need).
     model : ToolPointModel
         The model the stack was built from (terms may read its geometry).
+    spindle_samples : SpindleSamples, optional
+        Bootstrap samples of the flange receptance; then :meth:`frf` can
+        evaluate each parameter set with its own sample (``spindle_sample``).
+        Their frequency range must cover the stack's lines in every direction
+        they hold.
 
     Notes
     -----
     Stable API: :meth:`frf` (physical values), :meth:`frf_theta` (sampling
-    coordinates), :meth:`contact`, :attr:`context`.  Fixed contact damping
-    is passed to the kernel as a scalar when no joint term can change it.
+    coordinates), :meth:`contact`, :attr:`context`, :attr:`spindle_samples`.
+    Fixed contact damping is passed to the kernel as a scalar when no joint
+    term can change it.
     """
 
-    def __init__(self, parameters: ParameterModel, stack: ConfigurationStack, model: ToolPointModel):
+    def __init__(self, parameters: ParameterModel, stack: ConfigurationStack, model: ToolPointModel,
+                 spindle_samples: "SpindleSamples | None" = None):
         self.parameters = parameters
         self.stack = stack
         self.model = model
+        self.spindle_samples = spindle_samples
+        self._sample_models: dict[int, ForwardModel] = {}  # per spindle sample, built on first use
+        if spindle_samples is not None:
+            _check_sample_range(spindle_samples, stack)
         self.lengths = np.array([c.configuration.clamping_length for c in stack.caches], dtype=float)
         g = parameters.growth
         self.context = TermContext(
@@ -89,14 +118,38 @@ class ForwardModel:
         """Contact parameters of every set and configuration, each (n_sets, n_cfg)."""
         return self.parameters.contact(values, self.lengths)
 
-    def frf(self, values: Mapping[str, np.ndarray]) -> np.ndarray:
+    def frf(self, values: Mapping[str, np.ndarray], spindle_sample: np.ndarray | None = None) -> np.ndarray:
         """Tool-point FRF on all lines, (n_sets, n_lines) complex m/N.
 
         Parameters
         ----------
         values : mapping name -> (n_sets,) physical values of every parameter
             (:meth:`ParameterModel.values`).
+        spindle_sample : (n_sets,) int, optional
+            Index into :attr:`spindle_samples` of every set's flange
+            receptance (e.g. :func:`bayes_rcsa.spindle.assign_samples`);
+            default: the model's own spindle for all sets.
+
+        Raises
+        ------
+        SetupError
+            ``spindle_sample`` without spindle samples, of the wrong length or
+            out of range.
         """
+        if spindle_sample is None:
+            h = self._assembled(values)
+        else:
+            h = self._assembled_by_sample(values, self._check_assignment(spindle_sample, values))
+        for t in self._frf_terms:
+            h = t.frf(values, h, self.context)
+        return h
+
+    def frf_theta(self, theta: np.ndarray, spindle_sample: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`frf` for sampling coordinates ``theta`` (n, ndim)."""
+        return self.frf(self.parameters.values(np.atleast_2d(theta)), spindle_sample)
+
+    def _assembled(self, values: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Steps 1-2 of the module notes on this model's stack: the FRFs before the *frf* terms."""
         contact = self.contact(values)
         kx, kt = contact.k_xf, contact.k_thetaM
         cx = self._scalar_damping.get("c_xf", contact.c_xf)
@@ -106,13 +159,47 @@ class ForwardModel:
             h = self._general(values, kx, kt, cx, ct, loss)
         else:
             h = self.stack.frf(kx, kt, cx, ct, *loss)
-        for t in self._frf_terms:
-            h = t.frf(values, h, self.context)
         return h
 
-    def frf_theta(self, theta: np.ndarray) -> np.ndarray:
-        """:meth:`frf` for sampling coordinates ``theta`` (n, ndim)."""
-        return self.frf(self.parameters.values(np.atleast_2d(theta)))
+    def _check_assignment(self, spindle_sample, values: Mapping[str, np.ndarray]) -> np.ndarray:
+        samples = self.spindle_samples
+        if samples is None:
+            raise SetupError("spindle_sample given, but the forward model was built without spindle_samples")
+        index = np.asarray(spindle_sample)
+        n_sets = next((np.shape(v)[0] for v in values.values() if np.ndim(v) >= 1), 1)
+        if index.shape != (n_sets,) or not np.issubdtype(index.dtype, np.integer) or \
+                np.any(index < 0) or np.any(index >= samples.n_samples):
+            raise SetupError(f"{samples.source}: spindle_sample must hold {n_sets} integer sample indices in "
+                             f"[0, {samples.n_samples}), got shape {index.shape} of {index.dtype}")
+        return index
+
+    def _assembled_by_sample(self, values: Mapping[str, np.ndarray], index: np.ndarray) -> np.ndarray:
+        """Steps 1-2 with every set on its own spindle sample's stack, grouped by sample."""
+        n_sets = index.size
+        out = np.empty((n_sets, self.n_lines), dtype=complex)
+        for j in np.unique(index):
+            rows = np.flatnonzero(index == j)
+            part = {k: (np.asarray(v)[rows] if np.ndim(v) >= 1 and np.shape(v)[0] == n_sets else v)
+                    for k, v in values.items()}
+            out[rows] = self._sample_model(int(j))._assembled(part)
+        return out
+
+    def _sample_model(self, j: int) -> "ForwardModel":
+        """This model on spindle sample ``j``'s stack (same parameters, terms and context), cached."""
+        fm = self._sample_models.get(j)
+        if fm is None:
+            samples = self.spindle_samples
+            caches = [c.with_spindle(samples.receptance(c.configuration.direction, j).interpolate(c.frequency_hz))
+                      if c.configuration.direction in samples.nominal else c for c in self.stack.caches]
+            # a shallow copy shares the term context, so terms that cache per context (the spindle terms' modal
+            # data) compute it once for all samples
+            fm = copy.copy(self)
+            fm.stack = ConfigurationStack(caches)
+            fm.spindle_samples = None
+            fm._sample_models = {}
+            fm._holder_tip = None
+            self._sample_models[j] = fm
+        return fm
 
     def substructures(self, values: Mapping[str, np.ndarray]) -> Substructures:
         """The substructures after the spindle and substructure terms (batch axis 1 or n_sets)."""
@@ -180,3 +267,14 @@ class ForwardModel:
         """Rows of the distinct sets back to one row per set; a batch axis of 1 is shared by all sets as it is."""
         first, inverse = unique
         return a[inverse] if first.size > 1 and np.shape(a)[0] == first.size else a
+
+
+def _check_sample_range(samples: "SpindleSamples", stack: ConfigurationStack) -> None:
+    """Refuse spindle samples that do not cover the lines of a configuration in one of their directions."""
+    f = samples.frequency_hz
+    tol = 1e-12 * f[-1]  # as PointReceptance.interpolate: decimal text grids match the ends
+    for c in stack.caches:
+        cf = c.frequency_hz
+        if c.configuration.direction in samples.nominal and (cf[0] < f[0] - tol or cf[-1] > f[-1] + tol):
+            raise SetupError(f"{samples.source}: the spindle samples cover {f[0]:g}-{f[-1]:g} Hz; "
+                             f"{c.configuration.label()} needs {cf[0]:g}-{cf[-1]:g} Hz")

@@ -30,6 +30,13 @@ for all draws).  From the draws of ``H`` this module derives
   resonance of the model lies; the predictive one says where a measured
   peak will fall, and is the one to compare a new measurement with.
 
+With spindle samples (:class:`bayes_rcsa.spindle.SpindleSamples`, the
+bootstrap samples of ``bayes-rcsa spindle``) every draw also gets one
+sample of the flange receptance (balanced random assignment,
+:func:`bayes_rcsa.spindle.assign_samples`; the same sample for all targets
+of a draw, as the spindle is one machine), so the bands and intervals
+include the spindle uncertainty.
+
 :func:`parameter_influence` reports how much each contact parameter alone
 moves the predicted natural frequencies across its posterior range, which
 shows whether a poorly determined parameter matters for the predictions.
@@ -270,12 +277,16 @@ class Prediction:
     modes : tuple of ModePrediction
     influence : tuple of dict
         See :func:`parameter_influence`.
+    spindle_uncertainty : dict or None
+        :meth:`SpindleSamples.describe` of the spindle samples mixed into the
+        draws (``None``: the setup's spindle for every draw).
     """
 
     n_draws: int
     bands: tuple
     modes: tuple
     influence: tuple
+    spindle_uncertainty: dict | None = None
 
 
 def column_quantiles(a: np.ndarray, levels=QUANTILE_LEVELS) -> np.ndarray:
@@ -396,17 +407,27 @@ def prediction_targets(
 
 
 def predictive_frf(draws: PosteriorDraws, model: ToolPointModel, configuration: Configuration, frequency_hz,
-                   cache=None) -> np.ndarray:
+                   cache=None, spindle_samples=None, assignment: np.ndarray | None = None) -> np.ndarray:
     """Tool-point FRF of every draw, (n_draws, n_freq) complex m/N.
 
     ``cache`` (a :class:`CachedConfiguration` of the same configuration and
     lines) saves the precomputation when given.  The draws' parameter model
     (growth law, model terms) is applied through
     :class:`bayes_rcsa.params.ForwardModel`.
+
+    Parameters
+    ----------
+    spindle_samples : SpindleSamples, optional
+        Flange-receptance samples; draw ``i`` uses sample ``assignment[i]``.
+    assignment : (n_draws,) int, optional
+        Required with ``spindle_samples`` (:func:`bayes_rcsa.spindle.assign_samples`).
     """
     if cache is None:
         cache = model.precompute(configuration, frequency_hz)
-    return ForwardModel(draws.parameters, ConfigurationStack([cache]), model).frf(draws.values)
+    forward = ForwardModel(draws.parameters, ConfigurationStack([cache]), model, spindle_samples=spindle_samples)
+    if spindle_samples is not None and assignment is None:
+        raise SetupError("predictive_frf: spindle samples need an assignment of samples to draws (assign_samples)")
+    return forward.frf(draws.values, assignment)
 
 
 def find_modes(frequency_hz, magnitude, rel_height: float = MODE_REL_HEIGHT,
@@ -503,7 +524,8 @@ def _mode_predictions(target: PredictionTarget, f: np.ndarray, h: np.ndarray, me
 
 
 def predict(draws: PosteriorDraws, model: ToolPointModel, targets: Sequence[PredictionTarget],
-            influence: bool = True, noise: PredictiveNoise | None = None) -> Prediction:
+            influence: bool = True, noise: PredictiveNoise | None = None, spindle_samples=None,
+            rng: np.random.Generator | None = None) -> Prediction:
     """Posterior predictive FRF bands and per-mode intervals for every target.
 
     Parameters
@@ -517,15 +539,32 @@ def predict(draws: PosteriorDraws, model: ToolPointModel, targets: Sequence[Pred
     noise : PredictiveNoise, optional
         Also compute each mode's posterior-predictive peak interval of a new
         measurement (``predictive_peak_hz``).
+    spindle_samples : SpindleSamples, optional
+        Bootstrap samples of the flange receptance: every draw uses one of
+        them (the same for all targets), so the bands and intervals include
+        the spindle uncertainty.  Directions without samples keep the
+        setup's spindle.
+    rng : numpy.random.Generator, optional
+        Assigns the samples to the draws (:func:`bayes_rcsa.spindle.assign_samples`);
+        required with ``spindle_samples``.
 
     Returns
     -------
     Prediction
     """
+    assignment = None
+    if spindle_samples is not None:
+        if rng is None:
+            raise SetupError("predict: spindle samples need an explicit numpy.random.Generator (rng) to assign them "
+                             "to the draws")
+        from ..spindle.uncertainty import assign_samples  # the spindle package only when samples are used
+
+        assignment = assign_samples(draws.n_draws, spindle_samples.n_samples, rng)
     levels = QUANTILE_LEVELS
     bands, modes, freqs = [], [], []
     for t in targets:
-        h = predictive_frf(draws, model, t.configuration, t.frequency_hz)
+        h = predictive_frf(draws, model, t.configuration, t.frequency_hz, spindle_samples=spindle_samples,
+                           assignment=assignment)
         q_mag = column_quantiles(np.abs(h), levels)
         q_re = column_quantiles(h.real, levels)
         q_im = column_quantiles(h.imag, levels)
@@ -535,7 +574,8 @@ def predict(draws: PosteriorDraws, model: ToolPointModel, targets: Sequence[Pred
         modes += m
         freqs += fn
     infl = tuple(parameter_influence(draws, modes, freqs)) if influence else ()
-    return Prediction(draws.n_draws, tuple(bands), tuple(modes), infl)
+    return Prediction(draws.n_draws, tuple(bands), tuple(modes), infl,
+                      None if spindle_samples is None else spindle_samples.describe())
 
 
 def parameter_influence(draws: PosteriorDraws, modes: Sequence[ModePrediction], frequencies: Sequence[np.ndarray],

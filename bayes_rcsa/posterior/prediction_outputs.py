@@ -193,7 +193,7 @@ def contact_identifiability(draws: PosteriorDraws) -> dict | None:
 
 def run_prediction(setup, posterior_path, lengths: Sequence[float], directions: Sequence[str] | None = None,
                    tool: str | None = None, frequency_hz=None, max_draws: int | None = DEFAULT_MAX_DRAWS,
-                   seed: int = 0) -> PredictionRun:
+                   seed: int = 0, spindle_samples=None) -> PredictionRun:
     """Load ``posterior_path`` and predict at ``lengths``.
 
     Parameters
@@ -205,22 +205,30 @@ def run_prediction(setup, posterior_path, lengths: Sequence[float], directions: 
     max_draws : int or None
         Random subset of at most this many draws (``None``: all).
     seed : int
-        Seed of the generators that pick the subset and simulate the
-        measurement noise of the predictive peak intervals.
+        Seed of the generators that pick the subset, simulate the
+        measurement noise of the predictive peak intervals and assign the
+        spindle samples to the draws.
+    spindle_samples : SpindleSamples, optional
+        Bootstrap samples of the flange receptance (``bayes-rcsa spindle``):
+        every draw uses one of them, so the bands and intervals include the
+        spindle uncertainty; recorded as ``meta["spindle_uncertainty"]``.
+        The draws, their noise and growth transfer stay those of the run
+        without samples (the assignment has a stream of its own).
     """
     draws_all = load_posterior(posterior_path, setup)
     lengths = [float(v) for v in lengths]
     check_prediction_lengths(draws_all, setup, lengths)
     status = posterior_status(posterior_path)
-    # the subset keeps default_rng(seed) (earlier outputs reproduced draw for draw); the noise gets its own stream
+    # the subset keeps default_rng(seed) (earlier outputs reproduced draw for draw); the noise, the growth transfer
+    # and the spindle samples' assignment get streams of their own (a third child leaves the first two unchanged)
     draws = draws_all.subset(max_draws, np.random.default_rng(seed))
-    rng_noise, rng_growth = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2))
+    rng_noise, rng_growth, rng_spindle = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(3))
     # a single-length fit says nothing about growth: elsewhere its predictions carry the growth law's prior
     draws = transfer_draws(draws, setup, lengths, rng_growth)
     floor = status["noise_floor"] if status["noise_floor"] is not None else DEFAULT_NOISE_FLOOR
     noise = PredictiveNoise.from_draws(draws, floor, rng_noise)
     targets = prediction_targets(setup, lengths, directions, tool, frequency_hz, draws.fit_lengths)
-    prediction = predict(draws, setup.model(), targets, noise=noise)
+    prediction = predict(draws, setup.model(), targets, noise=noise, spindle_samples=spindle_samples, rng=rng_spindle)
     ident = contact_identifiability(draws)  # the same draws as the influence, so the report's ranges agree
     meta = {
         "setup": str(setup.path),
@@ -241,6 +249,8 @@ def run_prediction(setup, posterior_path, lengths: Sequence[float], directions: 
             "scale_q05": float(np.quantile(noise.scale, 0.05)), "scale_q50": float(np.median(noise.scale)),
             "scale_q95": float(np.quantile(noise.scale, 0.95)), "coherence": 1.0},
     }
+    if spindle_samples is not None:
+        meta["spindle_uncertainty"] = prediction.spindle_uncertainty
     return PredictionRun(prediction, draws, ident, meta)
 
 
@@ -396,6 +406,15 @@ def _table4(prediction: Prediction) -> tuple[list[str], list[list[str]]]:
     return head, rows
 
 
+def _spindle_blocks(spindle: dict | None) -> list[tuple]:
+    """The report's sentence on the spindle samples mixed into the draws (none without samples)."""
+    if not spindle:
+        return []
+    return [("p", f"Spindle uncertainty included: every draw uses one of {spindle['n_samples']} bootstrap samples of "
+                  f"the flange receptance from {spindle['file']} (directions {', '.join(spindle['directions'])}), "
+                  "so the bands and intervals carry the spindle's uncertainty as well as the contact's.")]
+
+
 def _blocks(run: PredictionRun, images: Sequence[str]) -> list[tuple]:
     p = run.prediction
     meta = run.meta
@@ -408,6 +427,7 @@ def _blocks(run: PredictionRun, images: Sequence[str]) -> list[tuple]:
               + (f" (model terms: {', '.join(meta['model_terms'])})" if meta.get("model_terms") else "") + ". "
               + " ".join(n if n.endswith(".") else n + "." for n in meta.get("parameter_model_notes", []))),
         *status_blocks(meta.get("posterior_status", {})),
+        *_spindle_blocks(meta.get("spindle_uncertainty")),
         ("h", 2, "Dominant natural frequency: measured vs predicted (cf. the reference paper's Table 4)"),
         ("table", *_table4(p)),
         ("p", "Two intervals, for two questions. The model's 90 % credible interval says where the noise-free "

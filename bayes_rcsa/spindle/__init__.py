@@ -13,8 +13,9 @@ Main entry points
 -----------------
 :func:`load_artifact` -> :class:`ArtifactSetup`
 :func:`identify_direction` -> :class:`SpindleIdentification`
-:func:`load_spindle_samples` -> :class:`SpindleSamples`; :func:`spindle_model_variants`,
-:func:`mixed_frf`, :func:`variant_stacks`, :func:`mixed_stack_frf` for downstream use.
+:func:`load_spindle_samples` -> :class:`SpindleSamples`, an input of the forward model
+(``ForwardModel(..., spindle_samples=)``, ``predict`` and ``lobes``); :func:`assign_samples` gives
+every posterior draw a sample.
 """
 
 from .artifact import Artifact, ArtifactMeasurement, ArtifactSetup, load_artifact
@@ -23,8 +24,7 @@ from .inverse import forward_artifact, inverse_exact, inverse_from_free_end_bloc
 from .smoothing import ModalModel, is_passive, is_reciprocal
 from .substructure import ArtifactReceptances, artifact_receptances
 from .uncertainty import (
-    SAMPLES_FORMAT, SpindleSamples, assign_samples, load_spindle_samples, mixed_frf, mixed_stack_frf,
-    save_spindle_samples, spindle_model_variants, variant_stacks,
+    SAMPLES_FORMAT, SpindleSamples, assign_samples, load_spindle_samples, save_spindle_samples,
 )
 
 __all__ = [
@@ -32,6 +32,5 @@ __all__ = [
     "SpindleIdentification", "identify_direction",
     "forward_artifact", "inverse_exact", "inverse_from_free_end_block",
     "ModalModel", "is_passive", "is_reciprocal", "ArtifactReceptances", "artifact_receptances",
-    "SAMPLES_FORMAT", "SpindleSamples", "load_spindle_samples", "save_spindle_samples", "spindle_model_variants",
-    "assign_samples", "mixed_frf", "variant_stacks", "mixed_stack_frf",
+    "SAMPLES_FORMAT", "SpindleSamples", "load_spindle_samples", "save_spindle_samples", "assign_samples",
 ]

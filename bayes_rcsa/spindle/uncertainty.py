@@ -30,14 +30,18 @@ has the same number of samples; sample ``i`` of every direction comes from
 the same bootstrap replicate index (the directions are independent tests,
 so this pairing carries no correlation, it only keeps indexing simple).
 
-Use in identification and prediction
-------------------------------------
-:func:`spindle_model_variants` builds one :class:`ToolPointModel` per
-sample; :func:`assign_samples` gives every posterior draw a sample; and
-:func:`mixed_frf` / :func:`mixed_stack_frf` evaluate tool-point FRFs with
-each draw's own spindle block.  Mixing posterior draws of the contact with
-spindle samples propagates the spindle uncertainty into tool-point
-predictive intervals.
+Use in identification, prediction and stability lobes
+-----------------------------------------------------
+The samples are an input of the forward model:
+``bayes_rcsa.params.ForwardModel(parameters, stack, model,
+spindle_samples=samples)`` evaluates every parameter set with its own
+sample (``frf(values, spindle_sample=assignment)``), model terms included;
+:func:`assign_samples` gives every posterior draw a sample.  ``identify``'s
+natural-frequency summary, ``bayes_rcsa.posterior.run_prediction`` /
+``predict`` and ``bayes_rcsa.stability.posterior_frf_draws`` take
+``spindle_samples=``: mixing posterior draws of the contact with spindle
+samples propagates the spindle uncertainty into tool-point predictive
+intervals and P(stable).
 """
 
 from __future__ import annotations
@@ -51,12 +55,11 @@ import numpy as np
 
 from ..errors import DataError, SetupError
 from ..io.atomic import atomic_path
-from ..model.assembly import Configuration, ConfigurationStack, ToolPointModel
 from ..model.receptance import PointReceptance
 
 __all__ = [
     "SAMPLES_FORMAT", "SpindleSamples", "save_spindle_samples", "load_spindle_samples", "bootstrap",
-    "spindle_model_variants", "assign_samples", "mixed_frf", "variant_stacks", "mixed_stack_frf",
+    "assign_samples",
 ]
 
 SAMPLES_FORMAT = "bayes_rcsa.spindle_samples/1"
@@ -129,6 +132,22 @@ class SpindleSamples:
     def spindle(self, index: int | None = None) -> dict[str, PointReceptance]:
         """``{direction: PointReceptance}`` of the nominal blocks or of sample ``index``."""
         return {d: self.receptance(d, index) for d in self.directions}
+
+    def describe(self) -> dict:
+        """What the outputs record about the samples used: ``{"file", "n_samples", "directions"}``."""
+        return {"file": self.source, "n_samples": self.n_samples, "directions": self.directions}
+
+    def require_directions(self, directions: Sequence[str], option: str = "--spindle-uncertainty") -> None:
+        """Raise :class:`SetupError` (naming ``option`` and the file) unless every direction has samples.
+
+        Without samples in a direction the forward model keeps the setup's
+        own spindle there; a product that should carry the spindle
+        uncertainty in every direction checks first.
+        """
+        missing = sorted(set(directions) - set(self.directions))
+        if missing:
+            raise SetupError(f"{option} {self.source}: no samples for direction(s) {missing}; the file has "
+                             f"{self.directions}")
 
 
 def save_spindle_samples(path, samples: SpindleSamples) -> Path:
@@ -207,29 +226,6 @@ def bootstrap(
 # ----------------------------------------------------------------- downstream
 
 
-def spindle_model_variants(model: ToolPointModel, samples: SpindleSamples,
-                           indices: Sequence[int] | None = None) -> list[ToolPointModel]:
-    """One tool-point model per spindle sample.
-
-    The spindle of every direction present in ``samples`` is replaced by the
-    sample; other directions keep the model's own spindle.
-
-    Parameters
-    ----------
-    model : ToolPointModel
-    samples : SpindleSamples
-    indices : sequence of int, optional
-        Sample indices (default: all).
-    """
-    idx = range(samples.n_samples) if indices is None else indices
-    out = []
-    for i in idx:
-        spindle = dict(model.spindle)
-        spindle.update(samples.spindle(int(i)))
-        out.append(ToolPointModel(model.holder, model.tools, spindle))
-    return out
-
-
 def assign_samples(n_draws: int, n_samples: int, rng: np.random.Generator) -> np.ndarray:
     """Spindle sample of every posterior draw: each sample used equally often, order random.
 
@@ -241,95 +237,3 @@ def assign_samples(n_draws: int, n_samples: int, rng: np.random.Generator) -> np
         raise SetupError(f"assign_samples: n_draws = {n_draws}, n_samples = {n_samples}")
     return rng.permutation(np.arange(n_draws) % n_samples)
 
-
-def _contact_arrays(n: int, *values) -> list[np.ndarray]:
-    out = []
-    for v in values:
-        v = np.asarray(v, dtype=float)
-        out.append(np.broadcast_to(v, (n,) + v.shape[1:]) if v.ndim else np.full(n, float(v)))
-    return out
-
-
-def mixed_frf(model: ToolPointModel, samples: SpindleSamples, configuration: Configuration, frequency_hz,
-              k_xf, k_thetaM, c_xf=0.0, c_thetaM=0.0, assignment: np.ndarray | None = None,
-              rng: np.random.Generator | None = None) -> np.ndarray:
-    """Tool-point FRF of every contact draw with its own spindle sample.
-
-    Parameters
-    ----------
-    model : ToolPointModel
-    samples : SpindleSamples
-    configuration : Configuration
-    frequency_hz : (n_freq,) Hz, inside the samples' frequency range
-    k_xf, k_thetaM, c_xf, c_thetaM : (n_draws,) or scalars, SI units
-    assignment : (n_draws,) int, optional
-        Sample index per draw; default :func:`assign_samples` with ``rng``.
-    rng : numpy.random.Generator, optional
-
-    Returns
-    -------
-    (n_draws, n_freq) complex, m/N
-    """
-    kx = np.atleast_1d(np.asarray(k_xf, dtype=float))
-    n = kx.size
-    kx, kt, cx, ct = _contact_arrays(n, kx, k_thetaM, c_xf, c_thetaM)
-    if assignment is None:
-        if rng is None:
-            raise SetupError("mixed_frf: give an assignment of samples or an explicit rng")
-        assignment = assign_samples(n, samples.n_samples, rng)
-    assignment = np.asarray(assignment, dtype=int)
-    if assignment.shape != (n,) or np.any(assignment < 0) or np.any(assignment >= samples.n_samples):
-        raise SetupError(f"mixed_frf: assignment must hold {n} sample indices in [0, {samples.n_samples})")
-    f = np.asarray(frequency_hz, dtype=float)
-    out = np.empty((n, f.size), dtype=complex)
-    for j in np.unique(assignment):
-        sel = assignment == j
-        variant = spindle_model_variants(model, samples, [j])[0]
-        out[sel] = variant.precompute(configuration, f).frf(kx[sel], kt[sel], cx[sel], ct[sel])
-    return out
-
-
-def variant_stacks(model: ToolPointModel, samples: SpindleSamples, configurations: Sequence[Configuration],
-                   frequencies: Sequence[np.ndarray], indices: Sequence[int] | None = None) -> list[ConfigurationStack]:
-    """One :class:`ConfigurationStack` per spindle sample, on the same configurations and lines.
-
-    Parameters
-    ----------
-    configurations : sequence of Configuration
-    frequencies : sequence of (n_freq_i,) Hz, one per configuration
-    indices : sequence of int, optional
-        Sample indices (default: all).
-    """
-    if len(configurations) != len(frequencies):
-        raise SetupError("variant_stacks: one frequency array per configuration is needed")
-    return [
-        ConfigurationStack([m.precompute(c, f) for c, f in zip(configurations, frequencies)])
-        for m in spindle_model_variants(model, samples, indices)
-    ]
-
-
-def mixed_stack_frf(stacks: Sequence[ConfigurationStack], assignment: np.ndarray, k_xf, k_thetaM,
-                    c_xf=0.0, c_thetaM=0.0, h_xf=0.0, h_thetaM=0.0) -> np.ndarray:
-    """FRFs on a stack's lines for parameter sets that each use their own spindle variant.
-
-    Parameters
-    ----------
-    stacks : sequence of ConfigurationStack
-        From :func:`variant_stacks`.
-    assignment : (n_sets,) int
-        Index into ``stacks`` per parameter set.
-    k_xf, k_thetaM, c_xf, c_thetaM, h_xf, h_thetaM : (n_sets, n_configs) or (n_sets,) or scalars
-        As :meth:`ConfigurationStack.frf`.
-
-    Returns
-    -------
-    (n_sets, n_lines) complex, m/N
-    """
-    assignment = np.asarray(assignment, dtype=int)
-    n = assignment.size
-    params = _contact_arrays(n, k_xf, k_thetaM, c_xf, c_thetaM, h_xf, h_thetaM)
-    out = np.empty((n, stacks[0].n_lines), dtype=complex)
-    for j in np.unique(assignment):
-        sel = assignment == j
-        out[sel] = stacks[j].frf(*(p[sel] for p in params))
-    return out

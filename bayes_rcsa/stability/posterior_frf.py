@@ -152,7 +152,8 @@ def flute_length(tool) -> float | None:
     return total if total > 0 else None
 
 
-def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_draws: int, rng, tool=None) -> FRFInput:
+def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_draws: int, rng, tool=None,
+                        spindle_samples=None) -> FRFInput:
     """Posterior-predictive tool-point FRFs in X and Y at one clamping length.
 
     The contact parameters are shared by both directions; the spindle
@@ -167,6 +168,14 @@ def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_dr
     n_draws : int, draws used (a random subset chosen with ``rng``)
     rng : numpy.random.Generator
     tool : str or None, tool name (default: the setup's only tool)
+    spindle_samples : SpindleSamples, optional
+        Bootstrap samples of the flange receptance (``bayes-rcsa spindle``):
+        every draw uses one of them in X and Y (sample ``i`` of both
+        directions), so the FRF draws, and hence P(stable), include the
+        spindle uncertainty.  Their frequency range must cover the lines.
+        The assignment comes from a child of ``rng`` (``rng.spawn``), so the
+        draws chosen and ``rng``'s own stream stay as without samples.
+        Recorded as ``source["spindle_uncertainty"]``.
 
     Returns
     -------
@@ -199,8 +208,13 @@ def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_dr
     sx, sy = setup.spindle["x"].frequency_hz, setup.spindle["y"].frequency_hz
     f = sx[overlap_mask(sx, sy)]
     model = setup.model()
-    hx = predictive_frf(draws, model, Configuration(clamping_length, "x", tool), f)
-    hy = predictive_frf(draws, model, Configuration(clamping_length, "y", tool), f)
+    assignment = None
+    if spindle_samples is not None:
+        from ..spindle.uncertainty import assign_samples
+
+        assignment = assign_samples(draws.n_draws, spindle_samples.n_samples, rng.spawn(1)[0])
+    hx, hy = (predictive_frf(draws, model, Configuration(clamping_length, d, tool), f,
+                             spindle_samples=spindle_samples, assignment=assignment) for d in ("x", "y"))
     source = {
         "mode": "posterior",
         "setup": str(setup_path),
@@ -211,6 +225,8 @@ def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_dr
         **draws.provenance(),
         "posterior_status": posterior_status(posterior_path),
     }
+    if spindle_samples is not None:
+        source["spindle_uncertainty"] = spindle_samples.describe()
     out = FRFInput(f, hx, hy, source, flute_length(setup.tools[tool]))
     out.coefficients = read_coefficient_draws(posterior_path, index)
     return out
