@@ -81,12 +81,18 @@ INTERVAL_DEFINITIONS = {
 }
 
 
-def posterior_status(posterior_path) -> dict:
+def posterior_status(posterior_path, inference_data=None, summary=None) -> dict:
     """Convergence status of the fit behind ``posterior_path`` for the products' outputs.
 
     Read from the sibling ``summary.json`` written by ``bayes-rcsa
     identify`` (R-hat, ESS, tau, steps, warnings, noise floor); without it,
     from the posterior file's ``converged`` attribute only.
+
+    Parameters
+    ----------
+    posterior_path : path of posterior.nc, or None for a posterior held in memory only
+    inference_data : arviz.InferenceData or None, the file's content when already read (not opened again)
+    summary : dict or None, the summary.json document when already loaded (used instead of the file)
 
     Returns
     -------
@@ -95,15 +101,16 @@ def posterior_status(posterior_path) -> dict:
         "n_steps", "warnings": list of str, "noise_floor", "source"}``
         (``None`` where unknown).
     """
-    path = Path(posterior_path)
-    summary_path = path.parent / "summary.json"
+    path = Path(posterior_path) if posterior_path is not None else None
+    summary_path = path.parent / "summary.json" if path is not None else "summary.json"
     out = {"converged": None, "rhat_max": None, "ess_bulk_min": None, "tau_max": None, "n_steps": None,
            "warnings": [], "noise_floor": None, "source": None}
-    if summary_path.is_file():
-        try:
-            summary = json.loads(summary_path.read_text(encoding="utf-8"))
-        except ValueError as exc:
-            raise DataError(f"{summary_path}: not valid JSON ({exc})") from None
+    if summary is not None or (path is not None and summary_path.is_file()):
+        if summary is None:
+            try:
+                summary = json.loads(summary_path.read_text(encoding="utf-8"))
+            except ValueError as exc:
+                raise DataError(f"{summary_path}: not valid JSON ({exc})") from None
         params = summary.get("parameters", {}) or {}
         rhat = [p["rhat"] for p in params.values() if p.get("rhat") is not None]
         ess = [p["ess_bulk"] for p in params.values() if p.get("ess_bulk") is not None]
@@ -121,7 +128,7 @@ def posterior_status(posterior_path) -> dict:
     else:
         from .draws import posterior_attributes, read_posterior
 
-        attrs = posterior_attributes(read_posterior(path))
+        attrs = posterior_attributes(read_posterior(path) if inference_data is None else inference_data)
         if "converged" in attrs:
             out["converged"] = bool(int(attrs["converged"])) if not isinstance(attrs["converged"], str) \
                 else attrs["converged"].lower() in ("true", "1")
@@ -193,7 +200,8 @@ def contact_identifiability(draws: PosteriorDraws) -> dict | None:
 
 def run_prediction(setup, posterior_path, lengths: Sequence[float], directions: Sequence[str] | None = None,
                    tool: str | None = None, frequency_hz=None, max_draws: int | None = DEFAULT_MAX_DRAWS,
-                   seed: int = 0) -> PredictionRun:
+                   seed: int = 0, *, posterior_draws=None, inference_data=None, summary=None,
+                   spindle_samples=None) -> PredictionRun:
     """Load ``posterior_path`` and predict at ``lengths``.
 
     Parameters
@@ -207,11 +215,22 @@ def run_prediction(setup, posterior_path, lengths: Sequence[float], directions: 
     seed : int
         Seed of the generators that pick the subset and simulate the
         measurement noise of the predictive peak intervals.
+    posterior_draws : PosteriorDraws or None, the draws of ``posterior_path`` already loaded (not read again)
+    inference_data : arviz.InferenceData or None, the content of ``posterior_path`` already read; without it (and
+        without ``posterior_draws``) the file is read once here
+    summary : dict or None, the fit's summary.json document for a posterior held in memory only
+    spindle_samples : SpindleSamples or None, the spindle receptance's own uncertainty (forward model)
     """
-    draws_all = load_posterior(posterior_path, setup)
+    from .draws import read_posterior
+
+    draws_all = posterior_draws
+    if draws_all is None:
+        if inference_data is None:
+            inference_data = read_posterior(posterior_path)  # the one read of the file
+        draws_all = load_posterior(posterior_path, setup, inference_data=inference_data)
     lengths = [float(v) for v in lengths]
     check_prediction_lengths(draws_all, setup, lengths)
-    status = posterior_status(posterior_path)
+    status = posterior_status(posterior_path, inference_data=inference_data, summary=summary)
     # the subset keeps default_rng(seed) (earlier outputs reproduced draw for draw); the noise gets its own stream
     draws = draws_all.subset(max_draws, np.random.default_rng(seed))
     rng_noise, rng_growth = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2))
@@ -220,7 +239,9 @@ def run_prediction(setup, posterior_path, lengths: Sequence[float], directions: 
     floor = status["noise_floor"] if status["noise_floor"] is not None else DEFAULT_NOISE_FLOOR
     noise = PredictiveNoise.from_draws(draws, floor, rng_noise)
     targets = prediction_targets(setup, lengths, directions, tool, frequency_hz, draws.fit_lengths)
-    prediction = predict(draws, setup.model(), targets, noise=noise)
+    # TODO(merge): posterior.predict.predict(..., spindle_samples=) comes with the "forward" helper's branch
+    extra = {} if spindle_samples is None else {"spindle_samples": spindle_samples}
+    prediction = predict(draws, setup.model(), targets, noise=noise, **extra)
     ident = contact_identifiability(draws)  # the same draws as the influence, so the report's ranges agree
     meta = {
         "setup": str(setup.path),
