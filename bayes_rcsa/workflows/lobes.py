@@ -172,11 +172,12 @@ class Lobes(Result):
     @classmethod
     def load(cls, folder) -> "Lobes":
         from ..errors import DataError
+        from ._documents import read_document
 
         folder = Path(folder)
         path = folder / "lobes.json"
+        document = read_document(folder, "lobes.json", "lobes")
         try:
-            document = json.loads(path.read_text(encoding="utf-8"))
             with np.load(folder / "p_stable.npz") as z:
                 speed, depth, p = (np.asarray(z[k]) for k in ("spindle_speed_rpm", "depth_m", "p_stable"))
         except (OSError, ValueError, KeyError) as exc:
