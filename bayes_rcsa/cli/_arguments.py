@@ -19,7 +19,9 @@ from ..errors import SetupError
 from ._common import parse_float, parse_float_list, positive_int
 
 __all__ = ["DEFAULT_SPEED_POINTS", "KT_HELP", "KR_HELP", "add_cutting_arguments", "parse_speeds", "parse_fraction",
-           "parse_coefficient", "cutting_from_arguments", "boundary_width", "CUT_FLAGS", "add_cut_arguments",
+           "parse_coefficient", "cutting_from_arguments", "cutting_keywords", "parse_averages", "optional_float",
+           "parse_directions",
+           "boundary_width", "CUT_FLAGS", "add_cut_arguments",
            "prepare_run", "dask_executor"]
 
 DEFAULT_SPEED_POINTS = 400
@@ -93,36 +95,73 @@ def parse_coefficient(text: str, option: str) -> tuple[float, float]:
     return value, rel
 
 
-def cutting_from_arguments(args, kr_tolerance: bool = False):
-    """(CuttingConditions, Kt tolerance, warnings) from the cutting options (and Kr tolerance if ``kr_tolerance``)."""
-    cutting, kt_tol, kr_tol, warnings = _cutting_and_tolerances(args, kr_tolerance)
-    return (cutting, kt_tol, kr_tol, warnings) if kr_tolerance else (cutting, kt_tol, warnings)
+def cutting_keywords(args, kr_tolerance: bool = False) -> dict:
+    """The cutting options as keyword arguments of the workflows: numbers in SI units, angles in rad.
 
-
-def _cutting_and_tolerances(args, kr_tolerance: bool):
-    from ..stability import CuttingConditions
-    from ..stability.plausibility import check_cutting_coefficients
-
-    kt, kt_tol = parse_coefficient(args.kt, "--kt")
-    kr, kr_tol = parse_coefficient(args.kr, "--kr")
+    ``kt``/``kr`` are None when not given (a workflow may take them from an updated posterior);
+    ``kt_tolerance`` (and ``kr_tolerance`` if ``kr_tolerance``) are relative.  The workflow checks the
+    values and builds the :class:`~bayes_rcsa.stability.CuttingConditions`.
+    """
+    kt, kt_tol = parse_coefficient(args.kt, "--kt") if args.kt is not None else (None, 0.0)
+    kr, kr_tol = parse_coefficient(args.kr, "--kr") if args.kr is not None else (None, 0.0)
     if kr_tol and not kr_tolerance:
         raise SetupError(f"--kr {args.kr!r}: give the tolerance on --kt; it scales the cutting-force level (Kt and "
                          "Kr together, Kr/Kt fixed)")
-    warnings = check_cutting_coefficients(kt, kr, allow_unusual=args.allow_unusual)
-    if (args.immersion is None) == (args.angles is None):
-        raise SetupError("give exactly one of --immersion (radial depth / diameter) and --angles ENTRY,EXIT (deg)")
-    kw = {}
+    kw = {"flutes": args.flutes, "kt": kt, "kr": kr, "kt_tolerance": kt_tol, "milling": args.milling,
+          "feed": args.feed, "allow_unusual": args.allow_unusual}
+    if kr_tolerance:
+        kw["kr_tolerance"] = kr_tol
     if args.immersion is not None:
         kw["radial_immersion"] = parse_float(args.immersion, "--immersion", positive=True)
-    else:
+    if args.angles is not None:
         ang = parse_float_list(args.angles, "--angles")
         if len(ang) != 2:
             raise SetupError(f"--angles {args.angles!r}: expected ENTRY,EXIT in degrees")
-        kw["entry_angle"], kw["exit_angle"] = (np.radians(a) for a in ang)
+        kw["entry_angle"], kw["exit_angle"] = (float(np.radians(a)) for a in ang)
     if args.pitch is not None:
         kw["pitch_angles"] = tuple(float(np.radians(a)) for a in parse_float_list(args.pitch, "--pitch", positive=True))
-    cutting = CuttingConditions(kt=kt, kr=kr, flutes=args.flutes, milling=args.milling, feed=args.feed, **kw)
-    return cutting, kt_tol, kr_tol, warnings
+    return kw
+
+
+def cutting_from_arguments(args, kr_tolerance: bool = False):
+    """(CuttingConditions, Kt tolerance, warnings) from the cutting options (and Kr tolerance if ``kr_tolerance``)."""
+    from ..stability import CuttingConditions
+    from ..stability.plausibility import check_cutting_coefficients
+
+    kw = cutting_keywords(args, kr_tolerance=True)
+    kt_tol, kr_tol = kw.pop("kt_tolerance"), kw.pop("kr_tolerance")
+    if kr_tol and not kr_tolerance:
+        raise SetupError(f"--kr {args.kr!r}: give the tolerance on --kt; it scales the cutting-force level (Kt and "
+                         "Kr together, Kr/Kt fixed)")
+    warnings = check_cutting_coefficients(kw["kt"], kw["kr"], allow_unusual=kw.pop("allow_unusual"))
+    if (args.immersion is None) == (args.angles is None):
+        raise SetupError("give exactly one of --immersion (radial depth / diameter) and --angles ENTRY,EXIT (deg)")
+    cutting = CuttingConditions(**kw)
+    return (cutting, kt_tol, kr_tol, warnings) if kr_tolerance else (cutting, kt_tol, warnings)
+
+
+def parse_averages(text: str, option: str = "--averages") -> int:
+    """A whole number >= 1 of impacts averaged per measured FRF."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise SetupError(f"{option} {text!r}: expected a whole number >= 1 (impacts averaged per FRF)")
+    return value
+
+
+def parse_directions(text: str, option: str = "--directions") -> list[str]:
+    """``'x,y'`` -> ``["x", "y"]`` (directions of the tool-point FRF)."""
+    directions = [d.strip() for d in text.split(",") if d.strip()]
+    if not directions or any(d not in ("x", "y") for d in directions):
+        raise SetupError(f"{option} {text!r}: expected a comma-separated list of x and y")
+    return directions
+
+
+def optional_float(text, option: str, positive: bool = True):
+    """:func:`parse_float` of ``text``, or None when the option was not given."""
+    return None if text is None else parse_float(text, option, positive=positive)
 
 
 def boundary_width(text: str):

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import SetupError
+from ._arguments import optional_float, parse_coefficient
 from ._common import (Summary, add_force_argument, check_output_directory, nonnegative_int, parse_float,
                       parse_float_list, positive_int)
 
@@ -74,66 +75,27 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _cutting(args, target):
-    if target.kind != "lobes":
-        return None
-    from ..stability import CuttingConditions
-
-    missing = [o for o, v in (("--kt", args.kt), ("--kr", args.kr), ("--flutes", args.flutes),
-                              ("--radial-immersion", args.radial_immersion)) if v is None]
-    if missing:
-        raise SetupError(f"--target {target.text!r}: a lobes target needs {', '.join(missing)}")
-    return CuttingConditions(kt=parse_float(args.kt, "--kt", positive=True), kr=parse_float(args.kr, "--kr"),
-                             flutes=args.flutes, radial_immersion=parse_float(args.radial_immersion, "--radial-immersion",
-                                                                              positive=True), milling=args.milling)
-
-
 def run(args: argparse.Namespace) -> Summary:
-    from ..design.outputs import write_design_outputs
-    from ..design.targets import parse_candidates, parse_target
-    from ..design.workflow import run_design, run_planning
-    from ..io.atomic import directory_is_empty, directory_lock, new_output_directory
-    from ..io.setup import load_setup
-    from ..posterior.growth_prior import feasible_growth_law
+    from ..workflows.design import design  # the package attribute "design" is the module once imported
 
-    if args.next_cut:
-        return _run_next_cut(args)
-    setup = load_setup(args.setup)
-    if not args.force and not directory_is_empty(args.out):
-        check_output_directory(args.out)  # refused before the design is computed (checked again under the lock)
-    if args.posterior is not None:
-        if not args.posterior.is_file():
-            raise SetupError(f"--posterior {args.posterior}: no such file (posterior.nc written by 'bayes-rcsa identify')")
-        if args.target is None or args.candidates is None:
-            raise SetupError("--posterior needs --target and --candidates")
-        if args.noise_scale is not None:
-            raise SetupError("--noise-scale is for the no-data mode; with --posterior the fit's noise level is used")
-        target = parse_target(args.target)
-        feasible = feasible_growth_law(setup)
-        if feasible is None:
-            raise SetupError(f"{args.setup}: [contact] clamping_range is needed to check the candidates")
-        feasible.check_lengths([target.clamping_length], "--target clamping length")
-        candidates = parse_candidates(args.candidates, setup, feasible)
-        result = run_design(setup, args.posterior, target, candidates, args.draws, args.truths, args.seed, args.method,
-                            _cutting(args, target))
-    else:
-        if args.target is not None:
-            raise SetupError("--target needs --posterior; without data the design plans two clamping lengths for the "
-                             "transfer uncertainty over the whole range")
-        lengths = None if args.candidates is None else parse_float_list(args.candidates, "--candidates", positive=True)
-        noise = 0.02 if args.noise_scale is None else parse_float(str(args.noise_scale), "--noise-scale", positive=True)
-        result = run_planning(setup, lengths, args.truths, args.seed, noise)
-    with directory_lock(args.out), new_output_directory(check_output_directory(args.out, args.force)):
-        write_design_outputs(result, args.out, plots=not args.no_plots)
-    doc = result.as_dict()
-    verdict = doc.get("verdict", f"measure {doc['best']['test']} (no-data plan)")
-    warns = tuple(n for n in doc.get("notes", []) if "collapsed" in n or n.startswith("warning:"))
-    return Summary(
-        f"{verdict}; results in {args.out}",
-        {"out": str(args.out), "design": str(args.out / "design.json"), "best": doc["best"]["test"],
-         "worth_it": doc.get("worth_it"), "verdict": verdict},
-        warnings=warns,
-    )
+    kw = _next_cut_keywords(args) if args.next_cut else _hammer_keywords(args)
+    check_output_directory(args.out, args.force)  # refused before the design is computed (again under the lock)
+    result = design(args.setup, args.posterior, target=args.target, draws=args.draws, seed=args.seed,
+                    flutes=args.flutes, milling=args.milling, next_cut=args.next_cut, **kw)
+    path = result.save(args.out, force=args.force, plots=not args.no_plots)
+    return Summary(result.summary_line(), {"out": str(args.out), "design": str(path), **result.summary_data()},
+                   warnings=result.warnings)
+
+
+def _hammer_keywords(args) -> dict:
+    """The hammer-test options as numbers (candidate lengths of the no-data plan; the lobes target's coefficients)."""
+    candidates = args.candidates
+    if args.posterior is None and candidates is not None:
+        candidates = parse_float_list(candidates, "--candidates", positive=True)
+    return {"candidates": candidates, "truths": args.truths, "method": args.method,
+            "noise_scale": args.noise_scale, "kt": optional_float(args.kt, "--kt"),
+            "kr": optional_float(args.kr, "--kr", positive=False),
+            "radial_immersion": optional_float(args.radial_immersion, "--radial-immersion")}
 
 
 # ------------------------------------------------------------- --next-cut (issue #23) --
@@ -169,44 +131,14 @@ def _axis(text, option: str, count: int):
     return np.linspace(lo, hi, n)
 
 
-def _run_next_cut(args) -> Summary:
-    from ..cuts import CoefficientPrior
-    from ..cuts.next_cut import parse_next_cut_target, run_next_cut, write_next_cut_outputs
-    from ..io.atomic import directory_is_empty, directory_lock, new_output_directory
-    from ..stability import CuttingConditions
-    from ._arguments import parse_coefficient
-
-    missing = [o for o, v in (("--posterior", args.posterior), ("--speeds", args.speeds), ("--depths", args.depths),
-                              ("--clamping-length", args.clamping_length), ("--kt", args.kt), ("--kr", args.kr),
-                              ("--flutes", args.flutes), ("--radial-immersion", args.radial_immersion)) if v is None]
-    if missing:
-        raise SetupError(f"--next-cut needs {', '.join(missing)}")
-    if args.target is not None or args.candidates is not None:
-        raise SetupError("--next-cut ranks cuts: --target and --candidates are for hammer tests (use --next-cut-target)")
-    if not args.posterior.is_file():
-        raise SetupError(f"--posterior {args.posterior}: no such file (posterior.nc written by 'bayes-rcsa identify')")
-    kt, kt_tol = parse_coefficient(args.kt, "--kt")
-    kr, kr_tol = parse_coefficient(args.kr, "--kr")
-    budget = parse_float(args.risk_budget, "--risk-budget", positive=True)
-    if budget > 1:
-        raise SetupError(f"--risk-budget {args.risk_budget}: expected a probability in (0, 1]")
-    cutting = CuttingConditions(kt=kt, kr=kr, flutes=args.flutes, milling=args.milling, feed=args.feed,
-                                radial_immersion=parse_float(args.radial_immersion, "--radial-immersion",
-                                                             positive=True))
-    target = parse_next_cut_target(args.next_cut_target)
-    if not args.force and not directory_is_empty(args.out):
-        check_output_directory(args.out)  # refused before the work (checked again under the lock)
-    result = run_next_cut(args.setup, args.posterior, cutting,
-                          parse_float(args.clamping_length, "--clamping-length", positive=True),
-                          CoefficientPrior.from_tolerances(kt, kt_tol, kr, kr_tol),
-                          _axis(args.speeds, "--speeds", 25), _axis(args.depths, "--depths", 15), target, budget,
-                          args.cuts, args.draws, args.particles, args.seed, tool=args.tool)
-    with directory_lock(args.out), new_output_directory(check_output_directory(args.out, args.force)):
-        write_next_cut_outputs(result, args.out, plots=not args.no_plots)
-    b = result.best
-    msg = ("no cut proposed" if b is None else
-           f"next cut {b.speed_rpm:.0f} rpm, {b.depth_m:.4g} m (P(chatter) {b.p_chatter:.2f}, expected gain "
-           f"{b.gain:.3g} of {result.current:.3g})") + f"; results in {args.out}"
-    return Summary(msg, {"out": str(args.out), "design": str(args.out / "design.json"),
-                         "best": None if b is None else b.as_dict(), "current": result.current},
-                   warnings=tuple(result.warnings))
+def _next_cut_keywords(args) -> dict:
+    """The --next-cut options as numbers: the coefficient prior, the candidate grid, the risk budget."""
+    kt, kt_tol = parse_coefficient(args.kt, "--kt") if args.kt is not None else (None, 0.0)
+    kr, kr_tol = parse_coefficient(args.kr, "--kr") if args.kr is not None else (None, 0.0)
+    return {"candidates": args.candidates, "kt": kt, "kr": kr, "kt_tolerance": kt_tol, "kr_tolerance": kr_tol,
+            "radial_immersion": optional_float(args.radial_immersion, "--radial-immersion"), "feed": args.feed,
+            "speeds_rpm": None if args.speeds is None else _axis(args.speeds, "--speeds", 25),
+            "depths_m": None if args.depths is None else _axis(args.depths, "--depths", 15),
+            "clamping_length": optional_float(args.clamping_length, "--clamping-length"), "cuts": args.cuts,
+            "next_cut_target": args.next_cut_target, "particles": args.particles, "tool": args.tool,
+            "risk_budget": parse_float(args.risk_budget, "--risk-budget", positive=True)}

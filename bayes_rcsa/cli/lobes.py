@@ -1,27 +1,20 @@
 """``bayes-rcsa lobes``: stability lobes and a robust operating point from measured FRFs or posterior draws.
 
-Parsing and printing only; the job lives in :mod:`bayes_rcsa.stability`
-(:func:`~bayes_rcsa.stability.probabilistic.lobes_from_frf_draws`, the FRF
-inputs in :mod:`~bayes_rcsa.stability.posterior_frf`, the files in
-:mod:`~bayes_rcsa.stability.outputs`).  See docs/stability.md.
+Parsing and printing only; the workflow is :func:`bayes_rcsa.workflows.lobes.lobes` (``bayes_rcsa.lobes``).
+See docs/stability.md.
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 
-import numpy as np
-
-from ..errors import SetupError
-from ._arguments import (DEFAULT_SPEED_POINTS, add_cutting_arguments, cutting_from_arguments, parse_fraction,
-                         parse_speeds)
-from ._common import (Summary, add_force_argument, check_output_directory, command_warnings, merge_warnings,
-                      nonnegative_int, parse_float, positive_int)
+from ._arguments import (DEFAULT_SPEED_POINTS, add_cutting_arguments, cutting_keywords, optional_float,
+                         parse_averages, parse_fraction, parse_speeds)
+from ._common import Summary, add_force_argument, check_output_directory, nonnegative_int, parse_float, positive_int
 
 __all__ = ["register", "run"]
 
-DEFAULT_BUDGET_S = 120.0
+DEFAULT_BUDGET_S = 120.0  # = bayes_rcsa.workflows.lobes.DEFAULT_BUDGET_S (not imported: --help stays light)
 
 
 def register(subparsers) -> None:
@@ -62,6 +55,9 @@ def register(subparsers) -> None:
                      help="measured mode: use the measured FRFs (the mean of repeated hits) as they are, without "
                      "their random error (P(stable) 0 or 1, the classical lobes), even when the files carry coherence "
                      "and averages")
+    src.add_argument("--spindle-uncertainty", metavar="FILE",
+                     help="posterior mode: spindle_samples.npz of 'bayes-rcsa spindle'; the spindle receptance's own "
+                     "uncertainty enters the FRF draws (default: the setup's spindle files as they are)")
     add_cutting_arguments(p)
     grid = p.add_argument_group("grid, method and recommendation")
     grid.add_argument("--speeds", required=True, metavar="START:STOP[:COUNT]",
@@ -95,210 +91,26 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _posterior_coefficients(args):
-    """``args`` with --kt/--kr set to the medians of an updated posterior's per-draw coefficients, or unchanged."""
-    if args.kt is not None and args.kr is not None:
-        return args, False
-    if (args.kt is None) != (args.kr is None):
-        raise SetupError("give both --kt and --kr, or neither (an updated posterior's per-draw coefficients)")
-    if args.posterior is None:
-        raise SetupError("--kt and --kr are required (only a posterior written by 'bayes-rcsa update' carries "
-                         "per-draw cutting coefficients)")
-    from ..stability.coefficients import read_coefficient_draws
-
-    coef = read_coefficient_draws(args.posterior)
-    if coef is None:
-        raise SetupError(f"--kt and --kr are required: {args.posterior} carries no cutting-coefficient draws (only "
-                         "'bayes-rcsa update' writes them)")
-    return argparse.Namespace(**{**vars(args), "kt": repr(float(np.median(coef[0]))),
-                                 "kr": repr(float(np.median(coef[1])))}), True
-
-
-def _dynamics(args):
-    """FRF draws in X and Y (FRFInput)."""
-    from ..stability.measured import interpolate_lines
-    from ..stability.posterior_frf import measured_frf_draws, posterior_frf_draws
-
-    measured = args.measured_x is not None or args.measured_y is not None
-    posterior = args.setup is not None or args.posterior is not None or args.clamping_length is not None
-    if measured and posterior:
-        raise SetupError("give either --measured-x/--measured-y or SETUP --posterior --clamping-length, not both")
-    if measured:
-        if args.measured_x is None or args.measured_y is None:
-            raise SetupError("measured mode needs both --measured-x and --measured-y")
-        from pathlib import Path
-
-        from ..io.checks import warn_all, xy_pair_warnings
-
-        averages = None
-        if args.averages is not None:
-            try:
-                averages = int(args.averages)
-            except ValueError:
-                raise SetupError(f"--averages {args.averages!r}: expected a whole number >= 1 (impacts averaged "
-                                 "per FRF)") from None
-            if averages < 1:
-                raise SetupError(f"--averages {args.averages!r}: expected a whole number >= 1 (impacts averaged "
-                                 "per FRF)")
-        if args.deterministic and averages is not None:
-            raise SetupError(f"--averages {args.averages} and --deterministic contradict each other (averages give the "
-                             "FRF's random error, --deterministic ignores it); give one of them")
-        pair = measured_frf_draws(args.measured_x, args.measured_y, averages, args.draws,
-                                  np.random.default_rng(args.seed), exact=args.deterministic)
-        mx, my = pair.measured
-        warn_all(pair.source["notes"])
-        warn_all(xy_pair_warnings(Path(mx.files[0]).name, Path(my.files[0]).name, mx.frequency_hz, mx.mean,
-                                  interpolate_lines(my.mean, my.frequency_hz, mx.frequency_hz)[0]
-                                  if mx.frequency_hz.shape != my.frequency_hz.shape
-                                  or not np.allclose(mx.frequency_hz, my.frequency_hz) else my.mean))
-        return pair
-    if args.setup is None or args.posterior is None or args.clamping_length is None:
-        raise SetupError(
-            "give --measured-x FX --measured-y FY, or SETUP --posterior FILE --clamping-length M for posterior draws"
-        )
-    if args.averages is not None:
-        raise SetupError(f"--averages {args.averages}: only for measured FRFs (--measured-x/--measured-y)")
-    if args.deterministic:
-        raise SetupError("--deterministic: only for measured FRFs (--measured-x/--measured-y)")
-    clamping = parse_float(args.clamping_length, "--clamping-length", positive=True)
-    if args.draws < 1:
-        raise SetupError(f"--draws {args.draws}: expected >= 1")
-    from ..io.checks import warn_all
-    from ..io.setup import load_setup
-    from ..posterior.setup_match import posterior_setup_warnings
-
-    # a posterior identified for another geometry or material says so (the setup's files are read later)
-    warn_all(posterior_setup_warnings(args.posterior, load_setup(args.setup, load_data=False, load_spindle=False)))
-    return posterior_frf_draws(args.setup, args.posterior, clamping, args.draws, np.random.default_rng(args.seed),
-                               tool=getattr(args, "tool", None))
-
-
-def _estimate(impl, frf, speeds, method, budget, quiet: bool) -> None:
-    from ..stability.progress import format_seconds
-
-    est = impl.estimate_seconds(frf.n_draws, speeds.size, frf.frequency_hz.size)
-    if quiet:
-        return
-    print(f"lobes: {method}, {frf.n_draws} draw(s) x {speeds.size} speeds: estimated {format_seconds(est)}",
-          file=sys.stderr)
-    if est > budget:
-        print(f"lobes: that is more than --budget {budget:g} s; to cut it use fewer draws (--draws "
-              f"{max(1, frf.n_draws // 4)} is about 4x faster), a coarser speed grid (START:STOP:{max(2, speeds.size // 2)} "
-              f"halves it)" + ("" if method == "zoa" else ", or --method zoa (seconds; accurate at moderate to "
-                               "full radial immersion, SDM is needed below about 0.3)"), file=sys.stderr)
-
-
 def run(args: argparse.Namespace) -> Summary:
-    from ..stability import Tolerances, lobes_from_frf_draws
-    from ..stability.methods import STABILITY_METHODS, MethodOptions
-    from ..stability.outputs import lobes_document, write_lobes_outputs
-    from ..stability.progress import ProgressBar
-    from ..stability.tests_io import read_cutting_tests
-    from ..io.atomic import directory_is_empty, directory_lock, new_output_directory
+    from ..workflows.lobes import lobes  # the package attribute "lobes" is the module once imported
 
-    args, per_draw = _posterior_coefficients(args)
-    cutting, kt_tol, warnings = cutting_from_arguments(args)
+    kw = cutting_keywords(args)
     speeds = parse_speeds(args.speeds)
-    level = parse_float(args.level if args.level is not None else "0.95", "--level", positive=True)
-    if level > 1:
-        raise SetupError(f"--level {args.level}: expected a probability in (0, 1]")
-    if args.confidence is not None:
-        confidence = parse_float(args.confidence, "--confidence", positive=True)
-        if not (0.5 <= confidence < 1):
-            raise SetupError(f"--confidence {args.confidence}: expected a probability in [0.5, 1) (e.g. 0.95)")
-        if args.level is not None and abs(confidence - level) > 1e-12:
-            raise SetupError(f"--confidence {args.confidence} and --level {args.level} differ; give one of them")
-        level = confidence
-    max_depth = parse_float(args.max_depth, "--max-depth", positive=True) if args.max_depth is not None else None
-    flute = parse_float(args.flute_length, "--flute-length", positive=True) if args.flute_length is not None else None
-    tol = Tolerances(parse_fraction(args.speed_tolerance, "--speed-tolerance", 0.0, 0.2),
-                     parse_fraction(args.depth_margin, "--depth-margin", 1e-3, 1.0), kt_tol)
-    budget = parse_float(args.budget, "--budget", positive=True)
-    if args.depth_points < 2:
-        raise SetupError(f"--depth-points {args.depth_points}: expected >= 2")
-    if args.max_modes < 1:
-        raise SetupError(f"--max-modes {args.max_modes}: expected >= 1 (the modal fit needs at least one mode)")
-    impl = STABILITY_METHODS.get(args.method, "--method")
-    impl.check(MethodOptions(intervals=args.intervals, max_modes=args.max_modes))
-    tests = read_cutting_tests(args.tests) if args.tests is not None else None
-    from ..io.limits import check_memory
-
-    n_cells = speeds.size * args.depth_points
-    check_memory(8.0 * (8 * args.draws * speeds.size + 4 * n_cells), f"--draws {args.draws} x --speeds "
-                 f"{speeds.size} x --depth-points {args.depth_points}", "use fewer draws, speeds or depth points, or "
-                 "split the speed range into several runs")
-    frf = _dynamics(args)  # validates before any output is written
-    check_memory(8.0 * (8 * frf.n_draws * speeds.size + 4 * n_cells) + 16.0 * 6 * frf.n_draws * frf.frequency_hz.size,
-                 f"{frf.n_draws} draw(s) x {frf.frequency_hz.size} frequency lines x --speeds {speeds.size}",
-                 "use fewer --draws or a coarser speed grid, or split the speed range into several runs")
-    if not args.force and not directory_is_empty(args.out):
-        check_output_directory(args.out)  # refused before the lobes are computed (checked again under the lock)
-    flute = flute if flute is not None else frf.flute_length_m
-    status = frf.source.get("posterior_status") or {}
-    if status.get("converged") is False:
-        warnings.append(f"the posterior {frf.source['posterior']} did not converge (see its summary.json): "
-                        "the P(stable) map inherits its uncertainty estimate")
-    warnings += [n.removeprefix("warning:").strip() for n in frf.source.get("parameter_model_notes", [])
-                 if n.startswith("warning:")]
-
-    _estimate(impl, frf, speeds, args.method, budget, args.quiet)
-    bar = None if args.quiet else ProgressBar(f"lobes: {args.method}")
-    try:
-        res = lobes_from_frf_draws(
-            frf.frf_x, frf.frf_y, frf.frequency_hz, cutting, speeds, method=args.method, level=level,
-            max_depth=max_depth, depth_points=args.depth_points, intervals=args.intervals, max_modes=args.max_modes,
-            tolerances=tol, flute_length=flute, progress=bar,
-            coefficients=frf.coefficients if per_draw else None,
-        )
-    finally:
-        if bar is not None:
-            bar.close()
-    fit_report = None
-    if args.method == "sdm" and frf.measured is not None:
-        from ..io.checks import warn_all
-        from ..stability.modal_quality import measured_fit_report
-
-        fit_report, fit_warnings = measured_fit_report(frf.measured, res.modal_fits, args.max_modes)
-        warn_all(fit_warnings)
-    warnings = merge_warnings(command_warnings(), warnings)  # the data warnings printed on stderr go into lobes.json
-    doc = lobes_document(res, cutting, frf.source, tests, warnings, max_depth=max_depth, flute_length=flute)
-    if per_draw:
-        kt_q, kr_q = (np.quantile(c, [0.05, 0.5, 0.95]).tolist() for c in frf.coefficients)
-        doc["cutting_coefficients"] = {"source": "per-draw K_t/K_r of the updated posterior (bayes-rcsa update); "
-                                       "the cutting block gives their medians", "kt_pa_q05_q50_q95": kt_q,
-                                       "kr_pa_q05_q50_q95": kr_q}
-    if fit_report is not None:
-        doc["modal_fit"] = fit_report
-    title = f"{cutting.flutes} flutes, {res.method.upper()}, " + (
-        "measured FRFs" if frf.source["mode"] == "measured" else f"{frf.n_draws} draws"
-    )
-    with directory_lock(args.out), new_output_directory(check_output_directory(args.out, args.force)):
-        path = write_lobes_outputs(args.out, res, doc, tests, title, max_depth=max_depth)
-    rec = res.recommended
-    msg = f"wrote {path}, p_stable.npz, lobes.png"
-    if rec is not None:
-        below, above = rec.margin_speed_rpm
-        msg += (f"; recommended {rec.spindle_speed_rpm:.0f} rpm, {rec.depth_m * 1e3:.3f} mm (P(stable) >= "
-                f"{rec.p_stable_neighbourhood:.2f} over ±{100 * tol.speed_rel:g} % speed and +{100 * tol.depth_margin:g} % "
-                f"depth; margins {'-' if below is None else f'{below:.0f}'}/{'-' if above is None else f'{above:.0f}'} rpm, "
-                f"{rec.margin_depth_m * 1e3:.3f} mm; limited by {rec.binding})")
-    else:
-        msg += f"; no recommendation: {res.note}"
-    med = res.median_recommended
-    if rec is not None and med is not None and res.depth_limit_m.shape[0] > 1:
-        msg += (f"; at P(stable) >= 0.5 it would be {med.spindle_speed_rpm:.0f} rpm, {med.depth_m * 1e3:.3f} mm "
-                f"(confidence {res.level:g} costs {(med.depth_m - rec.depth_m) * 1e3:.3f} mm)")
-    if frf.source.get("deterministic"):
-        msg += "; " + frf.source["deterministic_note"]
-    elif frf.measured is not None:
-        msg += "; FRF random error: " + ", ".join(
-            f"{d} {m.model} ({len(m.files)} file(s){'' if m.averages is None else f', {m.averages} averages'})"
-            for d, m in zip("XY", frf.measured)) + f", {frf.n_draws} realisations"
-    recommended = None if rec is None else {
-        "spindle_speed_rpm": rec.spindle_speed_rpm, "depth_m": rec.depth_m,
-        "p_stable": rec.p_stable_neighbourhood, "binding": rec.binding}
-    return Summary(msg, {"out": str(args.out), "lobes": str(path), "recommended": recommended,
-                         "robust_envelope_confidence": res.level,
-                         "deterministic": bool(res.depth_limit_m.shape[0] == 1),
-                         "uncertainty": doc.get("uncertainty"),
-                         "posterior_converged": status.get("converged")}, warnings=tuple(warnings))
+    check_output_directory(args.out, args.force)  # refused before the lobes are computed (again under the lock)
+    result = lobes(
+        posterior=args.posterior, setup=args.setup,
+        clamping_length=optional_float(args.clamping_length, "--clamping-length"),
+        measured_x=args.measured_x, measured_y=args.measured_y,
+        averages=None if args.averages is None else parse_averages(args.averages),
+        deterministic=args.deterministic, draws=args.draws, seed=args.seed, **kw, speeds_rpm=speeds,
+        max_depth=optional_float(args.max_depth, "--max-depth"),
+        flute_length=optional_float(args.flute_length, "--flute-length"),
+        speed_tolerance=parse_fraction(args.speed_tolerance, "--speed-tolerance", 0.0, 0.2),
+        depth_margin=parse_fraction(args.depth_margin, "--depth-margin", 1e-3, 1.0),
+        depth_points=args.depth_points, method=args.method, intervals=args.intervals, max_modes=args.max_modes,
+        level=optional_float(args.level, "--level"), confidence=optional_float(args.confidence, "--confidence"),
+        tests=args.tests, spindle_samples=args.spindle_uncertainty, progress=not args.quiet,
+        budget_s=parse_float(args.budget, "--budget", positive=True))
+    path = result.save(args.out, force=args.force)
+    return Summary(result.summary_line(), {"out": str(args.out), "lobes": str(path), **result.summary_data()},
+                   warnings=result.warnings)

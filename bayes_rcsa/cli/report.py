@@ -45,18 +45,14 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    from ..report import write_report_html
+    from ..workflows.report import report  # the package attribute "report" is the module once imported
 
     out = check_output_path(args.out, "--out", kind="file")
     if out.exists() and not args.force:
-        raise SetupError(f"--out {out}: exists; use --force to replace it")
-    md = None
-    if args.summary is not None:
-        md = check_output_path(args.summary, "--summary", kind="file")
-        if md.exists() and not args.force:
-            raise SetupError(f"--summary {md}: exists; use --force to replace it")
-    path = write_report_html(args.runs, out, seed=args.seed, title=args.title, summary_md=md)
-    payload = {"report": str(path), "runs": [str(r) for r in args.runs]}
-    if md is not None:
-        payload["summary"] = str(md)
-    return Summary(f"wrote {path}" + (f" and {md}" if md is not None else ""), payload)
+        raise SetupError(f"--out {out}: exists; use --force to replace it")  # before the report is built
+    md = None if args.summary is None else check_output_path(args.summary, "--summary", kind="file")
+    if md is not None and md.exists() and not args.force:
+        raise SetupError(f"--summary {md}: exists; use --force to replace it")
+    result = report(args.runs, title=args.title, seed=args.seed)
+    result.save(out, force=args.force, summary_md=md)
+    return Summary(result.summary_line(), result.summary_data(), warnings=result.warnings)

@@ -52,7 +52,7 @@ from ..stats.weights import MIN_ESS, effective_sample_size, normalise_log_weight
 from .likelihood import DEFAULT_BOUNDARY_WIDTH, DEFAULT_LABEL_ERROR, chatter_probability
 
 __all__ = ["NextCutTarget", "parse_next_cut_target", "CandidateCut", "NextCutResult", "p_stable_matrix",
-           "map_uncertainty", "best_safe_mrr", "rank_next_cuts", "candidate_grid", "run_next_cut",
+           "map_uncertainty", "best_safe_mrr", "rank_next_cuts", "candidate_grid", "run_next_cut", "next_cut_figure",
            "write_next_cut_outputs"]
 
 #: P(stable) band of the reported "uncertain share" of the map.
@@ -461,7 +461,14 @@ def write_next_cut_outputs(result: NextCutResult, out_dir, plots: bool = True) -
 
 
 def _plot(result: NextCutResult, path):
-    from ..io.figures import new_figure, save_png
+    from ..io.figures import save_png
+
+    return save_png(next_cut_figure(result), path)
+
+
+def next_cut_figure(result: NextCutResult):
+    """The current P(stable) map, the candidates' expected gains and the proposed cut (a matplotlib Figure)."""
+    from ..io.figures import new_figure
 
     fig = new_figure(7.0, 4.4)
     ax = fig.add_subplot(111)
@@ -492,4 +499,4 @@ def _plot(result: NextCutResult, path):
     ax.set_title(f"next cut for target {result.target.text or result.target.kind}", fontsize=9)
     ax.legend(fontsize=6, loc="upper right")
     fig.tight_layout()
-    return save_png(fig, path)
+    return fig

@@ -10,7 +10,7 @@ from ..io.atomic import atomic_write_text
 from ..io.figures import new_figure, save_png
 from ..io.jsonable import dumps_strict
 
-__all__ = ["write_design_outputs"]
+__all__ = ["write_design_outputs", "design_figure"]
 
 
 def write_design_outputs(result, out_dir, plots: bool = True) -> list[Path]:
@@ -27,6 +27,12 @@ def write_design_outputs(result, out_dir, plots: bool = True) -> list[Path]:
 
 
 def _plot(doc: dict, path: Path) -> Path:
+    return save_png(design_figure(doc), path)
+
+
+def design_figure(doc: dict):
+    """The expected 90 % width of the target against the candidate tests (a matplotlib Figure) of a design.json
+    document."""
     fig = new_figure(6.4, 4.2)
     ax = fig.add_subplot(111)
     unit = doc.get("unit", "")
@@ -61,4 +67,4 @@ def _plot(doc: dict, path: Path) -> Path:
     ax.set_yscale("log")
     ax.legend(fontsize=7)
     fig.tight_layout()
-    return save_png(fig, path)
+    return fig

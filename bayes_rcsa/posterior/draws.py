@@ -239,7 +239,7 @@ def setup_differences(pm: ParameterModel, setup) -> list[str]:
     return out
 
 
-def load_posterior(path, setup=None) -> PosteriorDraws:
+def load_posterior(path, setup=None, inference_data=None) -> PosteriorDraws:
     """Read the draws and the parameter model of a ``posterior.nc`` written by ``bayes-rcsa identify``.
 
     Parameters
@@ -249,6 +249,8 @@ def load_posterior(path, setup=None) -> PosteriorDraws:
         Only compared with the recorded model: differences (e.g. a
         ``[contact]`` damping edited after the fit) become warning notes;
         the posterior's values are always used.
+    inference_data : arviz.InferenceData, optional
+        The file's content when the caller has read it already (the file is then not opened again).
 
     Raises
     ------
@@ -257,7 +259,7 @@ def load_posterior(path, setup=None) -> PosteriorDraws:
         (an older version wrote it) or a sampled parameter.
     """
     path = Path(path)
-    idata = read_posterior(path)
+    idata = read_posterior(path) if inference_data is None else inference_data
     post = getattr(idata, "posterior", None)
     if post is None:
         raise DataError(f"{path}: no 'posterior' group")

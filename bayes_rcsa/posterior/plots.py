@@ -44,6 +44,10 @@ def save_plot(fig, path, numbers: dict) -> dict:
 
 
 def _save(fig, path, numbers: dict) -> dict:
+    """Write ``fig`` with ``numbers`` in its metadata; with ``path`` None write nothing and return the figure too
+    (under ``"figure"``: the workflows' ``Result.figures``)."""
+    if path is None:
+        return {**numbers, "figure": fig}
     path = Path(path)
     text = dumps_strict(numbers)
     with atomic_path(path) as tmp:

@@ -81,12 +81,18 @@ INTERVAL_DEFINITIONS = {
 }
 
 
-def posterior_status(posterior_path) -> dict:
+def posterior_status(posterior_path, inference_data=None, summary=None) -> dict:
     """Convergence status of the fit behind ``posterior_path`` for the products' outputs.
 
     Read from the sibling ``summary.json`` written by ``bayes-rcsa
     identify`` (R-hat, ESS, tau, steps, warnings, noise floor); without it,
     from the posterior file's ``converged`` attribute only.
+
+    Parameters
+    ----------
+    posterior_path : path of posterior.nc, or None for a posterior held in memory only
+    inference_data : arviz.InferenceData or None, the file's content when already read (not opened again)
+    summary : dict or None, the summary.json document when already loaded (used instead of the file)
 
     Returns
     -------
@@ -95,15 +101,16 @@ def posterior_status(posterior_path) -> dict:
         "n_steps", "warnings": list of str, "noise_floor", "source"}``
         (``None`` where unknown).
     """
-    path = Path(posterior_path)
-    summary_path = path.parent / "summary.json"
+    path = Path(posterior_path) if posterior_path is not None else None
+    summary_path = path.parent / "summary.json" if path is not None else "summary.json"
     out = {"converged": None, "rhat_max": None, "ess_bulk_min": None, "tau_max": None, "n_steps": None,
            "warnings": [], "noise_floor": None, "source": None}
-    if summary_path.is_file():
-        try:
-            summary = json.loads(summary_path.read_text(encoding="utf-8"))
-        except ValueError as exc:
-            raise DataError(f"{summary_path}: not valid JSON ({exc})") from None
+    if summary is not None or (path is not None and summary_path.is_file()):
+        if summary is None:
+            try:
+                summary = json.loads(summary_path.read_text(encoding="utf-8"))
+            except ValueError as exc:
+                raise DataError(f"{summary_path}: not valid JSON ({exc})") from None
         params = summary.get("parameters", {}) or {}
         rhat = [p["rhat"] for p in params.values() if p.get("rhat") is not None]
         ess = [p["ess_bulk"] for p in params.values() if p.get("ess_bulk") is not None]
@@ -121,7 +128,7 @@ def posterior_status(posterior_path) -> dict:
     else:
         from .draws import posterior_attributes, read_posterior
 
-        attrs = posterior_attributes(read_posterior(path))
+        attrs = posterior_attributes(read_posterior(path) if inference_data is None else inference_data)
         if "converged" in attrs:
             out["converged"] = bool(int(attrs["converged"])) if not isinstance(attrs["converged"], str) \
                 else attrs["converged"].lower() in ("true", "1")
@@ -193,7 +200,8 @@ def contact_identifiability(draws: PosteriorDraws) -> dict | None:
 
 def run_prediction(setup, posterior_path, lengths: Sequence[float], directions: Sequence[str] | None = None,
                    tool: str | None = None, frequency_hz=None, max_draws: int | None = DEFAULT_MAX_DRAWS,
-                   seed: int = 0, spindle_samples=None) -> PredictionRun:
+                   seed: int = 0, *, posterior_draws=None, inference_data=None, summary=None,
+                   spindle_samples=None) -> PredictionRun:
     """Load ``posterior_path`` and predict at ``lengths``.
 
     Parameters
@@ -208,6 +216,10 @@ def run_prediction(setup, posterior_path, lengths: Sequence[float], directions: 
         Seed of the generators that pick the subset, simulate the
         measurement noise of the predictive peak intervals and assign the
         spindle samples to the draws.
+    posterior_draws : PosteriorDraws or None, the draws of ``posterior_path`` already loaded (not read again)
+    inference_data : arviz.InferenceData or None, the content of ``posterior_path`` already read; without it (and
+        without ``posterior_draws``) the file is read once here
+    summary : dict or None, the fit's summary.json document for a posterior held in memory only
     spindle_samples : SpindleSamples, optional
         Bootstrap samples of the flange receptance (``bayes-rcsa spindle``):
         every draw uses one of them, so the bands and intervals include the
@@ -215,10 +227,16 @@ def run_prediction(setup, posterior_path, lengths: Sequence[float], directions: 
         The draws, their noise and growth transfer stay those of the run
         without samples (the assignment has a stream of its own).
     """
-    draws_all = load_posterior(posterior_path, setup)
+    from .draws import read_posterior
+
+    draws_all = posterior_draws
+    if draws_all is None:
+        if inference_data is None:
+            inference_data = read_posterior(posterior_path)  # the one read of the file
+        draws_all = load_posterior(posterior_path, setup, inference_data=inference_data)
     lengths = [float(v) for v in lengths]
     check_prediction_lengths(draws_all, setup, lengths)
-    status = posterior_status(posterior_path)
+    status = posterior_status(posterior_path, inference_data=inference_data, summary=summary)
     # the subset keeps default_rng(seed) (earlier outputs reproduced draw for draw); the noise, the growth transfer
     # and the spindle samples' assignment get streams of their own (a third child leaves the first two unchanged)
     draws = draws_all.subset(max_draws, np.random.default_rng(seed))

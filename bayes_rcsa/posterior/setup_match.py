@@ -59,16 +59,19 @@ def geometry_differences(recorded: dict, current: dict) -> list[tuple[str, objec
     return diffs
 
 
-def posterior_setup_warnings(posterior_path, setup) -> list[str]:
+def posterior_setup_warnings(posterior_path, setup, summary_document=None) -> list[str]:
     """Warnings for each geometry or material key of ``setup`` that differs from the one identified.
 
-    The record is read from summary.json beside ``posterior_path``; without
+    The record is read from summary.json beside ``posterior_path`` (or from
+    ``summary_document``, that file's content when already loaded); without
     it (a posterior moved on its own, or written before the record existed)
     nothing can be compared and the list is empty.
     """
-    summary = Path(posterior_path).with_name("summary.json")
+    summary = Path(posterior_path).with_name("summary.json") if posterior_path is not None else "summary.json"
     try:
-        recorded = json.loads(summary.read_text(encoding="utf-8")).get(GEOMETRY_KEY)
+        document = (json.loads(summary.read_text(encoding="utf-8")) if summary_document is None
+                    else summary_document)
+        recorded = document.get(GEOMETRY_KEY)
     except (OSError, ValueError, AttributeError):
         return []
     if not isinstance(recorded, dict):

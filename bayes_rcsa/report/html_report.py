@@ -27,7 +27,7 @@ from .cuts_section import cuts_section
 from .library_section import library_section
 from .runs import KINDS, RunDir, collect_runs
 
-__all__ = ["build_report", "write_report_html", "answer_of_runs", "num", "yes_no", "FRF_DRAWS"]
+__all__ = ["build_report", "write_report_html", "write_summary_markdown", "answer_of_runs", "num", "yes_no", "FRF_DRAWS"]
 
 FRF_DRAWS = 200  # posterior draws behind the zoomed FRF bands (5-95 % quantiles stable to ~1/sqrt(200 * 0.05))
 ZOOM_LINES = 161  # lines of a mode's zoom window
@@ -335,7 +335,14 @@ def write_report_html(paths: Sequence, out, seed: int = 0, title: str | None = N
     out = Path(out)
     atomic_write_text(out, text)  # makes the missing folders, and removes them again if the write fails
     if summary_md is not None:
-        summary_md = Path(summary_md)
-        href = os.path.relpath(out.resolve(), summary_md.resolve().parent).replace(os.sep, "/")
-        atomic_write_text(summary_md, answer_markdown(answer_of_runs(collect_runs(paths)), href=href))
+        write_summary_markdown(paths, out, summary_md)
     return out
+
+
+def write_summary_markdown(paths: Sequence, out, summary_md) -> Path:
+    """Write the summary block of the report of ``paths`` as Markdown to ``summary_md`` (links into the HTML
+    file ``out``); returns its path."""
+    summary_md = Path(summary_md)
+    href = os.path.relpath(Path(out).resolve(), summary_md.resolve().parent).replace(os.sep, "/")
+    atomic_write_text(summary_md, answer_markdown(answer_of_runs(collect_runs(paths)), href=href))
+    return summary_md

@@ -106,13 +106,14 @@ def limits_with_coefficients(impl, frf_x, frf_y, frequency_hz, cutting, speeds_r
 COEFFICIENT_VARIABLES = ("cutting_kt_pa", "cutting_kr_pa")
 
 
-def read_coefficient_draws(posterior_path, index=None):
+def read_coefficient_draws(posterior_path, index=None, inference_data=None):
     """Per-draw (K_t, K_r) in Pa stored in ``posterior_path``, or None when it has none (a hammer-only fit).
 
     Parameters
     ----------
     posterior_path : path of posterior.nc
     index : int array or None, the draws to keep (the same subset as the FRF draws)
+    inference_data : arviz.InferenceData or None, the file's content when already read (not opened again)
 
     Returns
     -------
@@ -121,7 +122,7 @@ def read_coefficient_draws(posterior_path, index=None):
     from ..errors import DataError
     from ..posterior.draws import read_posterior
 
-    post = read_posterior(posterior_path).posterior
+    post = (read_posterior(posterior_path) if inference_data is None else inference_data).posterior
     if not all(v in post.data_vars for v in COEFFICIENT_VARIABLES):
         return None
     kt, kr = (np.asarray(post[v].values, dtype=float).reshape(-1) for v in COEFFICIENT_VARIABLES)

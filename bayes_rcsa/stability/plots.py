@@ -34,7 +34,14 @@ def _reduce(a: np.ndarray, block: int, how: str) -> np.ndarray:
 
 
 def plot_lobes(path, res, tests=None, title: str = "", max_depth: float | None = None) -> None:
-    """Write the lobe diagram of a :class:`~bayes_rcsa.stability.probabilistic.ProbabilisticLobes` as PNG.
+    """Write :func:`lobes_figure` of ``res`` to ``path`` as PNG (atomically)."""
+    from ..io.figures import save_png
+
+    save_png(lobes_figure(res, tests, title, max_depth), path)
+
+
+def lobes_figure(res, tests=None, title: str = "", max_depth: float | None = None):
+    """The lobe diagram of a :class:`~bayes_rcsa.stability.probabilistic.ProbabilisticLobes` as PNG.
 
     Marks: the robust recommended point (gold star) with its checked neighbourhood (speed window x
     depth margin, dashed box), the point-wise optimum (open diamond), the best point of each of the
@@ -43,13 +50,17 @@ def plot_lobes(path, res, tests=None, title: str = "", max_depth: float | None =
 
     Parameters
     ----------
-    path : output path (written atomically)
-    res : ProbabilisticLobes
+    res : ProbabilisticLobes (or an object with its attributes: ``speed_rpm``, ``depth_m``, ``p_stable``,
+        ``quantiles``, ``depth_limit_m``, ``envelope``, ``level``, ``alternatives``, ``pointwise``, ``recommended``)
     tests : (speed (n,), depth (n,), stable (n,)) or None
     title : str
     max_depth : float or None, m
+
+    Returns
+    -------
+    matplotlib.figure.Figure
     """
-    from ..io.figures import new_figure, save_png
+    from ..io.figures import new_figure
 
     block = display_blocks(res.speed_rpm.size)
     n_full = res.speed_rpm
@@ -110,4 +121,4 @@ def plot_lobes(path, res, tests=None, title: str = "", max_depth: float | None =
     ax.set_title(title)
     ax.legend(loc="upper left", fontsize=7)
     fig.tight_layout()
-    save_png(fig, path)
+    return fig

@@ -152,7 +152,8 @@ def flute_length(tool) -> float | None:
     return total if total > 0 else None
 
 
-def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_draws: int, rng, tool=None,
+def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_draws: int, rng, tool=None, *,
+                        setup=None, posterior_draws=None, inference_data=None, summary=None,
                         spindle_samples=None) -> FRFInput:
     """Posterior-predictive tool-point FRFs in X and Y at one clamping length.
 
@@ -168,6 +169,12 @@ def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_dr
     n_draws : int, draws used (a random subset chosen with ``rng``)
     rng : numpy.random.Generator
     tool : str or None, tool name (default: the setup's only tool)
+    setup : Setup or None, the setup of ``setup_path`` already loaded with its spindle files (not read again)
+    posterior_draws : PosteriorDraws or None, the draws of ``posterior_path`` already loaded (all of them; the subset is
+        chosen here)
+    inference_data : arviz.InferenceData or None, the content of ``posterior_path`` already read; without it the
+        file is read once here (draws, convergence status and cutting coefficients come from that one read)
+    summary : dict or None, the fit's summary.json document for a posterior held in memory only
     spindle_samples : SpindleSamples, optional
         Bootstrap samples of the flange receptance (``bayes-rcsa spindle``):
         every draw uses one of them in X and Y (sample ``i`` of both
@@ -185,11 +192,13 @@ def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_dr
     from ..io.frf import overlap_mask
     from ..model import Configuration
     from ..posterior import load_posterior, predictive_frf
+    from ..posterior.draws import read_posterior
     from ..posterior.growth_prior import transfer_draws
     from ..posterior.prediction_outputs import check_prediction_lengths, posterior_status
     from .coefficients import read_coefficient_draws
 
-    setup = load_setup(setup_path, load_data=False, load_spindle=True)
+    if setup is None:
+        setup = load_setup(setup_path, load_data=False, load_spindle=True)
     for d in ("x", "y"):
         if d not in setup.spindle:
             raise SetupError(f"{setup_path}: [spindle] {d} is needed for lobes (both directions are coupled)")
@@ -197,7 +206,11 @@ def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_dr
         if len(setup.tools) != 1:
             raise SetupError(f"{setup_path}: several tools {sorted(setup.tools)}; the posterior mode needs one")
         tool = next(iter(setup.tools))
-    full = load_posterior(posterior_path, setup)
+    full = posterior_draws
+    if full is None:
+        if inference_data is None:
+            inference_data = read_posterior(posterior_path)  # the one read of the file
+        full = load_posterior(posterior_path, setup, inference_data=inference_data)
     # the subset of PosteriorDraws.subset, keeping the index for the draws' cutting coefficients (after an update)
     index = (np.arange(full.n_draws) if n_draws is None or full.n_draws <= n_draws
              else np.sort(rng.choice(full.n_draws, n_draws, replace=False)))
@@ -223,10 +236,11 @@ def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_dr
         "n_draws": int(draws.n_draws),
         "method": draws.method,
         **draws.provenance(),
-        "posterior_status": posterior_status(posterior_path),
+        "posterior_status": posterior_status(posterior_path, inference_data=inference_data, summary=summary),
     }
     if spindle_samples is not None:
         source["spindle_uncertainty"] = spindle_samples.describe()
     out = FRFInput(f, hx, hy, source, flute_length(setup.tools[tool]))
-    out.coefficients = read_coefficient_draws(posterior_path, index)
+    out.coefficients = None if inference_data is None else read_coefficient_draws(posterior_path, index,
+                                                                                     inference_data=inference_data)
     return out
