@@ -432,16 +432,14 @@ def _dynamics(parts, inference_data, setup, clamping_length, tool, measured_x, m
     loaded, setup_name = setup_of(setup, load_data=False, load_spindle=True)  # the one read of the setup
     # a posterior identified for another geometry or material says so
     warn_all(posterior_setup_warnings(parts.path, loaded, summary_document=parts.summary))
-    extra = {}
     if spindle_samples is not None:
         from ..spindle.uncertainty import load_spindle_samples
 
-        # TODO(merge): posterior_frf_draws(..., spindle_samples=) comes with the "forward" helper's branch
-        extra["spindle_samples"] = (load_spindle_samples(spindle_samples) if is_path(spindle_samples)
-                                    else spindle_samples)
+        spindle_samples = load_spindle_samples(spindle_samples) if is_path(spindle_samples) else spindle_samples
+        spindle_samples.require_directions(["x", "y"])  # both directions are coupled in the lobes
     return posterior_frf_draws(setup_name, parts.path, clamping_length, draws, np.random.default_rng(seed), tool=tool,
                                setup=loaded, posterior_draws=parts.draws, inference_data=inference_data,
-                               summary=parts.summary, **extra)
+                               summary=parts.summary, spindle_samples=spindle_samples)
 
 
 def _pair_warnings(mx, my) -> list[str]:

@@ -161,16 +161,15 @@ def predict(setup, posterior, lengths: Sequence[float] | None = None, *, directi
             if not directions or any(d not in ("x", "y") for d in directions):
                 raise SetupError(f"--directions {','.join(map(str, directions))!r}: expected a comma-separated list "
                                  "of x and y")
-        extra = {}
         if spindle_samples is not None:
             from ..spindle.uncertainty import load_spindle_samples
 
-            extra["spindle_samples"] = (load_spindle_samples(spindle_samples) if is_path(spindle_samples)
-                                        else spindle_samples)
+            spindle_samples = load_spindle_samples(spindle_samples) if is_path(spindle_samples) else spindle_samples
+            spindle_samples.require_directions(directions or sorted(loaded.spindle))
         with Heartbeat(f"predict: {len(lengths)} clamping length(s)", enabled=progress):
             run = run_prediction(loaded, parts.path, lengths, directions, tool, frequency_hz, max_draws=max_draws,
                                  seed=seed, posterior_draws=parts.draws, inference_data=parts.inference_data,
-                                 summary=parts.summary, **extra)
+                                 summary=parts.summary, spindle_samples=spindle_samples)
         # the posterior, not the (possibly edited) setup, defines the model: say where they differ
         warns = [note.removeprefix("warning:").strip() for note in run.meta.get("parameter_model_notes", [])
                  if note.startswith("warning:")]
