@@ -119,9 +119,9 @@ def posterior_status(posterior_path) -> dict:
             "source": str(summary_path),
         })
     else:
-        from .draws import posterior_attributes, read_posterior
+        from ..store import posterior_attributes, read_posterior
 
-        attrs = posterior_attributes(read_posterior(path))
+        attrs = posterior_attributes(read_posterior(path, option=None))
         if "converged" in attrs:
             out["converged"] = bool(int(attrs["converged"])) if not isinstance(attrs["converged"], str) \
                 else attrs["converged"].lower() in ("true", "1")
