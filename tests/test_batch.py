@@ -18,7 +18,7 @@ from bayes_rcsa.batch import load_manifest
 from bayes_rcsa.batch.run import KILL_HOOK_ENV
 from bayes_rcsa.cli.main import main
 from bayes_rcsa.errors import SetupError
-from bayes_rcsa.inference.diagnostics import read_netcdf
+from bayes_rcsa.store import read_posterior
 from bayes_rcsa.synthetic import default_bench_config, generate_campaign, write_campaign
 
 N_SETUPS = 8
@@ -64,7 +64,7 @@ def library(tmp_path_factory):
 
 def _results(setup_dir: Path) -> dict:
     """What a setup produced: posterior draws, predicted frequencies, recommended operating point."""
-    post = read_netcdf(setup_dir / "identify" / "posterior.nc").posterior
+    post = read_posterior(setup_dir / "identify" / "posterior.nc").posterior
     freq = json.loads((setup_dir / "predict" / "frequencies.json").read_text())
     lobes = json.loads((setup_dir / "lobes" / "lobes.json").read_text())
     return {"k_xf": post["k_xf"].values, "k_thetaM": post["k_thetaM"].values,

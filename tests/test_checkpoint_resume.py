@@ -16,7 +16,7 @@ import pytest
 from bayes_rcsa.cli.main import main
 from bayes_rcsa.errors import SetupError
 from bayes_rcsa.inference.checkpoint import Checkpoint
-from bayes_rcsa.inference.diagnostics import read_netcdf
+from bayes_rcsa.store import read_posterior
 from bayes_rcsa.inference.identify import identify, run_fingerprint
 from bayes_rcsa.inference.problem import IdentificationOptions, build_problem
 from bayes_rcsa.model import Material, ToolPointModel
@@ -37,7 +37,7 @@ def _run(argv):
 
 
 def _posterior(out: Path) -> dict:
-    post = read_netcdf(out / "posterior.nc").posterior
+    post = read_posterior(out / "posterior.nc").posterior
     return {n: np.asarray(post[n].values) for n in ("k_xf", "k_thetaM", "g_xf", "g_thetaM", "sigma_0", "sigma_1")}
 
 

@@ -23,11 +23,12 @@ FACTORS = np.array([0.7, 1.05, 0.9, 1.1, 0.95, 1.3])
 
 @pytest.fixture(scope="module")
 def world(tmp_path_factory):
-    from bayes_rcsa.inference.diagnostics import build_inference_data, write_netcdf
+    from bayes_rcsa.inference.diagnostics import build_inference_data
     from bayes_rcsa.params import LogUniform, ParameterModel, Uniform
     from bayes_rcsa.params.growth import GrowthLaw
     from bayes_rcsa.stability import CuttingConditions, zoa_lobes
     from bayes_rcsa.stability.posterior_frf import posterior_frf_draws
+    from bayes_rcsa.store import write_posterior
 
     root = tmp_path_factory.mktemp("cuts")
     shutil.copytree(example_dir(), root / "data")
@@ -46,7 +47,7 @@ def world(tmp_path_factory):
                                  {"fit_clamping_length": np.array([0.025, 0.03, 0.035, 0.04])},
                                  {"fit_clamping_length": ["fm"]}, {"fm": list("abcd")},
                                  {"method": "multi", "parameter_model": json.dumps(pm.to_dict())})
-    write_netcdf(idata, root / "posterior.nc")
+    write_posterior(idata, root / "posterior.nc")
     frf = posterior_frf_draws(setup, root / "posterior.nc", 0.03, n, np.random.default_rng(0))
     true = CuttingConditions(kt=1.2 * 600e6, kr=1.2 * 180e6, flutes=4, radial_immersion=0.5)
     a_true = np.median(zoa_lobes(frf.frf_x, frf.frf_y, frf.frequency_hz, true, SPEEDS).depth_limit_m, axis=0)

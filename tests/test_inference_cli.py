@@ -60,9 +60,9 @@ def test_identify_writes_outputs(campaign_dir, tmp_path):
         assert e["q05_hz"] <= e["q50_hz"] <= e["q95_hz"]
         assert abs(e["q50_hz"] - e["measured_hz"]) / e["measured_hz"] < 0.01
 
-    from bayes_rcsa.inference.diagnostics import read_netcdf
+    from bayes_rcsa.store import SCHEMA_ATTRIBUTE, SCHEMA_VERSION, posterior_attributes, read_posterior
 
-    idata = read_netcdf(out / "posterior.nc")
+    idata = read_posterior(out / "posterior.nc")
     for group in ("posterior", "sample_stats", "log_likelihood", "observed_data", "constant_data"):
         assert group in idata.groups(), group
     n_lines = sum(m["n_lines"] for m in s["measurements_used"])
@@ -83,9 +83,8 @@ def test_identify_writes_outputs(campaign_dir, tmp_path):
         ll = f["log_likelihood/frf"]
         assert ll.id.get_storage_size() < 0.8 * ll.size * 4  # compressed below its float32 size
     assert idata.log_likelihood.attrs["stored_dtype"] == "float32"
-    from bayes_rcsa.posterior.draws import posterior_attributes
-
     assert idata.attrs["method"] == "multi" and posterior_attributes(idata)["method"] == "multi"  # attributes kept
+    assert idata.attrs[SCHEMA_ATTRIBUTE] == SCHEMA_VERSION  # written through bayes_rcsa.store.write_posterior
 
 
 def test_deterministic_cli(campaign_dir, tmp_path):

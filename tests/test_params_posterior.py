@@ -8,7 +8,6 @@ import shutil
 import numpy as np
 import pytest
 
-from bayes_rcsa.inference.diagnostics import read_netcdf
 from bayes_rcsa.inference.identify import identify, write_outputs
 from bayes_rcsa.inference.problem import IdentificationOptions, build_problem_from_setup
 from bayes_rcsa.io import load_setup
@@ -16,6 +15,7 @@ from bayes_rcsa.params import ParameterModel
 from bayes_rcsa.posterior import load_posterior
 from bayes_rcsa.posterior.prediction_outputs import frequencies_document, run_prediction
 from bayes_rcsa.stability.posterior_frf import posterior_frf_draws
+from bayes_rcsa.store import read_posterior
 from bayes_rcsa.synthetic import default_bench_config, generate_campaign, write_campaign
 
 from test_inference_support import quick_settings
@@ -52,7 +52,7 @@ def _edited(setup_path, tmp_path):
 
 def test_posterior_nc_holds_the_parameter_model(fitted):
     _, posterior, pm = fitted
-    idata = read_netcdf(posterior)
+    idata = read_posterior(posterior)
     attrs = {k: v for g in idata.groups() for k, v in idata[g].attrs.items()}
     assert ParameterModel.from_dict(json.loads(attrs["parameter_model"])) == pm
     draws = load_posterior(posterior)

@@ -88,8 +88,9 @@ def test_subset_needs_a_generator_and_is_reproducible():
 def test_load_posterior_reads_the_parameter_model_not_the_setup(tmp_path):
     import json as _json
 
-    from bayes_rcsa.inference.diagnostics import build_inference_data, write_netcdf
+    from bayes_rcsa.inference.diagnostics import build_inference_data
     from bayes_rcsa.params import LogUniform as LU
+    from bayes_rcsa.store import write_posterior
 
     rng = np.random.default_rng(0)
     post = {"k_xf": 10 ** rng.normal(6.2, 0.01, (4, 25)), "k_thetaM": 10 ** rng.normal(5.6, 0.05, (4, 25)),
@@ -104,7 +105,7 @@ def test_load_posterior_reads_the_parameter_model_not_the_setup(tmp_path):
         idata = build_inference_data(post, np.zeros((4, 25)), np.zeros((4, 25, 3)), np.ones(3, complex),
                                      {"fit_clamping_length": np.array([0.025, 0.040])}, {"fit_clamping_length": ["fm"]},
                                      {"fm": ["a", "b"]}, {"method": "multi", **attrs})
-        return write_netcdf(idata, tmp_path / name)
+        return write_posterior(idata, tmp_path / name)
 
     path = write({"parameter_model": _json.dumps(pm.to_dict())}, "posterior.nc")
     # the setup was edited after the fit: other damping, other stiffness bounds

@@ -27,7 +27,6 @@ import math
 
 import numpy as np
 
-from ..errors import SetupError
 from .likelihood import CutLikelihood, inverse_limits_at_cuts
 
 __all__ = ["CutTerm", "LEVEL_GRID", "add_coefficients_to_posterior"]
@@ -138,25 +137,15 @@ class CutTerm:
 def add_coefficients_to_posterior(path, kt, kr, width, attrs: dict) -> None:
     """Add per-draw ``cutting_kt_pa``, ``cutting_kr_pa``, ``cut_boundary_width`` to an identify posterior.nc.
 
-    The arrays are in the order of :func:`bayes_rcsa.posterior.load_posterior` (chains flattened); the
-    file is rewritten atomically with every group kept.
+    Parameters
+    ----------
+    path : path of the posterior.nc (rewritten atomically, everything else kept)
+    kt, kr : (n_draws,) Pa, in the order of :func:`bayes_rcsa.posterior.load_posterior` (chains flattened)
+    width : (n_draws,) boundary widths
+    attrs : dict, attributes added to the ``posterior`` group (``cuts_file``, ``n_cuts``)
     """
-    import json
-
-    from ..inference.diagnostics import write_netcdf
-    from ..posterior.draws import read_posterior
     from ..stability.coefficients import COEFFICIENT_VARIABLES
+    from ..store import append_to_posterior
 
-    idata = read_posterior(path)
-    post = idata.posterior
-    shape = (post.sizes["chain"], post.sizes["draw"])
-    if int(np.prod(shape)) != np.size(kt):
-        raise SetupError(f"{path}: {np.size(kt)} coefficient draws for {int(np.prod(shape))} posterior draws")
-    dims = ("chain", "draw")
-    new = post.assign({COEFFICIENT_VARIABLES[0]: (dims, np.reshape(kt, shape)),
-                       COEFFICIENT_VARIABLES[1]: (dims, np.reshape(kr, shape)),
-                       "cut_boundary_width": (dims, np.reshape(width, shape))})
-    new = new.assign_attrs({k: (v if isinstance(v, (int, float, str)) else json.dumps(v)) for k, v in attrs.items()})
-    groups = {g: getattr(idata, g) for g in idata.groups()}
-    groups["posterior"] = new
-    write_netcdf(type(idata)(**groups), path)
+    append_to_posterior(path, posterior_vars={COEFFICIENT_VARIABLES[0]: kt, COEFFICIENT_VARIABLES[1]: kr,
+                                              "cut_boundary_width": width}, attrs=attrs)

@@ -42,11 +42,10 @@ def write_updated_posterior(path, hammer_posterior, draws, result, attrs: dict) 
     """
     import xarray as xr
 
-    from ..inference.diagnostics import write_netcdf
     from ..params.model import PARAMETER_MODEL_ATTR
-    from ..posterior.draws import posterior_attributes, read_posterior
+    from ..store import posterior_attributes, read_posterior, write_posterior
 
-    idata = read_posterior(hammer_posterior)
+    idata = read_posterior(hammer_posterior, option=None)
     pm = draws.parameters
     n = int(result.draw.size)
     dims = ("chain", "draw")
@@ -65,7 +64,7 @@ def write_updated_posterior(path, hammer_posterior, draws, result, attrs: dict) 
     const = getattr(idata, "constant_data", None)
     if const is not None:
         groups["constant_data"] = const.assign_attrs(base)
-    return write_netcdf(type(idata)(**groups), Path(path))
+    return write_posterior(type(idata)(**groups), Path(path))
 
 
 def write_update_json(path, document: dict) -> Path:

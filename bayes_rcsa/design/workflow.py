@@ -145,12 +145,9 @@ class DesignResult:
 
 def posterior_attributes(path) -> dict:
     """Attributes of a ``posterior.nc`` (method, tempering, growth law, ...), merged over its groups."""
-    from ..inference.diagnostics import read_netcdf
+    from ..store import read_posterior
 
-    try:
-        idata = read_netcdf(path)
-    except Exception as exc:  # netCDF/HDF5 readers raise many unrelated types
-        raise DataError(f"{path}: cannot read as an ArviZ InferenceData netCDF file ({exc})") from None
+    idata = read_posterior(path, option=None)
     return {k: v for group in idata.groups() for k, v in getattr(idata, group).attrs.items()}
 
 

@@ -1,8 +1,8 @@
-"""Everything that touches ArviZ: R-hat/ESS and the InferenceData file.
+"""ArviZ's statistics and the InferenceData of a fit: R-hat/ESS, PSIS, :func:`build_inference_data`.
 
-This is the only module of the package that imports :mod:`arviz` (its
-import is slow and its API moves between versions; keeping it here keeps
-both problems in one place).
+Together with :mod:`bayes_rcsa.store.netcdf` (which writes and reads the
+netCDF files) this is the only module of the package that imports
+:mod:`arviz` (its import is slow and its API moves between versions).
 
 Walkers of the ensemble are treated as ArviZ *chains*.  They are not
 independent chains, but after the burn-in they are exchangeable draws of
@@ -14,15 +14,11 @@ from __future__ import annotations
 
 import contextlib
 import warnings
-from pathlib import Path
 from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..io.atomic import atomic_path
-
-__all__ = ["chain_diagnostics", "build_inference_data", "inference_data_from_dict",
-           "write_netcdf", "read_netcdf"]
+__all__ = ["chain_diagnostics", "build_inference_data", "inference_data_from_dict"]
 
 
 def _az():
@@ -135,54 +131,6 @@ def _attr(v):
     return str(v)
 
 
-#: Compression of every numeric variable of posterior.nc: zlib (lossless) after the byte shuffle, which groups
-#: the slowly varying exponent bytes of neighbouring floats and gains ~16 % over zlib alone on the draws.
-COMPRESSION = {"zlib": True, "complevel": 4, "shuffle": True}
-
-#: The pointwise log-likelihood (walkers x draws x lines, ~90 % of the file) is stored in single precision:
-#: relative error 6e-8, i.e. < 2e-6 nats per line for |log p| < 30 and < 2e-3 nats summed over 1000 lines,
-#: far below the differences of order 1 nat that LOO/WAIC comparisons read.  Everything else stays float64.
-LOG_LIKELIHOOD_DTYPE = "float32"
-
-
-def _encoding(group: str, dataset) -> dict:
-    enc = {}
-    for name, var in dataset.variables.items():
-        kind = var.dtype.kind
-        if kind not in "fiub":
-            continue  # strings and objects (coordinate labels) are stored as they are
-        e = dict(COMPRESSION)
-        if group == "log_likelihood" and kind == "f" and name not in dataset.coords:
-            e["dtype"] = LOG_LIKELIHOOD_DTYPE
-        enc[name] = e
-    return enc
-
-
-def write_netcdf(idata, path) -> Path:
-    """Write ``idata`` to ``path`` atomically (no partial file on failure), compressed.
-
-    The layout is ArviZ's (one netCDF group per InferenceData group, read by
-    :func:`arviz.from_netcdf`); every numeric variable is zlib-compressed
-    with the byte shuffle (lossless), and the pointwise log-likelihood is
-    stored as ``float32`` (see :data:`LOG_LIKELIHOOD_DTYPE`; recorded in the
-    group's ``stored_dtype`` attribute).
-    """
-    path = Path(path)
-    import xarray as xr
-
-    with atomic_path(path) as tmp:
-        # the InferenceData's own attributes live on the root group, as ArviZ writes them
-        xr.Dataset(attrs=dict(idata.attrs)).to_netcdf(str(tmp), mode="w", engine="h5netcdf")
-        mode = "a"
-        for group in idata.groups():
-            ds = getattr(idata, group)
-            if group == "log_likelihood":
-                ds = ds.assign_attrs(stored_dtype=LOG_LIKELIHOOD_DTYPE)
-            ds.to_netcdf(str(tmp), mode=mode, group=group, engine="h5netcdf", encoding=_encoding(group, ds))
-            mode = "a"
-    return path
-
-
-def read_netcdf(path):
-    """Read an InferenceData file written by :func:`write_netcdf`."""
-    return _az().from_netcdf(str(path))
+# Temporary (#41): inference/identify.py's posterior writer still imports ``write_netcdf`` from here; at the merge
+# it calls ``bayes_rcsa.store.write_posterior`` directly and this line goes.
+from ..store import write_posterior as write_netcdf  # noqa: E402,F401

@@ -92,9 +92,10 @@ def write_zero_tap(out_dir, pop: Population, setup, rng: np.random.Generator, n_
     -------
     dict, the summary written
     """
-    from ..inference.diagnostics import inference_data_from_dict, write_netcdf
+    from ..inference.diagnostics import inference_data_from_dict
     from ..io.atomic import atomic_write_text
     from ..posterior.setup_match import GEOMETRY_KEY, setup_geometry
+    from ..store import write_posterior
 
     htype, diameter, growth = check_setup(pop, setup)
     z, warns = predictive_draws(pop, htype, diameter, rng, n_draws)
@@ -124,7 +125,7 @@ def write_zero_tap(out_dir, pop: Population, setup, rng: np.random.Generator, n_
                                      coords={"clamping_length": lengths}, attrs=attrs)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    write_netcdf(idata, out / "posterior.nc")
+    write_posterior(idata, out / "posterior.nc")
     q = {n: [float(v) for v in np.quantile(full[n], [0.05, 0.5, 0.95])] for n in pop.names}
     summary = {"method": ZERO_TAP_METHOD, "converged": True, "holder_type": htype, "shank_diameter_m": diameter,
                "n_draws": int(z.shape[0]),

@@ -46,7 +46,8 @@ def write_population(path, pop: Population, setups: list[dict], hyper_descriptio
     hyper_description : dict, :meth:`Hyperprior.describe`
     attrs : dict, extra attributes (warnings, seed)
     """
-    from ..inference.diagnostics import inference_data_from_dict, write_netcdf
+    from ..inference.diagnostics import inference_data_from_dict
+    from ..store import write_netcdf
 
     types = pop.holder_types
     d = len(pop.names)
@@ -95,7 +96,7 @@ def read_population(path) -> Population:
     DataError
         Missing or unreadable file, or a file of another model version (refit the library).
     """
-    from ..inference.diagnostics import read_netcdf
+    from ..store import read_netcdf
 
     path = Path(path)
     if not path.is_file():

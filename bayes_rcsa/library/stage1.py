@@ -208,11 +208,11 @@ def _tail_corrected(job, folder: Path, draws, rng: np.random.Generator):
     """
     import json
 
-    from ..inference.diagnostics import read_netcdf
     from ..inference.posterior import LogPosterior
     from ..inference.problem import IdentificationOptions, build_problem_from_setup
     from ..inference.tail_check import importance_tail_check
     from ..io.setup import load_setup
+    from ..store import read_posterior
 
     summary = json.loads((folder / "summary.json").read_text())
     setup = load_setup(job.setup_file)
@@ -224,7 +224,8 @@ def _tail_corrected(job, folder: Path, draws, rng: np.random.Generator):
     if missing:
         return draws, f"setup {job.name}: tail correction skipped: the stage-1 draws lack {missing}"
     theta = np.column_stack([np.asarray(problem.priors.priors[n].to_sampling(draws.values[n]), float) for n in names])
-    stored = np.asarray(read_netcdf(folder / "posterior.nc").sample_stats["lp"].values, float).ravel()
+    stored = np.asarray(read_posterior(folder / "posterior.nc", option=None).sample_stats["lp"].values,
+                        float).ravel()
     if stored.size != theta.shape[0] or not np.allclose(lp(theta), stored, rtol=0.0, atol=1e-6):
         return draws, (f"setup {job.name}: tail correction skipped: the log posterior rebuilt from {job.setup_file} "
                        "differs from the stage-1 run's (setup edited since?)")

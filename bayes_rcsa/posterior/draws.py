@@ -32,9 +32,10 @@ from ..errors import DataError, SetupError
 from ..params.growth import GrowthLaw
 from ..params.model import CONTACT_NAMES, PARAMETER_MODEL_ATTR, ParameterModel
 from ..params.terms import Contact
+from ..store import posterior_attributes, read_posterior
 
 __all__ = ["CONTACT_NAMES", "PARAMETER_MODEL_ATTR", "PosteriorDraws", "draws_from_result", "load_posterior",
-           "posterior_attributes", "read_posterior", "setup_differences"]
+           "setup_differences"]
 
 
 @dataclass(frozen=True)
@@ -161,29 +162,6 @@ def draws_from_result(result) -> PosteriorDraws:
     return PosteriorDraws(pm, values, problem.method, lengths, "memory", "memory")
 
 
-def posterior_attributes(idata) -> dict:
-    """Attributes of every group of a posterior's InferenceData, merged (method, tempering, parameter_model, ...)."""
-    out: dict = {}
-    for group in ("posterior", "sample_stats", "constant_data", "observed_data", "log_likelihood"):
-        ds = getattr(idata, group, None)
-        if ds is not None:
-            out.update(dict(ds.attrs))
-    return out
-
-
-def read_posterior(path):
-    """The InferenceData of a ``posterior.nc``; :class:`DataError` naming the file if it is missing or unreadable."""
-    from ..inference.diagnostics import read_netcdf
-
-    path = Path(path)
-    if not path.is_file():
-        raise DataError(f"{path}: posterior file not found (expected DIR/posterior.nc written by 'bayes-rcsa identify')")
-    try:
-        return read_netcdf(path)
-    except Exception as exc:  # netCDF/HDF5 readers raise many unrelated types
-        raise DataError(f"{path}: cannot read as an ArviZ InferenceData netCDF file ({exc})") from None
-
-
 def _fmt(v) -> str:
     return f"{v:.6g}" if isinstance(v, float) else repr(v)
 
@@ -255,11 +233,13 @@ def load_posterior(path, setup=None, inference_data=None) -> PosteriorDraws:
     Raises
     ------
     DataError
-        The file is not a bayes_rcsa posterior, lacks the parameter model
-        (an older version wrote it) or a sampled parameter.
+        The file is missing, unreadable, of a newer schema version
+        (:func:`bayes_rcsa.store.read_posterior`) or not a bayes_rcsa
+        posterior, or lacks the parameter model (an older version wrote it)
+        or a sampled parameter.
     """
     path = Path(path)
-    idata = read_posterior(path) if inference_data is None else inference_data
+    idata = read_posterior(path, option=None) if inference_data is None else inference_data
     post = getattr(idata, "posterior", None)
     if post is None:
         raise DataError(f"{path}: no 'posterior' group")

@@ -126,9 +126,9 @@ def posterior_status(posterior_path, inference_data=None, summary=None) -> dict:
             "source": str(summary_path),
         })
     else:
-        from .draws import posterior_attributes, read_posterior
+        from ..store import posterior_attributes, read_posterior
 
-        attrs = posterior_attributes(read_posterior(path) if inference_data is None else inference_data)
+        attrs = posterior_attributes(read_posterior(path, option=None) if inference_data is None else inference_data)
         if "converged" in attrs:
             out["converged"] = bool(int(attrs["converged"])) if not isinstance(attrs["converged"], str) \
                 else attrs["converged"].lower() in ("true", "1")
@@ -227,12 +227,12 @@ def run_prediction(setup, posterior_path, lengths: Sequence[float], directions: 
         The draws, their noise and growth transfer stay those of the run
         without samples (the assignment has a stream of its own).
     """
-    from .draws import read_posterior
+    from ..store import read_posterior
 
     draws_all = posterior_draws
     if draws_all is None:
         if inference_data is None:
-            inference_data = read_posterior(posterior_path)  # the one read of the file
+            inference_data = read_posterior(posterior_path, option=None)  # the one read of the file
         draws_all = load_posterior(posterior_path, setup, inference_data=inference_data)
     lengths = [float(v) for v in lengths]
     check_prediction_lengths(draws_all, setup, lengths)

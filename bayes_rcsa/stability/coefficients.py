@@ -120,9 +120,9 @@ def read_coefficient_draws(posterior_path, index=None, inference_data=None):
     (kt (n,), kr (n,)) or None
     """
     from ..errors import DataError
-    from ..posterior.draws import read_posterior
+    from ..store import read_posterior
 
-    post = (read_posterior(posterior_path) if inference_data is None else inference_data).posterior
+    post = (read_posterior(posterior_path, option=None) if inference_data is None else inference_data).posterior
     if not all(v in post.data_vars for v in COEFFICIENT_VARIABLES):
         return None
     kt, kr = (np.asarray(post[v].values, dtype=float).reshape(-1) for v in COEFFICIENT_VARIABLES)

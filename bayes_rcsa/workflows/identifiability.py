@@ -154,9 +154,9 @@ class Identifiability(Result):
         try:
             from .identify import Posterior
         except ImportError:  # TODO(merge): workflows.identify (helper wfa) defines Posterior; until then ArviZ data
-            from ..posterior.draws import read_posterior
+            from ..store import read_posterior
 
-            return {name: read_posterior(path) for name, path in self._posterior_files().items()}
+            return {name: read_posterior(path, option=None) for name, path in self._posterior_files().items()}
         saved = self._posterior_files()
         if self.study is None:
             return {name: Posterior.load(path, setup=self.setup) for name, path in saved.items()}

@@ -366,9 +366,9 @@ def _coefficients(parts, kt, kr):
     from ..stability.coefficients import read_coefficient_draws
 
     if inference_data is None:
-        from ..posterior.draws import read_posterior
+        from ..store import read_posterior
 
-        inference_data = read_posterior(parts.path)  # the one read of posterior.nc, passed on to the FRF draws
+        inference_data = read_posterior(parts.path, option=None)  # the one read of posterior.nc, passed on to the FRF draws
     coef = read_coefficient_draws(parts.path, inference_data=inference_data)
     if coef is None:
         raise SetupError(f"--kt and --kr are required: {parts.path} carries no cutting-coefficient draws (only "

@@ -1,0 +1,368 @@
+"""bayes_rcsa.store: the one owner of posterior.nc (schema version, writer, reader, append) and of netCDF I/O (#41)."""
+
+from __future__ import annotations
+
+import ast
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import bayes_rcsa.store as store
+from bayes_rcsa.data import example_dir
+from bayes_rcsa.errors import DataError, SetupError
+from bayes_rcsa.store import posterior_file
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGE = ROOT / "bayes_rcsa"
+
+N_CHAIN, N_DRAW, N_LINE = 3, 20, 4
+
+
+def _pm():
+    from bayes_rcsa.params import LogUniform, ParameterModel, Uniform
+    from bayes_rcsa.params.growth import GrowthLaw
+
+    return ParameterModel.from_priors(GrowthLaw(0.025, 0.040, 0.5),
+                                      {"k_xf": LogUniform(1e5, 1e9), "k_thetaM": LogUniform(1e3, 1e8),
+                                       "g_xf": Uniform(0, 0.5), "g_thetaM": Uniform(0, 0.5),
+                                       "sigma_0": LogUniform(1e-4, 10)},
+                                      {"c_xf": 10.0, "c_thetaM": 5e-4}, n_measurements=1)
+
+
+def _idata(seed: int = 0):
+    """A small posterior of the example setup's contact (draws around its truth), as identify lays it out."""
+    from bayes_rcsa.inference.diagnostics import build_inference_data
+
+    rng = np.random.default_rng(seed)
+    pm = _pm()
+    base = {"k_xf": 1.8e6, "k_thetaM": 4.5e5, "g_xf": 0.45, "g_thetaM": 0.45}
+    post = {name: (base[name] * np.exp(rng.normal(0, 0.03, (N_CHAIN, N_DRAW))) if name.startswith("k_") else
+                   np.full((N_CHAIN, N_DRAW), base.get(name, 0.01))) for name in pm.names}
+    return build_inference_data(post, rng.normal(size=(N_CHAIN, N_DRAW)), rng.normal(size=(N_CHAIN, N_DRAW, N_LINE)),
+                                np.ones(N_LINE, complex) * (1 + 2j),
+                                {"fit_clamping_length": np.array([0.025, 0.03, 0.035, 0.04])},
+                                {"fit_clamping_length": ["fm"]}, {"fm": list("abcd")},
+                                {"method": "multi", "tempering": 0.5, "parameter_model": json.dumps(pm.to_dict())})
+
+
+def _with_root_attrs(src: Path, dst: Path, **attrs) -> Path:
+    """A copy of ``src`` whose root attributes are replaced (a file another program or version wrote)."""
+    idata = store.read_netcdf(src)
+    groups = {g: getattr(idata, g) for g in idata.groups()}
+    root = {k: v for k, v in idata.attrs.items() if k != store.SCHEMA_ATTRIBUTE}
+    root.update({k: v for k, v in attrs.items() if v is not None})
+    return store.write_netcdf(type(idata)(attrs=root, **groups), dst)
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory):
+    root = tmp_path_factory.mktemp("store")
+    idata = _idata()
+    return idata, store.write_posterior(idata, root / "posterior.nc")
+
+
+# -- the public names ---------------------------------------------------------------------------------------------
+
+
+def test_the_public_names():
+    assert sorted(store.__all__) == sorted(["SCHEMA_VERSION", "SCHEMA_ATTRIBUTE", "write_posterior", "read_posterior",
+                                            "append_to_posterior", "write_netcdf", "read_netcdf",
+                                            "posterior_attributes"])
+    assert store.SCHEMA_VERSION == 2 and isinstance(store.SCHEMA_VERSION, int)
+    assert store.SCHEMA_ATTRIBUTE == "bayes_rcsa_schema_version"
+
+
+# -- write and read -----------------------------------------------------------------------------------------------
+
+
+def test_write_read_round_trip_keeps_values_groups_attributes_and_records_the_schema(written):
+    import h5py
+
+    idata, path = written
+    assert store.SCHEMA_ATTRIBUTE not in idata.attrs  # the caller's object is not modified
+    back = store.read_posterior(path)
+    assert back.groups() == idata.groups()
+    for group in idata.groups():
+        a, b = getattr(idata, group), getattr(back, group)
+        assert set(a.data_vars) == set(b.data_vars), group
+        for name in a.data_vars:
+            # float64 everywhere, except the pointwise log-likelihood (float32 on disk)
+            rtol = 1e-7 if group == "log_likelihood" else 0.0
+            np.testing.assert_allclose(b[name].values, a[name].values, rtol=rtol, err_msg=f"{group}/{name}")
+    assert back.attrs[store.SCHEMA_ATTRIBUTE] == store.SCHEMA_VERSION
+    assert back.attrs["method"] == "multi"
+    attrs = store.posterior_attributes(back)
+    assert attrs["method"] == "multi" and attrs["tempering"] == 0.5 and "parameter_model" in attrs
+    assert store.SCHEMA_ATTRIBUTE not in attrs  # a file-level attribute, not one of the fit's
+    with h5py.File(path, "r") as f:  # the compression of every posterior.nc (issue #14)
+        assert f.attrs[store.SCHEMA_ATTRIBUTE] == 2
+        for p in ("posterior/k_xf", "sample_stats/lp", "log_likelihood/frf", "constant_data/fit_clamping_length"):
+            assert f[p].compression == "gzip" and f[p].shuffle, p
+        assert f["log_likelihood/frf"].dtype == np.float32 and f["posterior/k_xf"].dtype == np.float64
+    # the draws as every product reads them
+    from bayes_rcsa.posterior import load_posterior
+
+    d = load_posterior(path)
+    np.testing.assert_array_equal(d.values["k_xf"], idata.posterior["k_xf"].values.ravel())
+    assert d.fit_lengths == (0.025, 0.03, 0.035, 0.04)
+
+
+def test_a_version_1_file_without_the_attribute_is_read_as_before(written, tmp_path):
+    from bayes_rcsa.posterior import load_posterior
+
+    idata, path = written
+    old = _with_root_attrs(path, tmp_path / "old.nc", **{store.SCHEMA_ATTRIBUTE: None})
+    assert store.SCHEMA_ATTRIBUTE not in store.read_netcdf(old).attrs
+    back = store.read_posterior(old)
+    assert posterior_file._schema_version(back, old) == 1
+    np.testing.assert_array_equal(back.posterior["k_thetaM"].values, idata.posterior["k_thetaM"].values)
+    np.testing.assert_array_equal(load_posterior(old).values["k_xf"], load_posterior(path).values["k_xf"])
+
+
+@pytest.mark.parametrize("version, needle", [
+    (3, "posterior.nc schema version 3 is newer than this bayes_rcsa reads (2); update bayes_rcsa"),
+    (np.int64(7), "posterior.nc schema version 7 is newer than this bayes_rcsa reads (2)"),
+    ("2", "posterior.nc schema version '2' is not an integer"),
+    (2.0, "posterior.nc schema version 2.0 is not an integer"),
+    (0, "posterior.nc schema version 0 is not a version of bayes_rcsa's"),
+])
+def test_a_newer_or_malformed_schema_version_is_refused_in_one_line(written, tmp_path, version, needle):
+    from bayes_rcsa.posterior import load_posterior
+    from bayes_rcsa.stability.coefficients import read_coefficient_draws
+
+    bad = _with_root_attrs(written[1], tmp_path / "new.nc", **{store.SCHEMA_ATTRIBUTE: version})
+    for read in (store.read_posterior, load_posterior, read_coefficient_draws):
+        with pytest.raises(DataError) as info:
+            read(bad)
+        msg = str(info.value)
+        assert msg.startswith(f"{bad}: ") and needle in msg and "\n" not in msg, (read, msg)
+
+
+def test_the_readers_messages_are_kept(tmp_path):
+    missing = tmp_path / "none" / "posterior.nc"
+    with pytest.raises(SetupError) as info:
+        store.read_posterior(missing)
+    assert str(info.value) == f"--posterior {missing}: no such file (posterior.nc written by 'bayes-rcsa identify')"
+    with pytest.raises(SetupError, match=r"^--model-posterior "):
+        store.read_posterior(missing, option="--model-posterior")
+    with pytest.raises(DataError) as info:
+        store.read_posterior(missing, option=None)
+    assert str(info.value) == (f"{missing}: posterior file not found (expected DIR/posterior.nc written by "
+                               "'bayes-rcsa identify')")
+    junk = tmp_path / "junk.nc"
+    junk.write_text("not netCDF\n")
+    with pytest.raises(DataError, match=r"cannot read as an ArviZ InferenceData netCDF file \("):
+        store.read_posterior(junk)
+    # an InferenceData without a posterior group (a population file, say) is not a posterior
+    from bayes_rcsa.inference.diagnostics import inference_data_from_dict
+
+    other = store.write_netcdf(inference_data_from_dict(constant_data={"x": np.zeros(2)}), tmp_path / "other.nc")
+    with pytest.raises(DataError) as info:
+        store.read_posterior(other)
+    assert str(info.value) == f"{other}: no 'posterior' group"
+
+
+# -- append -------------------------------------------------------------------------------------------------------
+
+
+def test_append_to_posterior_adds_variables_groups_attributes_and_keeps_the_rest(written, tmp_path):
+    import xarray as xr
+
+    from bayes_rcsa.posterior import load_posterior
+
+    idata, src = written
+    path = Path(shutil.copy(src, tmp_path / "posterior.nc"))
+    _with_root_attrs(src, path, **{store.SCHEMA_ATTRIBUTE: None})  # appending to a version-1 file upgrades it
+    before = store.read_posterior(path)
+    n = N_CHAIN * N_DRAW
+    flat = np.arange(n, dtype=float) + 1.0  # the chain-flattened order of load_posterior
+    square = np.arange(n, dtype=float).reshape(N_CHAIN, N_DRAW) * 2
+    extra = xr.Dataset({"note_values": ("k", np.array([1.0, 2.0]))})
+    assert store.append_to_posterior(path, posterior_vars={"flat_var": flat, "square_var": square},
+                                     groups={"extra_group": extra},
+                                     attrs={"n_cuts": 6, "cuts_file": "c.csv", "flag": True, "info": {"a": 1}}) == path
+    after = store.read_posterior(path)
+    assert after.attrs[store.SCHEMA_ATTRIBUTE] == store.SCHEMA_VERSION
+    assert after.attrs["method"] == "multi"  # root attributes kept
+    np.testing.assert_array_equal(load_posterior(path).values["k_xf"], load_posterior(src).values["k_xf"])
+    np.testing.assert_array_equal(after.posterior["flat_var"].values.ravel(), flat)
+    np.testing.assert_array_equal(after.posterior["square_var"].values, square)
+    assert after.posterior["flat_var"].dims == ("chain", "draw")
+    np.testing.assert_array_equal(after.extra_group["note_values"].values, [1.0, 2.0])
+    assert set(after.groups()) == set(before.groups()) | {"extra_group"}
+    for group in before.groups():
+        for name in getattr(before, group).data_vars:
+            np.testing.assert_array_equal(getattr(after, group)[name].values, getattr(before, group)[name].values)
+    attrs = store.posterior_attributes(after)
+    assert attrs["n_cuts"] == 6 and attrs["cuts_file"] == "c.csv" and attrs["flag"] == 1
+    assert json.loads(attrs["info"]) == {"a": 1} and attrs["parameter_model"] == store.posterior_attributes(before)[
+        "parameter_model"]
+    with pytest.raises(DataError, match=r"wrong has shape \(7,\); expected 60 draws"):
+        store.append_to_posterior(path, posterior_vars={"wrong": np.zeros(7)})
+    assert "wrong" not in store.read_posterior(path).posterior  # nothing written on a refusal
+
+
+def test_add_coefficients_to_posterior_writes_through_the_store(written, tmp_path):
+    from bayes_rcsa.cuts.joint import add_coefficients_to_posterior
+    from bayes_rcsa.stability.coefficients import read_coefficient_draws
+
+    path = Path(shutil.copy(written[1], tmp_path / "posterior.nc"))
+    n = N_CHAIN * N_DRAW
+    kt, kr, w = np.linspace(5e8, 7e8, n), np.linspace(1e8, 2e8, n), np.full(n, 0.1)
+    add_coefficients_to_posterior(path, kt, kr, w, {"cuts_file": "cuts.csv", "n_cuts": 4})
+    got = read_coefficient_draws(path)
+    np.testing.assert_array_equal(got[0], kt)
+    np.testing.assert_array_equal(got[1], kr)
+    assert store.posterior_attributes(store.read_posterior(path))["n_cuts"] == 4
+
+
+def test_every_posterior_read_goes_through_the_one_opener(written, monkeypatch):
+    from bayes_rcsa.design.workflow import posterior_attributes as design_attributes
+    from bayes_rcsa.posterior import load_posterior
+    from bayes_rcsa.stability.coefficients import read_coefficient_draws
+
+    path = written[1]
+    opened = []
+    real = posterior_file._open_posterior
+    monkeypatch.setattr(posterior_file, "_open_posterior", lambda p: opened.append(Path(p)) or real(p))
+    for read in (store.read_posterior, load_posterior, read_coefficient_draws, design_attributes):
+        del opened[:]
+        read(path)
+        assert opened == [path], read
+
+
+# -- through the command line -------------------------------------------------------------------------------------
+
+
+def _predict(setup, posterior, out):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, "-m", "bayes_rcsa", "predict", str(setup), "--posterior", str(posterior),
+                           "--lengths", "0.03", "--max-draws", "10", "--no-plots", "--quiet", "--out", str(out)],
+                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+
+
+def test_predict_refuses_a_newer_posterior_in_one_line_exit_2(written, tmp_path):
+    shutil.copytree(example_dir(), tmp_path / "data")
+    newer = _with_root_attrs(written[1], tmp_path / "posterior.nc", **{store.SCHEMA_ATTRIBUTE: 3})
+    res = _predict(tmp_path / "data" / "setup.toml", newer, tmp_path / "out")
+    assert res.returncode == 2, res.stderr[-2000:]
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1, res.stderr
+    assert str(newer) in lines[0] and "schema version 3 is newer than this bayes_rcsa reads (2)" in lines[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_predict_reads_the_posterior_through_the_store(written, tmp_path, monkeypatch):
+    from bayes_rcsa.cli.main import main
+
+    shutil.copytree(example_dir(), tmp_path / "data")
+    path = Path(shutil.copy(written[1], tmp_path / "posterior.nc"))
+    opened = []
+    real = posterior_file._open_posterior
+    monkeypatch.setattr(posterior_file, "_open_posterior", lambda p: opened.append(Path(p)) or real(p))
+    assert main(["predict", str(tmp_path / "data" / "setup.toml"), "--posterior", str(path), "--lengths", "0.03",
+                 "--max-draws", "10", "--no-plots", "--quiet", "--out", str(tmp_path / "out")]) == 0
+    assert opened and set(opened) == {path}
+    assert (tmp_path / "out" / "frequencies.json").is_file()
+
+
+# -- nobody else opens a netCDF file ------------------------------------------------------------------------------
+
+#: Readers and writers of netCDF files (xarray, ArviZ); only bayes_rcsa/store/ may call them.
+NETCDF_CALLS = {"to_netcdf", "from_netcdf", "open_dataset", "open_datatree", "load_dataset", "load_datatree",
+                "open_mfdataset", "open_groups", "netcdf_file"}
+#: Modules that read or write netCDF themselves.
+NETCDF_MODULES = {"h5netcdf", "netCDF4", "scipy.io.netcdf", "netcdf"}
+#: Calls that open a file given its name (builtins, pathlib, h5py, netCDF4).
+OPENERS = {"open", "File", "Dataset", "read_bytes", "read_text", "write_bytes", "write_text", "fdopen"}
+#: The store's own readers and writers; outside the store a posterior.nc goes to write_/read_posterior.
+STORE_GENERIC = {"read_netcdf", "write_netcdf"}
+
+
+def _call_name(func) -> str:
+    return func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", "")
+
+
+def _strings(node):
+    return [n.value for n in ast.walk(node) if isinstance(n, ast.Constant) and isinstance(n.value, str)]
+
+
+def netcdf_violations(source: str, where: str = "<source>") -> list[str]:
+    """Every place in ``source`` that reads or writes a netCDF file without the store (one line each)."""
+    out = []
+    for node in ast.walk(ast.parse(source, where)):
+        line = f"{where}:{getattr(node, 'lineno', 0)}"
+        if isinstance(node, ast.Import):
+            out += [f"{line}: import {a.name}" for a in node.names if a.name in NETCDF_MODULES
+                    or a.name.split(".")[0] in {"h5netcdf", "netCDF4"}]
+        elif isinstance(node, ast.ImportFrom):
+            mod = node.module or ""
+            if mod in NETCDF_MODULES or mod.split(".")[0] in {"h5netcdf", "netCDF4"}:
+                out.append(f"{line}: from {mod} import ...")
+            out += [f"{line}: import of {a.name}" for a in node.names if a.name in NETCDF_CALLS]
+        elif isinstance(node, ast.Attribute) and node.attr in NETCDF_CALLS:
+            out.append(f"{line}: .{node.attr}")
+        elif isinstance(node, ast.Name) and node.id in NETCDF_CALLS:
+            out.append(f"{line}: {node.id}")
+        elif isinstance(node, ast.keyword) and node.arg == "engine" and isinstance(node.value, ast.Constant) \
+                and str(node.value.value).lower() in {"h5netcdf", "netcdf4", "scipy"}:
+            out.append(f"{line}: engine={node.value.value!r}")
+        elif isinstance(node, ast.Call):
+            name = _call_name(node.func)
+            # the file of ``open(p)``, ``h5py.File(p)`` is an argument, of ``p.read_bytes()`` the receiver
+            args = [*node.args, *(k.value for k in node.keywords)]
+            if isinstance(node.func, ast.Attribute):
+                args.append(node.func.value)
+            strings = [s for a in args for s in _strings(a)]
+            if name in OPENERS and any(s.endswith(".nc") for s in strings):
+                out.append(f"{line}: {name}() of a .nc file")
+            if name in STORE_GENERIC and any(s.endswith("posterior.nc") for s in strings):
+                out.append(f"{line}: {name}() of posterior.nc (use write_posterior/read_posterior)")
+    return out
+
+
+@pytest.mark.parametrize("code", [
+    "import arviz as az\naz.from_netcdf(path)",
+    "idata.to_netcdf(path)",
+    "import xarray as xr\nxr.open_dataset(p, group='posterior')",
+    "from xarray import open_datatree",
+    "import h5netcdf",
+    "from h5netcdf import File",
+    "import netCDF4",
+    "ds.to_zarr(p, engine='h5netcdf')",
+    "import h5py\nh5py.File(out / 'posterior.nc', 'r')",
+    "with open(folder / 'population.nc', 'rb') as f: pass",
+    "(out / 'posterior.nc').read_bytes()",
+    "from bayes_rcsa.store import read_netcdf\nread_netcdf(folder / 'posterior.nc')",
+])
+def test_the_netcdf_scan_finds_a_reader_outside_the_store(code):
+    assert netcdf_violations(code), code
+
+
+@pytest.mark.parametrize("code", [
+    # inference/checkpoint.py: chain.h5 (h5py), not a netCDF file
+    "import h5py\nwith h5py.File(tmp, 'w', locking=False) as f: f.create_dataset('chain', data=x)",
+    '"""Readable by ``arviz.from_netcdf``; h5netcdf writes it."""',
+    "(out / 'posterior.nc').is_file()",
+    "store.read_posterior(out / 'posterior.nc')",
+    "store.read_netcdf(folder / 'population.nc')",
+    "pd.read_csv(p, engine='python')",
+])
+def test_the_netcdf_scan_leaves_other_code_alone(code):
+    assert netcdf_violations(code) == [], code
+
+
+def test_only_the_store_reads_or_writes_netcdf_files():
+    found = []
+    for f in sorted(PACKAGE.rglob("*.py")):
+        rel = f.relative_to(ROOT)
+        if rel.parts[:2] == ("bayes_rcsa", "store"):
+            continue
+        found += netcdf_violations(f.read_text(), str(rel))
+    assert not found, "\n".join(found)
