@@ -130,13 +130,9 @@ def _count_reads(monkeypatch) -> dict:
     calls: dict = {}
     _count(monkeypatch, io_setup, "load_setup", calls, "setup")
     _count(monkeypatch, io, "load_setup", calls, "setup")
-    try:  # TODO(merge): every read of posterior.nc goes through the "store" helper's opener
-        store = importlib.import_module("bayes_rcsa.store.posterior_file")
-        _count(monkeypatch, store, "_open_posterior", calls, "posterior")
-    except ImportError:
-        import arviz
-
-        _count(monkeypatch, arviz, "from_netcdf", calls, "posterior")
+    # every read of posterior.nc goes through the store's one opener
+    _count(monkeypatch, importlib.import_module("bayes_rcsa.store.posterior_file"), "_open_posterior", calls,
+           "posterior")
     return calls
 
 
