@@ -25,7 +25,6 @@ import numpy as np
 from scipy import stats
 
 from .diagnostics import pareto_smoothed_log_weights
-from .posterior import LogPosterior
 
 __all__ = ["importance_tail_check", "importance_resample", "check_identification", "TOLERANCE_SD", "MIN_ESS",
            "TAIL_CHECK_RULE"]
@@ -167,9 +166,8 @@ def check_identification(result, rng: np.random.Generator, n: int = 100_000) -> 
     rng : numpy.random.Generator
     n : number of importance draws
 
-    Call it where the sampling ran (inside the same ``extra_likelihood_terms`` block), so that the log
-    posterior is the sampled one.
+    The log posterior is the sampled one: the result's problem carries its extra likelihood terms.
     """
     problem = result.problem
-    lp = LogPosterior(problem.priors, problem.likelihood.with_tempering(result.tempering))
+    lp = problem.log_posterior(result.tempering)
     return importance_tail_check(lp, result.flat_theta, problem.priors.names, rng, n=n)
