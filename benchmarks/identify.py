@@ -29,7 +29,6 @@ from pathlib import Path
 import numpy as np
 
 from bayes_rcsa.inference.identify import identify
-from bayes_rcsa.inference.posterior import LogPosterior
 from bayes_rcsa.inference.problem import IdentificationOptions, build_problem
 from bayes_rcsa.inference.sampler import SamplerSettings
 from bayes_rcsa.io.setup import ContactSpec
@@ -104,7 +103,7 @@ def main() -> None:
         print(f"run {r}: {s['timing']['wall_time_s']:.1f} s, {s['n_steps']} steps, converged {s['converged']}, "
               f"max R-hat {max_rhat:.4f}, min bulk ESS {min_ess:.0f}, tau_max {max(s['tau'].values()):.1f}")
 
-    lp = LogPosterior(problem.priors, problem.likelihood)
+    lp = problem.log_posterior()
     batch = problem.priors.sample(np.random.default_rng(1), 16)
     v_eps = evals_per_second(lp, batch)
     n_eps = evals_per_second(lambda b: [lp(row[None, :]) for row in b], batch)

@@ -244,7 +244,6 @@ def joint_real(library: str, stage1: str, picks: str, runs: int = 4, steps: int 
     import arviz as az
 
     from bayes_rcsa.batch.manifest import load_manifest
-    from bayes_rcsa.inference.posterior import LogPosterior
     from bayes_rcsa.inference.problem import IdentificationOptions, build_problem_from_setup
     from bayes_rcsa.io.setup import load_setup
     from bayes_rcsa.library.joint import JointModel
@@ -271,7 +270,7 @@ def joint_real(library: str, stage1: str, picks: str, runs: int = 4, steps: int 
         summary = json.loads((folder / "summary.json").read_text())
         problem = build_problem_from_setup(setup, IdentificationOptions.from_setup(
             setup.extra, method=summary["method"], lengths=None, band=None))
-        lp = LogPosterior(problem.priors, problem.likelihood.with_tempering(summary["likelihood"]["tempering"]))
+        lp = problem.log_posterior(summary["likelihood"]["tempering"])
         pn = problem.priors.names
         iz = [pn.index(n) for n in names]
         iv = [i for i in range(len(pn)) if i not in iz]

@@ -35,7 +35,6 @@ import emcee
 import numpy as np
 from scipy import stats
 
-from bayes_rcsa.inference.posterior import LogPosterior
 from bayes_rcsa.inference.problem import IdentificationOptions, build_problem_from_setup
 from bayes_rcsa.io.setup import load_setup
 from bayes_rcsa.synthetic.library import generate_library, write_library
@@ -72,7 +71,7 @@ def main() -> None:
         summary = json.loads((out / "summary.json").read_text())
         problem = build_problem_from_setup(setup, IdentificationOptions.from_setup(
             setup.extra, method=summary["method"], lengths=None, band=None))
-        lp = LogPosterior(problem.priors, problem.likelihood.with_tempering(summary["likelihood"]["tempering"]))
+        lp = problem.log_posterior(summary["likelihood"]["tempering"])
         names = problem.priors.names
         post = az.from_netcdf(out / "posterior.nc")
         th = np.column_stack([np.asarray(problem.priors.priors[n].to_sampling(post.posterior[n].values.ravel()), float)

@@ -241,8 +241,8 @@ def test_cut_checks_name_depth_in_mm_speed_outside_band_and_unsupported_speed(tm
 
 
 # --------------------------------------------------------------------------- identify --cuts: the extra term
-def test_extra_likelihood_terms_enter_every_log_posterior_built_inside_the_block():
-    from bayes_rcsa.inference.posterior import LogPosterior, active_likelihood_terms, extra_likelihood_terms
+def test_extra_likelihood_terms_given_to_the_log_posterior_enter_it_untempered():
+    from bayes_rcsa.inference.posterior import LogPosterior
     from bayes_rcsa.params import PriorSet, Uniform
 
     priors = PriorSet({"a": Uniform(0.0, 1.0)})
@@ -250,12 +250,11 @@ def test_extra_likelihood_terms_enter_every_log_posterior_built_inside_the_block
     term = type("T", (), {"name": "t", "__call__": lambda self, th: 10 * th[:, 0]})()
     x = np.array([[0.5], [2.0]])  # the second row is outside the prior: never evaluated
     assert LogPosterior(priors, frf)(x)[0] == pytest.approx(-0.5)
-    with extra_likelihood_terms(term):
-        assert active_likelihood_terms() == (term,)
-        lp = LogPosterior(priors, frf)
-        assert lp(x)[0] == pytest.approx(-0.5 + 5.0) and lp(x)[1] == -np.inf
-        assert lp.with_likelihood(lambda th: 0 * th[:, 0])(x)[0] == pytest.approx(5.0)  # tempering keeps the term
-    assert active_likelihood_terms() == () and LogPosterior(priors, frf)(x)[0] == pytest.approx(-0.5)
+    lp = LogPosterior(priors, frf, (term,))
+    assert lp.extra_terms == (term,)
+    assert lp(x)[0] == pytest.approx(-0.5 + 5.0) and lp(x)[1] == -np.inf
+    assert lp.with_likelihood(lambda th: 0 * th[:, 0])(x)[0] == pytest.approx(5.0)  # tempering keeps the term
+    assert LogPosterior(priors, frf)(x)[0] == pytest.approx(-0.5)  # nothing leaks into the next one
 
 
 def test_cut_term_integrates_the_coefficients_out_and_draws_them_from_their_conditional():

@@ -136,6 +136,11 @@ def test_collapsed_reweighting_falls_back_to_mcmc_or_is_refused(world, tmp_path,
     assert doc["sampler"] == "mcmc" and doc["ess"]["importance_draws"] < 200
     assert any("sampled by MCMC" in w for w in doc["warnings"])
     assert doc["mcmc"]["parameters"] == ["k_xf", "k_thetaM", "g_xf", "g_thetaM", "log_level"]
+    # the package's one sampler driver ran it (fixed steps) and reported, not assumed, its convergence
+    assert doc["mcmc"]["convergence"].startswith("n_steps = 30 run: ")
+    assert len(doc["mcmc"]["rhat"]) == len(doc["mcmc"]["ess_bulk"]) == len(doc["mcmc"]["autocorrelation_time"]) == 5
+    assert doc["mcmc"]["converged"] is False and any("MCMC fallback (n_steps = 30 run: not converged" in w
+                                                     for w in doc["warnings"])
     assert doc["kt_pa"]["after"][1] > 1.05 * 600e6  # the cuts' evidence for stronger coefficients survives
     hammer = load_posterior(world / "posterior.nc").values["k_xf"]
     new = load_posterior(tmp_path / "m" / "posterior.nc").values["k_xf"]

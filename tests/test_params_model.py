@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from bayes_rcsa.errors import DataError, SetupError
-from bayes_rcsa.inference.identify import identify, write_outputs
+from bayes_rcsa.inference.identify import identify
+from bayes_rcsa.inference.outputs import write_outputs
 from bayes_rcsa.inference.problem import IdentificationOptions, build_problem
 from bayes_rcsa.model import Configuration, ConfigurationStack
 from bayes_rcsa.model.natural_frequencies import natural_frequency

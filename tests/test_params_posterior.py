@@ -8,7 +8,8 @@ import shutil
 import numpy as np
 import pytest
 
-from bayes_rcsa.inference.identify import identify, write_outputs
+from bayes_rcsa.inference.identify import identify
+from bayes_rcsa.inference.outputs import write_outputs
 from bayes_rcsa.inference.problem import IdentificationOptions, build_problem_from_setup
 from bayes_rcsa.io import load_setup
 from bayes_rcsa.params import ParameterModel

@@ -23,7 +23,8 @@ import numpy as np
 import pytest
 
 from bayes_rcsa.cli.main import main
-from bayes_rcsa.inference.identify import identify, sampling_labels, write_outputs
+from bayes_rcsa.inference.identify import identify, sampling_labels
+from bayes_rcsa.inference.outputs import write_outputs
 from bayes_rcsa.inference.plots import corner_plot
 from bayes_rcsa.inference.problem import IdentificationOptions, build_problem_from_setup
 from bayes_rcsa.inference.sampler import SamplerSettings

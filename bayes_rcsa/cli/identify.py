@@ -175,7 +175,8 @@ def _tail_check_rng(seed: int):
 
 
 def run(args) -> Summary:
-    from ..inference.identify import identify, write_outputs
+    from ..inference.identify import identify
+    from ..inference.outputs import write_outputs
     from ..inference.problem import IdentificationOptions, build_problem_from_setup
     from ..inference.sampler import SamplerSettings
     from ..inference.tail_check import check_identification
@@ -216,10 +217,11 @@ def run(args) -> Summary:
                                                **library_kw)
     problem = build_problem_from_setup(setup, options)
     _check_resonances(problem, args.allow_no_resonance)
-    from ..inference.posterior import extra_likelihood_terms
     from .update import cut_coefficients, cut_term_from_arguments, write_cut_coefficients
 
     cut_term = cut_term_from_arguments(args, problem, setup)  # None without --cuts
+    if cut_term is not None:  # --cuts: a joint fit
+        problem = problem.with_extra_terms(cut_term)
     sampler_extra = dict(setup.extra.get("sampler", {}) or {})
     pick = lambda cli, key, default: cli if cli is not None else sampler_int(sampler_extra, key, default, setup.path)  # noqa: E731
     settings = SamplerSettings(
@@ -256,13 +258,12 @@ def run(args) -> Summary:
         # a failure removes what this run wrote (a checkpoint too: a rerun must not be blocked by it), except the
         # checkpoint after Ctrl-C, which --resume continues
         with new_output_directory(args.out, keep_on_interrupt=("chain.h5", "chain.mirror.h5")):
-            with extra_likelihood_terms(*(() if cut_term is None else (cut_term,))):  # --cuts: a joint fit
-                result = identify(problem, seed=args.seed, settings=settings,
-                                  checkpoint_path=ckpt if bayesian else None, resume=args.resume,
-                                  spindle_samples=spindle_samples)
-                if args.tail_check and bayesian:
-                    # its own stream: the chain's seed stays the chain's
-                    result.summary["tail_check"] = check_identification(result, _tail_check_rng(args.seed))
+            result = identify(problem, seed=args.seed, settings=settings,
+                              checkpoint_path=ckpt if bayesian else None, resume=args.resume,
+                              spindle_samples=spindle_samples)
+            if args.tail_check and bayesian:
+                # its own stream: the chain's seed stays the chain's
+                result.summary["tail_check"] = check_identification(result, _tail_check_rng(args.seed))
             if cut_term is not None:
                 cut_draws, result.summary["cuts"] = cut_coefficients(result, cut_term, args.seed)
             tc = result.summary.get("tail_check")

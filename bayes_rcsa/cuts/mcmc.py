@@ -18,6 +18,13 @@ hammer posterior is smoothed).  Walkers start from the importance particles
 with the largest weights.  After the run the node of every kept sample is
 drawn from its conditional, and the per-cut summaries use leave-one-cut-out
 importance weights of the samples (∝ 1 / P(cut c | sample)).
+
+The chain is run by the package's one emcee driver
+(:func:`bayes_rcsa.inference.sampler.run_ensemble`) in fixed-steps mode with
+the stretch move: the first half of the steps is the burn-in, and its rule
+says whether the run converged (the chain longer than :data:`TAU_FACTOR`
+autocorrelation times, a burn-in of at least three, a stable tau, R-hat and
+bulk ESS), reported in the info dict with tau, R-hat and bulk ESS.
 """
 
 from __future__ import annotations
@@ -28,10 +35,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConvergenceError, SetupError
+from ..inference.sampler import SamplerSettings, run_ensemble
 from .likelihood import CutLikelihood, inverse_limits_at_cuts
 from .update import UpdateResult, normalise_log_weights, per_cut_summary
 
-__all__ = ["MCMCSettings", "mcmc_update"]
+__all__ = ["MCMCSettings", "mcmc_update", "TAU_FACTOR", "ESS_MIN"]
+
+#: Required chain length in autocorrelation times: the former rule, kept steps (half) > 20 tau.
+TAU_FACTOR = 40.0
+#: Required bulk ESS of every parameter of the fallback's chain.
+ESS_MIN = 100.0
 
 
 @dataclass(frozen=True)
@@ -40,6 +53,12 @@ class MCMCSettings:
 
     walkers: int = 32
     steps: int = 300
+
+    def sampler_settings(self) -> SamplerSettings:
+        """The driver's fixed-steps settings: ``steps`` steps, the first half burn-in, tau checked every quarter."""
+        return SamplerSettings(n_walkers=self.walkers, n_steps=self.steps, n_burn=self.steps // 2,
+                               check_every=max(1, self.steps // 4), tau_factor=TAU_FACTOR, ess_min=ESS_MIN,
+                               move="stretch", progress=False)
 
     def __post_init__(self) -> None:
         if self.walkers < 8 or self.steps < 20:
@@ -77,6 +96,15 @@ class _Target:
         u = z[:, self.k] if self.has_u else np.zeros(z.shape[0])
         w = np.exp(z[:, self.k + self.has_u]) if self.has_v else np.full(z.shape[0], self.width.lo)
         return theta, u, w
+
+    def check_inside(self, z, what: str) -> None:
+        """Raise :class:`SetupError` naming the first row of z (n, ndim) outside the priors' supports."""
+        theta, _, _ = self.split(z)
+        for i, (n, p) in enumerate(zip(self.names, self.priors)):
+            out = ~np.asarray(p.in_support(theta[:, i]), dtype=bool)
+            if np.any(out):
+                j = int(np.argmax(out))
+                raise SetupError(f"MCMC fallback: {what} {j}: {n} outside its prior support {p.describe()}")
 
     def log_prior(self, z) -> np.ndarray:
         theta, u, w = self.split(z)
@@ -136,8 +164,6 @@ def mcmc_update(dyn, cuts, prior, width, label_error, method, options, start: Up
     (PosteriorDraws of the samples, UpdateResult with ``draw = arange(n_out)`` into them, info dict with the
     acceptance fraction, autocorrelation times and the effective sample size)
     """
-    import emcee
-
     from ..posterior.draws import PosteriorDraws
 
     s = settings or MCMCSettings()
@@ -164,21 +190,12 @@ def mcmc_update(dyn, cuts, prior, width, label_error, method, options, start: Up
         cols.append(np.log(start.particle_width[rows])[:, None])
     p0 = np.hstack(cols)
     p0 = p0 + 1e-4 * rng.standard_normal(p0.shape) * np.maximum(np.std(p0, axis=0), 1e-3)
-    sampler = emcee.EnsembleSampler(s.walkers, target.ndim, target, vectorize=True)
+    p0 = _finite_start(target, p0, rng)
     # emcee's proposals come from its private RandomState, seeded from ``rng`` (never numpy's global one)
-    state = emcee.State(p0, random_state=np.random.RandomState(int(rng.integers(0, 2**32 - 1))).get_state())
-    with np.errstate(invalid="ignore"):  # emcee's -inf - -inf for proposals outside the priors' supports
-        sampler.run_mcmc(state, s.steps, progress=False)
-    burn = s.steps // 2
-    chain = sampler.get_chain(discard=burn)  # (steps - burn, walkers, ndim)
-    lp = sampler.get_log_prob(discard=burn)
-    if not np.any(np.isfinite(lp)):
-        raise ConvergenceError("MCMC fallback: no walker found a finite posterior density; the cuts contradict the "
-                               "hammer posterior")
-    try:
-        tau = np.asarray(sampler.get_autocorr_time(discard=burn, tol=0), dtype=float)
-    except Exception:  # emcee raises on chains too short for its estimator; report it as unknown
-        tau = np.full(target.ndim, np.nan)
+    run = run_ensemble(target, s.sampler_settings(), initial=p0, rng=rng)
+    burn = run.burn
+    chain = run.chain[burn:]  # (steps - burn, walkers, ndim)
+    tau = np.asarray(run.tau, dtype=float)
     flat = chain.reshape(-1, target.ndim)
     pick = rng.choice(flat.shape[0], n_out, replace=flat.shape[0] < n_out)
     z = flat[pick]
@@ -199,14 +216,38 @@ def mcmc_update(dyn, cuts, prior, width, label_error, method, options, start: Up
     weights = np.full(n_out, 1.0 / n_out)
     loo = np.array([normalise_log_weights(-pw[:, c]) for c in range(pw.shape[1])])
     per_cut = per_cut_summary(lik, start.limits, start.particle_width, limits, weights, loo, w, kt)
-    n_eff = float(flat.shape[0] / np.nanmax(tau)) if np.all(np.isfinite(tau)) and np.nanmax(tau) > 0 else float("nan")
+    n_eff = float(flat.shape[0] / np.max(tau)) if np.all(np.isfinite(tau)) and np.max(tau) > 0 else float("nan")
     result = UpdateResult(idx, u, node, w, kt, kr, n_eff, n_eff, n_out, start.n_draws, float("nan"), per_cut,
                           start.prior_kt, start.prior_kr, weights, idx, limits, u, node, loo, w)
+    diag = run.diagnostics or {}
+    listed = lambda key: [None if not np.isfinite(v) else float(v) for v in diag[key]] if key in diag else None  # noqa: E731
     info = {"walkers": s.walkers, "steps": s.steps, "burn": burn,
-            "acceptance_fraction": float(np.mean(sampler.acceptance_fraction)),
+            "acceptance_fraction": float(np.mean(run.acceptance_fraction)),
             "autocorrelation_time": [None if not np.isfinite(t) else float(t) for t in tau],
             "effective_samples": None if not np.isfinite(n_eff) else n_eff,
-            "converged": bool(np.all(np.isfinite(tau)) and (s.steps - burn) > 20 * np.nanmax(tau)),
+            "rhat": listed("rhat"), "ess_bulk": listed("ess_bulk"),
+            "converged": bool(run.converged), "convergence": run.reason,
             "parameters": target.names + (["log_level"] if target.has_u else []) + (["ln_width"] if target.has_v else []),
             "hammer_prior": "Gaussian in the sampling coordinates of the hammer draws"}
     return draws, result, info
+
+
+def _finite_start(target: _Target, p0: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """``p0`` with every walker of non-finite density moved next to a random walker of finite density.
+
+    Raises
+    ------
+    ConvergenceError
+        If no walker has a finite density (the cuts contradict the hammer posterior).
+    """
+    ok = np.isfinite(target(p0))
+    if not np.any(ok):
+        raise ConvergenceError("MCMC fallback: no walker found a finite posterior density; the cuts contradict the "
+                               "hammer posterior")
+    if np.all(ok):
+        return p0
+    bad = np.flatnonzero(~ok)
+    out = p0.copy()
+    out[bad] = p0[rng.choice(np.flatnonzero(ok), bad.size)] \
+        + 1e-4 * rng.standard_normal((bad.size, p0.shape[1])) * np.maximum(np.std(p0[ok], axis=0), 1e-3)
+    return out

@@ -131,10 +131,7 @@ def run_update(setup_path, posterior_path, cuts_path, cutting, clamping_length, 
         draws_out, result, mcmc_info = mcmc_update(dyn, cuts, prior, width, label_error, method, options, start,
                                                    rng, start.n_draws, mcmc)
         if not mcmc_info["converged"]:
-            tau = max((x for x in mcmc_info["autocorrelation_time"] if x is not None), default=None)
-            warnings.append(f"the MCMC fallback kept {mcmc_info['steps'] - mcmc_info['burn']} steps after burn-in, "
-                            "fewer than 20 autocorrelation times (" + ("unknown" if tau is None else f"{tau:.1f}")
-                            + " steps); give more --mcmc-steps")
+            warnings.append(f"the MCMC fallback ({mcmc_info['convergence']}); give more --mcmc-steps")
     elif result.ess_draws < min(4 * settings.min_ess, 0.5 * result.n_draws):
         warnings.append(f"the cuts leave {result.ess_draws:.0f} effective hammer draws of {result.n_draws}; the "
                         "updated posterior repeats few draws (use more --draws for smoother results)")

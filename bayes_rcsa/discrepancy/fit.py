@@ -35,7 +35,6 @@ import numpy as np
 
 from ..errors import ConvergenceError
 from ..inference.likelihood import residual_correlation_length
-from ..inference.posterior import LogPosterior
 from ..inference.problem import Problem
 
 __all__ = ["ModelFit", "fit_baseline", "fit_variant", "whitened_residuals", "profile_noise", "laplace_draws",
@@ -265,7 +264,7 @@ def fit_baseline(problem: Problem, tempering: float | str = "auto") -> ModelFit:
     """
     from ..inference.sampler import find_optimum
 
-    lp = LogPosterior(problem.priors, problem.likelihood)
+    lp = problem.log_posterior()
     opt = find_optimum(lp)
     theta, n_eval = _gauss_newton(problem, opt.x)
     if lp(theta[None])[0] < opt.log_posterior:
@@ -286,7 +285,7 @@ def fit_variant(label: str, problem: Problem, starts: np.ndarray, tempering: flo
     ConvergenceError
         If no start has a finite posterior density.
     """
-    lp = LogPosterior(problem.priors, problem.likelihood)
+    lp = problem.log_posterior()
     starts = np.atleast_2d(starts)
     starts = np.array([profile_noise(problem, s) for s in starts])
     v = lp(starts)

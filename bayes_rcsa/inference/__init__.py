@@ -5,20 +5,23 @@ Separate, small objects in the spirit of bilby:
 * :mod:`bayes_rcsa.params` (upstream) -- priors, the growth law, the parameter model and model terms;
 * :mod:`.band` -- the likelihood band (default rule, overrides);
 * :mod:`.likelihood` -- the vectorised complex-FRF likelihood and its tempering;
-* :mod:`.posterior` -- log prior + log likelihood;
+* :mod:`.posterior` -- log prior + log likelihood + a problem's extra likelihood terms;
 * :mod:`.search` -- global optimum (likelihood grid + polish);
-* :mod:`.sampler` -- walker start, emcee run loop, convergence, checkpoint/resume;
+* :mod:`.sampler` -- walker start, the package's one emcee driver (convergence, fixed steps, checkpoint/resume);
 * :mod:`.deterministic` -- the reference paper's deterministic fit;
 * :mod:`.diagnostics` -- the only module that imports ArviZ (R-hat, ESS, InferenceData);
 * :mod:`.results`, :mod:`.plots` -- summary.json and figures;
-* :mod:`.problem`, :mod:`.identify` -- assembling a problem and running it.
+* :mod:`.problem`, :mod:`.identify` -- assembling a problem and running it;
+* :mod:`.fingerprint` -- what a resumed run must share with its checkpoint;
+* :mod:`.outputs` -- posterior.nc, summary.json and the plots of a run.
 
 See docs/identification.md.  Importing this package does not import ArviZ or
 matplotlib; they are loaded when diagnostics or plots are made.
 """
 
 from .band import Band, default_band
-from .identify import IdentificationResult, identify, posterior_stiffness, predict_frf, write_outputs
+from .identify import IdentificationResult, identify, posterior_stiffness, predict_frf
+from .outputs import write_outputs
 from ..params.growth import GrowthLaw
 from ..params.model import ParameterModel
 from ..params.priors import LogNormal, LogUniform, Normal, PriorSet, Uniform  # re-exported for API continuity

@@ -129,8 +129,3 @@ def _attr(v):
     if v is None:
         return ""
     return str(v)
-
-
-# Temporary (#41): inference/identify.py's posterior writer still imports ``write_netcdf`` from here; at the merge
-# it calls ``bayes_rcsa.store.write_posterior`` directly and this line goes.
-from ..store import write_posterior as write_netcdf  # noqa: E402,F401

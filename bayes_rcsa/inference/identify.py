@@ -2,9 +2,10 @@
 
 :func:`identify` runs one method on a :class:`~.problem.Problem` and returns
 an :class:`IdentificationResult` (nothing is written except the optional
-checkpoint); :func:`write_outputs` writes posterior.nc, summary.json and the
-plots.  :func:`posterior_stiffness` and :func:`predict_frf` transfer the
-result to other clamping lengths.
+checkpoint); :func:`.outputs.write_outputs` writes posterior.nc,
+summary.json and the plots, :mod:`.fingerprint` checks that a checkpoint
+belongs to the run it would continue.  :func:`posterior_stiffness` and
+:func:`predict_frf` transfer the result to other clamping lengths.
 
 Random numbers: one :class:`numpy.random.Generator` is made from ``seed``
 and split with ``Generator.spawn`` into independent streams for the
@@ -14,12 +15,9 @@ optimiser, the walker start and emcee's proposals, so changing one stage
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -27,11 +25,12 @@ from ..errors import SetupError
 from ..model.assembly import Configuration, ConfigurationStack
 from ..model.natural_frequencies import NATURAL_FREQUENCY_RULE, natural_frequency
 from ..params.forward import ForwardModel
-from ..params.model import PARAMETER_MODEL_ATTR, ParameterModel
+from ..params.model import ParameterModel
 from . import results as R
 from .band import band_mask, band_peak_warning
 from .checkpoint import Checkpoint
 from .deterministic import DeterministicFit, fit_deterministic
+from .fingerprint import resume_state, run_fingerprint
 from .likelihood import residual_correlation_length
 from .posterior import LogPosterior
 from .problem import Problem
@@ -40,7 +39,6 @@ from .sampler import ChainResult, Optimum, SamplerSettings, find_optimum, initia
 __all__ = [
     "IdentificationResult",
     "identify",
-    "write_outputs",
     "posterior_stiffness",
     "predict_frf",
     "sampling_labels",
@@ -162,67 +160,6 @@ def predict_frf(result: IdentificationResult, configuration: Configuration, freq
 # -- the workflow ------------------------------------------------------------
 
 
-def _sha(*arrays) -> str:
-    h = hashlib.sha256()
-    for a in arrays:
-        a = np.ascontiguousarray(a if a is not None else np.empty(0))
-        h.update(str(a.dtype).encode() + str(a.shape).encode())
-        h.update(a.tobytes())
-    return h.hexdigest()
-
-
-def run_fingerprint(problem: Problem, seed: int, settings: SamplerSettings, n_walkers: int) -> dict:
-    """Everything that changes the log posterior or the chain, for refusing a resume of a different run.
-
-    Keys (each compared separately, so a refusal names what changed):
-    ``method``, ``seed``, ``n_walkers``, ``check_every``; ``geometry`` and
-    ``materials`` of holder and tools; ``spindle`` (the flange receptance
-    data of every direction); ``data`` (frequency, values and coherence of
-    every measurement used); ``band`` (each measurement's band);
-    ``likelihood`` (noise floor, coherence threshold, tempering option);
-    ``parameter_model`` (:meth:`ParameterModel.to_dict`: priors, fixed
-    values, growth law, model terms); ``forward_model`` (a hash of the cached
-    forward-model coefficients on the band lines, which catches any other
-    change of the model).
-    """
-    model = problem.model
-    holder = model.holder
-    tools = sorted(model.tools.items())
-    geometry = repr([[(s.length, s.outer_diameter, s.inner_diameter) for s in holder.segments]]
-                    + [[name, t.total_length, [(s.length, s.diameter, s.diameter_ratio) for s in t.segments]]
-                       for name, t in tools])
-    materials = repr([holder.material] + [t.material for _, t in tools])
-    spindle = {d: _sha(r.frequency_hz, r.block) for d, r in sorted(model.spindle.items())}
-    obs = problem.observations
-    stack = problem.likelihood.stack
-    lik = problem.likelihood
-    return {
-        "method": problem.method,
-        "seed": int(seed),
-        "n_walkers": int(n_walkers),
-        "check_every": int(settings.check_every),
-        "geometry": hashlib.sha256(geometry.encode()).hexdigest(),
-        "materials": hashlib.sha256(materials.encode()).hexdigest(),
-        "spindle": spindle,
-        "data": [_sha(o.frequency_hz, o.values, o.coherence) for o in obs],
-        "lengths": [o.configuration.clamping_length for o in obs],
-        "band": [[o.band.lo_hz, o.band.hi_hz] for o in obs],
-        "likelihood": {"noise_floor": lik.noise.floor, "min_coherence": lik.noise.min_coherence,
-                       "tempering": problem.options.tempering},
-        "parameter_model": problem.parameters.to_dict(),
-        "forward_model": stack.cache_digest(),
-    }
-
-
-_FINGERPRINT_LABELS = {
-    "method": "the method", "seed": "--seed", "n_walkers": "the number of walkers", "check_every": "check_every",
-    "geometry": "the holder/tool geometry", "materials": "the materials", "spindle": "the spindle data",
-    "data": "a measurement file's content", "lengths": "the clamping lengths", "band": "the likelihood band",
-    "likelihood": "the [likelihood] options", "parameter_model": "the priors, fixed values or [model] terms",
-    "forward_model": "the forward model",
-}
-
-
 @dataclass(frozen=True)
 class _Startup:
     """Results of the start-up stage: optimum, walker centre and tempering."""
@@ -233,27 +170,8 @@ class _Startup:
     tau_r: float
 
 
-def _resume_state(ckpt: Checkpoint | None, checkpoint_path, fingerprint: dict):
-    """Step 1: the checkpoint to continue, after checking that it belongs to this run.
-
-    Reads without writing anything (a refused resume leaves the directory as
-    it was), then restores a damaged copy from the good one.
-    """
-    if ckpt is None or not ckpt.exists():
-        raise SetupError(f"--resume: no checkpoint found at {checkpoint_path}")
-    state = ckpt.read()
-    stored = state.meta.get("fingerprint", {})
-    if stored != fingerprint:
-        changed = [k for k in fingerprint if stored.get(k) != fingerprint[k]]
-        what = ", ".join(_FINGERPRINT_LABELS.get(k, k) for k in changed) or "its format"
-        raise SetupError(f"--resume: the checkpoint {checkpoint_path} belongs to a different run: {what} changed since "
-                         f"it was written (start a new run without --resume, or use another --out)")
-    ckpt.repair(state)
-    return state
-
-
 def _startup(problem: Problem, lp_full: LogPosterior, state) -> _Startup:
-    """Step 2: global optimum, walker centre and tempering (or the stored ones when resuming)."""
+    """Step 2 (step 1 is :func:`.fingerprint.resume_state`): global optimum, walker centre and tempering (or the stored ones when resuming)."""
     start = _check_start(problem)
     if state is not None:
         meta = state.meta
@@ -466,8 +384,9 @@ def identify(
 ) -> IdentificationResult:
     """Run the identification.
 
-    Steps (each a function of this module): resume check and fingerprint
-    (:func:`run_fingerprint`, ``_resume_state``), start-up optimum and
+    Steps: resume check and fingerprint
+    (:func:`.fingerprint.run_fingerprint`, :func:`.fingerprint.resume_state`), then functions of this module:
+    start-up optimum and
     tempering (``_startup``), sampling (``_sample``), thinning (``_thin``),
     summary (``_summarise``).
 
@@ -503,13 +422,13 @@ def identify(
     if problem.method == "deterministic":
         return _identify_deterministic(problem, seed, rng_opt, t_start)
 
-    lp_full = LogPosterior(problem.priors, problem.likelihood)
+    lp_full = problem.log_posterior()
     n_walkers = settings.walkers(problem.parameters.ndim)
     fingerprint = run_fingerprint(problem, seed, settings, n_walkers)
     ckpt = Checkpoint(checkpoint_path) if checkpoint_path is not None else None
-    state = _resume_state(ckpt, checkpoint_path, fingerprint) if resume else None
+    state = resume_state(ckpt, checkpoint_path, fingerprint) if resume else None
     startup = _startup(problem, lp_full, state)
-    lp = lp_full.with_likelihood(problem.likelihood.with_tempering(startup.beta))
+    lp = problem.log_posterior(startup.beta)
     chain = _sample(problem, lp, startup, settings, n_walkers, fingerprint, ckpt, state, rng_init, rng_mcmc, moves)
     theta, log_prob, extra = _thin(chain, max_draws)
     return _summarise(problem, seed, settings, spindle_samples, rng_spindle, t_start, lp_full, lp, startup, chain,
@@ -653,99 +572,3 @@ def _identify_deterministic(problem: Problem, seed: int, rng: np.random.Generato
         problem=problem, summary=summary, theta=theta, log_prob=None, natural_frequency=nat[None],
         deterministic=fit, seed=int(seed), evaluations=fit.n_evaluations, wall_time=wall, warnings=tuple(warnings),
     )
-
-
-# -- files -----------------------------------------------------------------
-
-
-def _frf_panels(result: IdentificationResult, rng: np.random.Generator, n_draws: int = 300) -> list[dict]:
-    problem = result.problem
-    panels = []
-    for cfg, frf in problem.all_measurements:
-        band = problem.band_of(frf)
-        mask = band_mask(frf, band)
-        f = frf.frequency_hz[mask]
-        h = np.abs(predict_frf(result, cfg, f, max_draws=n_draws, rng=rng))
-        q05, q50, q95 = np.quantile(h, [0.05, 0.5, 0.95], axis=0)
-        used = any(o.configuration == cfg and o.source == frf.source for o in problem.observations)
-        panels.append({"title": f"{cfg.label()}{'' if used else ' (not fitted)'}", "frequency_hz": f,
-                       "measured": frf.values[mask], "q05": q05, "q50": q50, "q95": q95})
-    return panels
-
-
-def write_outputs(result: IdentificationResult, out_dir, plots: bool = True) -> list[Path]:
-    """Write summary.json, posterior.nc (Bayesian methods) and PNG plots to ``out_dir``.
-
-    Returns
-    -------
-    list of Path written
-    """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    written = []
-    problem = result.problem
-    if result.chain is not None:
-        written.append(_write_posterior(result, out / "posterior.nc"))
-    if plots:
-        from . import plots as P
-
-        labels = sampling_labels(problem.parameters)
-        if result.chain is not None:
-            written.append(P.trace_plot(result.chain.chain, labels, result.chain.burn, out / "trace.png"))
-            written.append(P.corner_plot(result.flat_theta, labels, out / "corner.png"))
-        written.append(P.frf_plot(_frf_panels(result, np.random.default_rng(result.seed)), out / "frf.png"))
-    R.write_summary(out / "summary.json", result.summary)
-    written.append(out / "summary.json")
-    return written
-
-
-def _write_posterior(result: IdentificationResult, path: Path) -> Path:
-    from .diagnostics import build_inference_data, write_netcdf
-
-    problem = result.problem
-    nc, nd, _ = result.theta.shape
-    flat = result.flat_theta
-    pm = problem.parameters
-    values = pm.values(flat)
-    post = {n: values[n].reshape(nc, nd) for n in pm.names}
-    lengths = np.array(sorted({round(c.clamping_length, 12) for c, _ in problem.all_measurements}))
-    kx, kt = pm.contact(values, lengths)[:2]
-    post["k_xf_at_length"] = kx.reshape(nc, nd, -1)
-    post["k_thetaM_at_length"] = kt.reshape(nc, nd, -1)
-    post["natural_frequency"] = result.natural_frequency
-    lik = problem.likelihood.with_tempering(result.tempering)
-    ll = np.concatenate([lik.pointwise(flat[a : a + 256]) for a in range(0, flat.shape[0], 256)])
-    obs = problem.observations
-    constant = {
-        "frequency_hz": problem.likelihood.stack.frequency_hz,
-        "line_measurement": problem.likelihood.stack.index,
-        "fit_clamping_length": np.array([o.configuration.clamping_length for o in obs]),
-        "band_lo_hz": np.array([o.band.lo_hz for o in obs]),
-        "band_hi_hz": np.array([o.band.hi_hz for o in obs]),
-        "measured_natural_frequency": np.array([e["measured_hz"] if e["measured_hz"] is not None else np.nan
-                                                for e in result.summary["natural_frequencies"]]),
-        "measurement_clamping_length": np.array([c.clamping_length for c, _ in problem.all_measurements]),
-    }
-    labels = [f"{c.label()} [{f.source}]" for c, f in problem.all_measurements]
-    idata = build_inference_data(
-        posterior=post,
-        log_prob=result.log_prob,
-        log_likelihood=ll.reshape(nc, nd, -1),
-        observed=problem.likelihood.data,
-        constant=constant,
-        dims={
-            "k_xf_at_length": ["clamping_length"], "k_thetaM_at_length": ["clamping_length"],
-            "natural_frequency": ["measurement"], "frequency_hz": ["line"], "line_measurement": ["line"],
-            "fit_clamping_length": ["fit_measurement"], "band_lo_hz": ["fit_measurement"], "band_hi_hz": ["fit_measurement"],
-            "measured_natural_frequency": ["measurement"], "measurement_clamping_length": ["measurement"],
-        },
-        coords={"clamping_length": lengths, "measurement": labels, "line": np.arange(problem.likelihood.n_lines),
-                "fit_measurement": [o.source for o in obs]},
-        attrs={"method": problem.method, "seed": result.seed, "converged": result.summary["converged"],
-               "tempering": result.tempering, "growth_bound": problem.growth.growth_bound,
-               "l_a": problem.growth.l_a, "l_b": problem.growth.l_b, "created_by": "bayes_rcsa identify",
-               # the whole parameter model (priors, fixed values, terms): predictions never re-read the setup
-               PARAMETER_MODEL_ATTR: json.dumps(pm.to_dict()),
-               **{f"fixed_{k}": float(v) for k, v in pm.fixed.items()}},
-    )
-    return write_netcdf(idata, path)

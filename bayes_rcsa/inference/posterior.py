@@ -6,29 +6,25 @@ Data other than the hammer-test FRFs (e.g. cutting-test outcomes,
 :mod:`bayes_rcsa.cuts.joint`) enter the identification as *extra terms*:
 objects with a ``name`` and ``__call__(theta) -> (n,)`` giving their log
 likelihood at sampling coordinates ``theta`` (n, ndim) of the problem's
-parameter vector (:class:`LikelihoodTerm`).  A caller registers them for the
-duration of a fit with :func:`extra_likelihood_terms`; every
-:class:`LogPosterior` built inside that block adds them, so the start-up
-optimum, the walkers' initialisation and the sampler all see the same
-posterior without the workflow knowing about the terms.  Tempering
-(``with_likelihood``) scales the FRF likelihood only; extra terms enter
-untempered.
+parameter vector (:class:`LikelihoodTerm`).  They are part of the problem
+(:attr:`bayes_rcsa.inference.problem.Problem.extra_terms`, added with
+``Problem.with_extra_terms``), and :meth:`~bayes_rcsa.inference.problem.Problem.log_posterior`
+builds every :class:`LogPosterior` of a fit from it, so the start-up
+optimum, the walkers' initialisation, the sampler and the tail check all see
+the same posterior.  Tempering (``with_likelihood``) scales the FRF
+likelihood only; extra terms enter untempered.
 """
 
 from __future__ import annotations
 
-import contextlib
-import contextvars
-from typing import Iterator, Protocol
+from typing import Protocol, Sequence
 
 import numpy as np
 
 from .likelihood import FRFLikelihood
 from ..params.priors import PriorSet
 
-__all__ = ["LogPosterior", "LikelihoodTerm", "extra_likelihood_terms", "active_likelihood_terms"]
-
-_EXTRA_TERMS: contextvars.ContextVar[tuple] = contextvars.ContextVar("bayes_rcsa_extra_likelihood_terms", default=())
+__all__ = ["LogPosterior", "LikelihoodTerm"]
 
 
 class LikelihoodTerm(Protocol):
@@ -45,21 +41,6 @@ class LikelihoodTerm(Protocol):
         """(n,) log likelihood at sampling coordinates ``theta`` (n, ndim); -inf where impossible."""
 
 
-@contextlib.contextmanager
-def extra_likelihood_terms(*terms: LikelihoodTerm) -> Iterator[tuple]:
-    """Add ``terms`` to every :class:`LogPosterior` created inside the ``with`` block (context-local)."""
-    token = _EXTRA_TERMS.set(_EXTRA_TERMS.get() + tuple(terms))
-    try:
-        yield _EXTRA_TERMS.get()
-    finally:
-        _EXTRA_TERMS.reset(token)
-
-
-def active_likelihood_terms() -> tuple:
-    """The extra terms registered by the enclosing :func:`extra_likelihood_terms` blocks."""
-    return _EXTRA_TERMS.get()
-
-
 class LogPosterior:
     """Unnormalised log posterior density in the sampling coordinates.
 
@@ -67,9 +48,9 @@ class LogPosterior:
     ----------
     priors : PriorSet
     likelihood : FRFLikelihood
-    extra_terms : sequence of LikelihoodTerm or None
-        Added to the log likelihood; None takes the terms of the enclosing
-        :func:`extra_likelihood_terms` blocks (none outside them).
+    extra_terms : sequence of LikelihoodTerm
+        Added (untempered) to the log likelihood; usually a problem's
+        ``extra_terms`` (:meth:`~bayes_rcsa.inference.problem.Problem.log_posterior`).
 
     Notes
     -----
@@ -78,10 +59,10 @@ class LogPosterior:
     model with meaningless parameters.
     """
 
-    def __init__(self, priors: PriorSet, likelihood: FRFLikelihood, extra_terms=None):
+    def __init__(self, priors: PriorSet, likelihood: FRFLikelihood, extra_terms: Sequence[LikelihoodTerm] = ()):
         self.priors = priors
         self.likelihood = likelihood
-        self.extra_terms = active_likelihood_terms() if extra_terms is None else tuple(extra_terms)
+        self.extra_terms = tuple(extra_terms)
         self.n_evaluations = 0
 
     @property

@@ -57,6 +57,7 @@ from ..params.priors import JointNormal, LogUniform, Prior, PriorSet, Uniform, p
 from ..params.terms import make_term
 from .band import Band, resolve_band
 from .likelihood import FRFLikelihood, NoiseModel, make_observation
+from .posterior import LikelihoodTerm, LogPosterior
 
 __all__ = ["METHODS", "IdentificationOptions", "Problem", "build_problem", "build_problem_from_setup", "select_measurements"]
 
@@ -195,6 +196,10 @@ class Problem:
     options : IdentificationOptions
     all_measurements : tuple of (Configuration, FRF)
         Every measurement of the setup (for transfer checks).
+    extra_terms : tuple of LikelihoodTerm
+        Likelihood terms of data other than the FRFs (e.g. cutting tests,
+        :class:`bayes_rcsa.cuts.joint.CutTerm`), added untempered to every
+        log posterior of the fit (:meth:`log_posterior`); empty by default.
     """
 
     model: ToolPointModel
@@ -206,10 +211,26 @@ class Problem:
     growth: GrowthLaw
     options: IdentificationOptions
     all_measurements: tuple
+    extra_terms: tuple = ()
 
     @property
     def priors(self) -> PriorSet:
         return self.parameters.priors
+
+    def with_extra_terms(self, *terms: LikelihoodTerm) -> "Problem":
+        """A copy of the problem whose log posterior also has ``terms`` (after the present ones)."""
+        return replace(self, extra_terms=self.extra_terms + tuple(terms))
+
+    def log_posterior(self, tempering: float | None = None) -> LogPosterior:
+        """Priors + likelihood tempered by ``tempering`` (untempered if ``None``) + the extra terms.
+
+        Parameters
+        ----------
+        tempering : float in (0, 1] or None
+            The exponent beta of the FRF likelihood (:meth:`FRFLikelihood.with_tempering`).
+        """
+        likelihood = self.likelihood if tempering is None else self.likelihood.with_tempering(tempering)
+        return LogPosterior(self.priors, likelihood, self.extra_terms)
 
     def band_of(self, frf: FRF) -> Band:
         o = self.options

@@ -1,4 +1,11 @@
-"""Global optimum, walker initialisation and the emcee run loop.
+"""Global optimum, walker initialisation and the one emcee driver of the package.
+
+:func:`run_ensemble` is the only place where :class:`emcee.EnsembleSampler`
+is built: identify (:mod:`.identify`), the tool library's stage 2 and joint
+check (:mod:`bayes_rcsa.library.hierarchy`, :mod:`bayes_rcsa.library.joint`)
+and the MCMC fallback of the cut update (:mod:`bayes_rcsa.cuts.mcmc`) all run
+through it, with one burn-in rule, one convergence rule and the same
+reported diagnostics.
 
 Determinism without global seeding
 ----------------------------------
@@ -11,25 +18,52 @@ never touching numpy's global one).  The same seed therefore gives the same
 chain bit for bit, and the generator state saved with every checkpoint
 batch makes a resumed run continue exactly as the uninterrupted one would.
 
-Convergence
------------
-At steps ``check_every, 2 check_every, ...``, spaced out so that each check
-is at least 10 % further than the previous one (the checks cost O(N) each;
-the schedule depends only on the absolute step number, so that a resumed
-run checks at the same places) the integrated autocorrelation time ``tau`` of
-each parameter is estimated from the whole chain (emcee's estimator).  The
-run stops when
+Two modes
+---------
+*converge* (``SamplerSettings.n_steps = None``, identify's and stage 2's):
+the run stops at the first check at which it is converged, or at
+``max_steps`` (then reported as not converged).  Checks are at steps
+``check_every, 2 check_every, ...``, spaced out so that each is at least
+10 % further than the previous one (the checks cost O(N) each; the schedule
+depends only on the absolute step number, so that a resumed run checks at
+the same places).
 
-* the chain is longer than ``tau_factor`` (50) times the largest ``tau``,
-* every ``tau`` changed by less than ``tau_rtol`` since the previous check,
-* after discarding ``burn = ceil(3 max tau)`` steps and thinning by
-  ``thin``, the rank-normalised split R-hat (walkers as chains) is below
-  ``rhat_max`` and the bulk ESS at least ``ess_min`` for every parameter
-  (computed by :mod:`.diagnostics`; thinning by half the smallest tau
-  leaves the ESS essentially unchanged and makes the check cheap),
+*fixed-steps* (``n_steps`` given, the cut update's and the library joint
+check's): exactly ``n_steps`` steps are run; the autocorrelation time is
+recorded at the same schedule, and at the last step the convergence rule
+below is evaluated once and reported (converged or not, with the reason),
+never assumed.
 
-or when ``max_steps`` is reached, in which case the run is reported as not
-converged.  The samples kept are thinned by ``thin = max(1, floor(min tau / 2))``.
+Burn-in rule
+------------
+``burn = ceil(3 max tau)`` steps, at most half the chain; in fixed-steps
+mode a caller may fix it instead (``n_burn``, e.g. to keep a set number of
+draws), and then ``burn = n_burn``.  The samples kept are thinned by
+``thin = max(1, floor(min tau / 2))`` (:func:`burn_and_thin`).
+
+Convergence rule
+----------------
+``tau`` is the integrated autocorrelation time of each parameter, estimated
+from the whole chain (emcee's estimator, :func:`_tau`).  A run is converged
+iff
+
+* ``tau`` is finite and the chain is longer than ``tau_factor`` (50) times
+  the largest ``tau`` (a shorter chain cannot measure its ``tau``),
+* the burn-in is at least ``3 max tau`` (implied by the previous point in
+  converge mode; a fixed ``n_burn`` must satisfy it),
+* every ``tau`` changed by less than ``tau_rtol`` since the previous check
+  (a fixed-steps run compares its last step with the last scheduled check
+  before it; without one it is not converged),
+* after the burn-in and thinning by ``thin``, the rank-normalised split
+  R-hat (walkers as chains) is below ``rhat_max`` and the bulk ESS at least
+  ``ess_min`` for every parameter (computed by :mod:`.diagnostics`;
+  thinning by half the smallest tau leaves the ESS essentially unchanged
+  and makes the check cheap).  A converge-mode run without ``diagnose``
+  skips this point (a burn-in run); a fixed-steps run always computes it.
+
+With ``store_every = k > 1`` only every k-th step is kept in memory; the
+chain, ``tau``, ``burn`` and ``thin`` of the result are then in kept rows
+(multiply by k for steps).
 """
 
 from __future__ import annotations
@@ -57,21 +91,25 @@ __all__ = [
     "run_ensemble",
     "burn_and_thin",
     "check_schedule",
+    "MOVES",
 ]
+
+
+MOVES = ("differential", "stretch")
 
 
 @dataclass(frozen=True)
 class SamplerSettings:
-    """Options of the ensemble run (defaults suit up to about 8 parameters).
+    """Options of the ensemble run (defaults suit identify with up to about 8 parameters).
 
     Attributes
     ----------
     n_walkers : int
         Even, at least ``2 * ndim + 2``; ``None`` picks ``max(32, 4 ndim)``.
     max_steps : int
-        Cap on the number of steps (not converged if reached).
+        Converge mode: cap on the number of steps (not converged if reached).
     check_every : int
-        Steps between convergence checks.
+        Steps between convergence checks (spaced out by :func:`check_schedule`).
     tau_factor : float
         Required chain length in units of the largest autocorrelation time.
     tau_rtol : float
@@ -83,7 +121,17 @@ class SamplerSettings:
     progress : bool
         Progress line on stderr.
     snooker_fraction : float
-        Probability of a DESnookerMove (the rest are DEMoves).
+        Probability of a DESnookerMove (the rest are DEMoves) of the
+        ``"differential"`` moves.
+    n_steps : int or None
+        ``None``: converge mode.  A number: fixed-steps mode, exactly this many steps (burn-in included).
+    n_burn : int
+        Fixed-steps mode only: the burn-in in steps, fixed by the caller; 0 applies the tau rule
+        (module docstring).
+    store_every : int
+        Keep every k-th step in memory (bounds the memory of long chains; no checkpoint then).
+    move : {"differential", "stretch"}
+        emcee's moves: differential evolution with ``snooker_fraction`` snooker moves, or the stretch move.
     """
 
     n_walkers: int | None = None
@@ -96,6 +144,10 @@ class SamplerSettings:
     checkpoint_interval: float = 2.0
     progress: bool = True
     snooker_fraction: float = 0.2
+    n_steps: int | None = None
+    n_burn: int = 0
+    store_every: int = 1
+    move: str = "differential"
 
     def walkers(self, ndim: int) -> int:
         n = self.n_walkers if self.n_walkers is not None else max(32, 4 * ndim)
@@ -103,9 +155,28 @@ class SamplerSettings:
             raise SetupError(f"n_walkers = {n}: expected an even number >= {2 * ndim + 2} for {ndim} parameters")
         return n
 
+    @property
+    def fixed(self) -> bool:
+        """Fixed-steps mode (``n_steps`` given)."""
+        return self.n_steps is not None
+
+    @property
+    def total_steps(self) -> int:
+        """Steps of a complete run: ``n_steps`` (fixed-steps mode) or the cap ``max_steps``."""
+        return self.n_steps if self.n_steps is not None else self.max_steps
+
     def __post_init__(self) -> None:
         if self.max_steps < 1 or self.check_every < 1:
             raise SetupError(f"max_steps = {self.max_steps}, check_every = {self.check_every}: expected positive integers")
+        if self.n_steps is not None and self.n_steps < 2:
+            raise SetupError(f"n_steps = {self.n_steps}: expected an integer >= 2 (or None to run until converged)")
+        if self.n_burn < 0 or (self.n_burn and (self.n_steps is None or self.n_burn >= self.n_steps)):
+            raise SetupError(f"n_burn = {self.n_burn}: expected 0, or a number of steps below n_steps = "
+                             f"{self.n_steps} (fixed-steps mode only)")
+        if self.store_every < 1:
+            raise SetupError(f"store_every = {self.store_every}: expected a positive integer")
+        if self.move not in MOVES:
+            raise SetupError(f"move = {self.move!r}: expected one of {MOVES}")
 
 
 class LogDensity(Protocol):
@@ -168,6 +239,10 @@ class ChainResult:
         Seconds spent sampling in this process.
     n_new_steps : int
         Steps computed in this process (the rest came from the checkpoint).
+    store_every : int
+        Steps per stored row (``SamplerSettings.store_every``); chain, tau, burn and thin are in rows.
+    steps_run : int
+        Steps run in total (``n_steps`` when every step is stored).
     """
 
     chain: np.ndarray
@@ -182,14 +257,18 @@ class ChainResult:
     tau_history: list = field(default_factory=list)
     wall_time: float = 0.0
     n_new_steps: int = 0
+    store_every: int = 1
+    steps_run: int | None = None
 
     @property
     def n_steps(self) -> int:
+        """Stored rows of the chain (steps when ``store_every`` is 1)."""
         return int(self.chain.shape[0])
 
     @property
     def acceptance_fraction(self) -> np.ndarray:
-        return self.accepted / max(self.n_steps, 1)
+        """(n_walkers,) accepted proposals per step."""
+        return self.accepted / max(self.n_steps if self.steps_run is None else self.steps_run, 1)
 
 
 # -- optimisation and start ------------------------------------------------
@@ -290,12 +369,23 @@ def check_schedule(check_every: int, max_steps: int) -> set[int]:
     return out
 
 
-def burn_and_thin(tau: np.ndarray, n_steps: int) -> tuple[int, int]:
-    """Burn-in ``ceil(3 max tau)`` and thinning ``max(1, floor(min tau / 2))`` (bounded by the chain)."""
+def burn_and_thin(tau: np.ndarray, n_steps: int, n_burn: int = 0) -> tuple[int, int]:
+    """The burn-in rule of the module docstring and the thinning ``max(1, floor(min tau / 2))``.
+
+    Parameters
+    ----------
+    tau : (ndim,) autocorrelation times (steps, or rows of a chain stored every k steps)
+    n_steps : int, length of the chain (same unit)
+    n_burn : int, a burn-in fixed by the caller (same unit); 0 for ``ceil(3 max tau)`` bounded by half the chain
+
+    Returns
+    -------
+    burn, thin : int
+    """
     tau = np.asarray(tau, dtype=float)
     if not np.all(np.isfinite(tau)):
-        return n_steps // 2, 1
-    burn = min(int(math.ceil(3 * tau.max())), n_steps // 2)
+        return (n_burn if n_burn > 0 else n_steps // 2), 1
+    burn = n_burn if n_burn > 0 else min(int(math.ceil(3 * tau.max())), n_steps // 2)
     thin = max(1, int(tau.min() // 2))
     return burn, thin
 
@@ -399,32 +489,88 @@ def _start(log_post: LogDensity, initial, rng, resume_state) -> _Start:
 
 
 class _Convergence:
-    """Step 2: the convergence rule of the module docstring, evaluated at the scheduled steps."""
+    """Step 2: the convergence rule of the module docstring, evaluated at the scheduled steps (converge mode,
+    :meth:`__call__`) or once at the last step (fixed-steps mode, :meth:`final`)."""
 
     def __init__(self, settings: SamplerSettings, diagnose):
         self.settings = settings
         self.diagnose = diagnose
         self.last_diag = 0
+        # a fixed burn-in in stored rows: those of the stored steps at or before step n_burn
+        k, p = settings.store_every, _store_phase(settings) or settings.store_every
+        self.n_burn = (settings.n_burn - p) // k + 1 if settings.n_burn >= p else 0
+
+    def _length_and_burn(self, tau: np.ndarray, n: int) -> tuple[bool, bool, int, int]:
+        burn, thin = burn_and_thin(tau, n, self.n_burn)
+        finite = bool(np.all(np.isfinite(tau)))
+        ok_len = finite and n > self.settings.tau_factor * tau.max()
+        ok_burn = finite and burn >= math.ceil(3 * tau.max())
+        return ok_len, ok_burn, burn, thin
+
+    def _stable(self, tau: np.ndarray, prev_tau) -> bool:
+        return prev_tau is not None and bool(np.all(np.abs(tau - prev_tau) < self.settings.tau_rtol * tau))
+
+    def _passes(self, diag: dict) -> bool:
+        s = self.settings
+        return bool(np.all(diag["rhat"] < s.rhat_max) and np.all(diag["ess_bulk"] >= s.ess_min))
 
     def __call__(self, chain_now: np.ndarray, prev_tau):
-        settings = self.settings
         n = chain_now.shape[0]
         tau = _tau(chain_now)
-        ok_len = np.all(np.isfinite(tau)) and n > settings.tau_factor * tau.max()
-        ok_stable = prev_tau is not None and np.all(np.abs(tau - prev_tau) < settings.tau_rtol * tau)
+        ok_len, ok_burn, burn, thin = self._length_and_burn(tau, n)
+        ok_stable = self._stable(tau, prev_tau)
         diag = {}
         ok_diag = False
         # R-hat/ESS cost grows with the chain: evaluate them on the tau-thinned chain, and again
         # only once the chain has grown by 10 % (they cannot change much in between).
         if ok_len and ok_stable and n >= 1.1 * self.last_diag:
             self.last_diag = n
-            burn, thin = burn_and_thin(tau, n)
             if self.diagnose is None:
                 ok_diag = True
             else:
                 diag = self.diagnose(chain_now[burn::thin])
-                ok_diag = bool(np.all(diag["rhat"] < settings.rhat_max) and np.all(diag["ess_bulk"] >= settings.ess_min))
-        return tau, bool(ok_len and ok_stable and ok_diag), diag
+                ok_diag = self._passes(diag)
+        return tau, bool(ok_len and ok_burn and ok_stable and ok_diag), diag
+
+    def final(self, chain: np.ndarray, prev_tau, prev_step: int | None) -> tuple[np.ndarray, bool, dict, list[str]]:
+        """Every criterion at the end of a fixed-steps run, R-hat and ESS always computed.
+
+        Returns
+        -------
+        tau, converged, diagnostics, failures (one phrase per criterion not met, in steps)
+        """
+        s, k = self.settings, self.settings.store_every
+        n = chain.shape[0]
+        steps = s.total_steps if k > 1 else n
+        tau = _tau(chain)
+        ok_len, ok_burn, burn, thin = self._length_and_burn(tau, n)
+        failures = []
+        if not np.all(np.isfinite(tau)):
+            failures.append("the autocorrelation time could not be estimated")
+        else:
+            if not ok_len:
+                failures.append(f"the chain of {steps} steps is not longer than {s.tau_factor:g} autocorrelation "
+                                f"times ({s.tau_factor * tau.max() * k:.0f} steps): too short to measure tau")
+            if not ok_burn:
+                failures.append(f"the burn-in of {s.n_burn or burn * k} steps is shorter than 3 autocorrelation times "
+                                f"({3 * tau.max() * k:.0f} steps)")
+        if prev_tau is None:
+            failures.append("no earlier check to compare tau with (check_every >= n_steps)")
+        elif not self._stable(tau, prev_tau):
+            failures.append(f"tau changed by more than {100 * s.tau_rtol:g} % since step {prev_step}")
+        diag: dict = {}
+        if (n - burn) // thin >= 4:
+            diagnose = self.diagnose
+            if diagnose is None:
+                from .diagnostics import chain_diagnostics as diagnose
+            diag = diagnose(chain[burn::thin])
+            if not np.all(diag["rhat"] < s.rhat_max):
+                failures.append(f"R-hat {float(np.max(diag['rhat'])):.4f} >= {s.rhat_max:g}")
+            if not np.all(diag["ess_bulk"] >= s.ess_min):
+                failures.append(f"bulk ESS {float(np.min(diag['ess_bulk'])):.0f} < {s.ess_min:g}")
+        else:
+            failures.append("fewer than 4 kept draws per walker for R-hat and ESS")
+        return tau, not failures, diag, failures
 
 
 def _replay(start: _Start, settings: SamplerSettings, decide: _Convergence, schedule: set[int]):
@@ -436,6 +582,8 @@ def _replay(start: _Start, settings: SamplerSettings, decide: _Convergence, sche
         prev_tau = _tau(chain[:step])
         tau_history.append((step, float(prev_tau.max())))
     converged, reason, diag = False, "", {}
+    if settings.fixed:
+        return tau_history, prev_tau, converged, reason, diag  # decided at the last step
     if done >= settings.max_steps:
         reason = f"max_steps = {settings.max_steps} reached (checkpoint has {done} steps)"
     elif tau_history:
@@ -449,6 +597,23 @@ def _replay(start: _Start, settings: SamplerSettings, decide: _Convergence, sche
     return tau_history, prev_tau, converged, reason, diag
 
 
+def _store_phase(settings: SamplerSettings) -> int:
+    """Stored steps are those ``step % store_every == phase``: a fixed-steps run stores its last step (and so,
+    after a fixed burn-in of ``n_burn`` and ``n x store_every`` more steps, every ``store_every``-th step after
+    the burn-in)."""
+    return settings.total_steps % settings.store_every if settings.fixed else 0
+
+
+def _moves(settings: SamplerSettings):
+    """emcee's moves of ``settings.move``."""
+    import emcee
+
+    if settings.move == "stretch":
+        return [(emcee.moves.StretchMove(), 1.0)]
+    return [(emcee.moves.DEMove(), 1.0 - settings.snooker_fraction),
+            (emcee.moves.DESnookerMove(), settings.snooker_fraction)]
+
+
 def run_ensemble(
     log_post: LogDensity,
     settings: SamplerSettings,
@@ -460,7 +625,8 @@ def run_ensemble(
     diagnose: Callable[[np.ndarray], dict] | None = None,
     moves=None,
 ) -> ChainResult:
-    """Run emcee's EnsembleSampler until converged or ``settings.max_steps``.
+    """Run emcee's EnsembleSampler until converged or ``settings.max_steps`` (converge mode), or for
+    ``settings.n_steps`` steps (fixed-steps mode); the rules are those of the module docstring.
 
     Steps: the start state (``_start``), the convergence rule
     (``_Convergence``), the replay of a resumed run's checks (``_replay``),
@@ -478,74 +644,91 @@ def run_ensemble(
         finite log density, and the walkers must be linearly independent (repeated rows are allowed as long
         as the distinct ones span the space).
     rng : numpy.random.Generator
-        Seeds emcee's proposal generator for a new run.
+        Seeds emcee's proposal generator for a new run (one integer drawn from it).
     checkpoint : Checkpoint, optional
-        Where steps are appended (created beforehand by the caller).
+        Where steps are appended (created beforehand by the caller); not with ``store_every > 1``.
     resume_state : CheckpointState, optional
         Continue this run instead of starting from ``initial``; a state
         with no stored step counts as a new run (``initial`` and ``rng``
         are then needed).
     diagnose : callable, optional
-        ``diagnose(chain (n, n_walkers, ndim)) -> {"rhat", "ess_bulk", "ess_tail"}``;
-        without it only the tau criteria decide convergence.
+        ``diagnose(chain (n, n_walkers, ndim)) -> {"rhat", "ess_bulk", "ess_tail"}``.  Converge mode
+        without it: only the tau criteria decide.  Fixed-steps mode: default
+        :func:`.diagnostics.chain_diagnostics`.
     moves : emcee moves, optional
-        emcee's ``moves`` argument; default: differential-evolution moves with
-        ``settings.snooker_fraction`` snooker moves.  A resumed run must use
-        the moves of the original run to continue it exactly.
+        emcee's ``moves`` argument, replacing those of ``settings.move``.  A resumed run must use the moves
+        of the original run to continue it exactly.
+
+    Returns
+    -------
+    ChainResult
+        In fixed-steps mode ``converged`` and ``reason`` give the rule's verdict at the last step (the
+        criteria not met, in steps), ``diagnostics`` R-hat and ESS of the kept part.
 
     Raises
     ------
     SetupError
         A walker start outside the support or with a non-finite log
-        density, or walkers that are not linearly independent.
+        density, walkers that are not linearly independent, a checkpoint
+        with ``store_every > 1``.
     """
     import emcee
 
+    if settings.store_every > 1 and (checkpoint is not None or resume_state is not None):
+        raise SetupError(f"store_every = {settings.store_every}: a checkpointed run stores every step")
     start = _start(log_post, initial, rng, resume_state)
     n_walkers, nd = start.coords.shape
-    if moves is None:
-        moves = [(emcee.moves.DEMove(), 1.0 - settings.snooker_fraction),
-                 (emcee.moves.DESnookerMove(), settings.snooker_fraction)]
-    sampler = emcee.EnsembleSampler(n_walkers, nd, log_post, moves=moves, vectorize=True)
+    sampler = emcee.EnsembleSampler(n_walkers, nd, log_post, moves=_moves(settings) if moves is None else moves,
+                                    vectorize=True)
     decide = _Convergence(settings, diagnose)
-    schedule = check_schedule(settings.check_every, settings.max_steps)
+    # fixed-steps mode: tau is recorded at the scheduled steps before the last one, which is decided after the loop
+    schedule = check_schedule(settings.check_every, settings.total_steps - (1 if settings.fixed else 0))
     tau_history, prev_tau, converged, reason, diag = _replay(start, settings, decide, schedule)
 
     chain, log_prob, accepted = start.chain, start.chain_log_prob, start.accepted
     t0 = time.perf_counter()
     n_new = 0
     if not reason:
-        chain, log_prob, accepted, n_new, converged, reason, diag = _sample_loop(
+        chain, log_prob, accepted, n_new, converged, reason, diag, prev_tau = _sample_loop(
             sampler, start, settings, decide, schedule, checkpoint, tau_history, prev_tau)
     wall = time.perf_counter() - t0
 
-    tau = _tau(chain) if chain.shape[0] > 1 else np.full(nd, np.nan)
-    burn, thin = burn_and_thin(tau, chain.shape[0])
-    if not converged and diagnose is not None and (chain.shape[0] - burn) // thin >= 4:
+    if settings.fixed:
+        tau, converged, diag, failures = decide.final(chain, prev_tau, tau_history[-1][0] if tau_history else None)
+        reason = (f"n_steps = {settings.n_steps} run: " + ("converged" if converged else
+                                                             "not converged: " + "; ".join(failures)))
+    else:
+        tau = _tau(chain) if chain.shape[0] > 1 else np.full(nd, np.nan)
+    burn, thin = burn_and_thin(tau, chain.shape[0], decide.n_burn)
+    if not converged and not settings.fixed and diagnose is not None and (chain.shape[0] - burn) // thin >= 4:
         diag = diagnose(chain[burn::thin])
     return ChainResult(
         chain=chain, log_prob=log_prob, accepted=accepted, tau=tau, converged=converged, reason=reason,
         burn=burn, thin=thin, diagnostics=diag, tau_history=tau_history, wall_time=wall, n_new_steps=n_new,
+        store_every=settings.store_every, steps_run=start.done + n_new,
     )
 
 
 def _sample_loop(sampler, start: _Start, settings: SamplerSettings, decide: _Convergence, schedule: set[int],
                  checkpoint: Checkpoint | None, tau_history: list, prev_tau):
-    """Step 4: emcee steps until converged or ``max_steps``; checkpoint batches and convergence checks.
+    """Step 4: emcee steps until converged or ``max_steps`` (converge mode) or ``n_steps`` (fixed-steps mode);
+    checkpoint batches and convergence checks (in fixed-steps mode only tau is recorded).
 
     Returns
     -------
-    chain, log_prob, accepted, n_new, converged, reason, diag
+    chain, log_prob, accepted, n_new, converged, reason, diag, prev_tau
     """
     import emcee
 
     chain, log_prob, accepted = start.chain, start.chain_log_prob, start.accepted
     done = start.done
     n_walkers = start.coords.shape[0]
+    k, phase = settings.store_every, _store_phase(settings)
     converged, reason, diag = False, "", {}
-    progress = _Progress(settings.progress, settings.max_steps)
+    total = settings.total_steps
+    progress = _Progress(settings.progress, total)
     n_new = 0
-    remaining = settings.max_steps - done
+    remaining = total - done
     state = emcee.State(start.coords, log_prob=start.log_prob, random_state=start.random_state)
     buf_c, buf_l = [], []
     acc_batch = np.zeros(n_walkers)
@@ -566,26 +749,31 @@ def _sample_loop(sampler, start: _Start, settings: SamplerSettings, decide: _Con
                                     skip_initial_state_check=True):
             step = done + n_new + 1
             n_new += 1
-            # DE proposals move an accepted walker with probability one
+            # DE and stretch proposals move an accepted walker with probability one
             acc = np.any(state.coords != prev_coords, axis=1)
             prev_coords = state.coords.copy()
             accepted += acc
             acc_batch += acc
-            buf_c.append(prev_coords)
-            buf_l.append(state.log_prob.copy())
-            new_c.append(buf_c[-1])
-            new_l.append(buf_l[-1])
+            if step % k == phase:
+                buf_c.append(prev_coords)
+                buf_l.append(state.log_prob.copy())
+                new_c.append(buf_c[-1])
+                new_l.append(buf_l[-1])
             if time.monotonic() - last_flush > settings.checkpoint_interval:
                 flush(state.random_state)
             if step in schedule:
                 flush(state.random_state)
-                chain = np.concatenate([chain, np.array(new_c)])
-                log_prob = np.concatenate([log_prob, np.array(new_l)])
+                if new_c:
+                    chain = np.concatenate([chain, np.array(new_c)])
+                    log_prob = np.concatenate([log_prob, np.array(new_l)])
                 new_c, new_l = [], []
-                tau, converged, diag = decide(chain, prev_tau)
+                if settings.fixed:
+                    tau = _tau(chain)
+                else:
+                    tau, converged, diag = decide(chain, prev_tau)
                 prev_tau = tau
                 tau_history.append((step, float(tau.max())))
-                progress.update(step, f"tau_max={tau.max():.1f} acc={accepted.mean() / step:.2f}", force=True)
+                progress.update(step, f"tau_max={tau.max() * k:.1f} acc={accepted.mean() / step:.2f}", force=True)
                 if converged:
                     reason = f"converged after {step} steps"
                     break
@@ -595,7 +783,7 @@ def _sample_loop(sampler, start: _Start, settings: SamplerSettings, decide: _Con
     if new_c:
         chain = np.concatenate([chain, np.array(new_c)])
         log_prob = np.concatenate([log_prob, np.array(new_l)])
-    if not reason:
+    if not reason and not settings.fixed:
         reason = f"max_steps = {settings.max_steps} reached before convergence"
     progress.close()
-    return chain, log_prob, accepted, n_new, converged, reason, diag
+    return chain, log_prob, accepted, n_new, converged, reason, diag, prev_tau

@@ -28,7 +28,6 @@ from scipy import stats
 from ..stats.weights import (MIN_ESS_COVARIANCE, MIN_ESS_INTERVAL_END, MIN_ESS_PER_DIMENSION, PARETO_K_MAX,
                              effective_sample_size, importance_reliable, normalise_log_weights,
                              pareto_smoothed_log_weights)
-from .posterior import LogPosterior
 
 __all__ = ["importance_tail_check", "importance_resample", "check_identification", "TOLERANCE_SD", "MIN_ESS",
            "TAIL_CHECK_RULE"]
@@ -171,9 +170,8 @@ def check_identification(result, rng: np.random.Generator, n: int = 100_000) -> 
     rng : numpy.random.Generator
     n : number of importance draws
 
-    Call it where the sampling ran (inside the same ``extra_likelihood_terms`` block), so that the log
-    posterior is the sampled one.
+    The log posterior is the sampled one: the result's problem carries its extra likelihood terms.
     """
     problem = result.problem
-    lp = LogPosterior(problem.priors, problem.likelihood.with_tempering(result.tempering))
+    lp = problem.log_posterior(result.tempering)
     return importance_tail_check(lp, result.flat_theta, problem.priors.names, rng, n=n)

@@ -133,6 +133,19 @@ class JointModel:
                 z = a[:, self.types, :] + b[:, self.types, :] * self.x[None, :, None] + np.exp(ls[:, self.types, :]) * last
         return a, b, ls, z
 
+    def __call__(self, theta: np.ndarray) -> np.ndarray:
+        """:meth:`log_prob` (the density protocol of :func:`bayes_rcsa.inference.sampler.run_ensemble`)."""
+        return self.log_prob(theta)
+
+    def check_inside(self, theta: np.ndarray, what: str) -> None:
+        """Raise :class:`~bayes_rcsa.errors.SetupError` naming the first row of theta (W, ndim) of zero density."""
+        from ..errors import SetupError
+
+        bad = ~np.isfinite(self.log_prob(np.atleast_2d(theta)))
+        if np.any(bad):
+            raise SetupError(f"joint library model: {what} {int(np.argmax(bad))} has zero posterior density "
+                             "(a negative spread, or outside a setup's support)")
+
     def log_prob(self, theta: np.ndarray) -> np.ndarray:
         """Log joint posterior density (W,) of sampler coordinates (W, ndim), up to the evidence."""
         hyper, types = self.hyper, self.types
@@ -202,22 +215,28 @@ class JointModel:
 
 
 def _one_run(model: JointModel, rng, n_steps, n_burn, n_walkers, laws=None, thin=1) -> dict:
-    """One emcee ensemble of the joint posterior from an over-dispersed start; see :func:`sample_joint`."""
-    import emcee
+    """One emcee ensemble of the joint posterior from an over-dispersed start; see :func:`sample_joint`.
 
-    sampler = emcee.EnsembleSampler(n_walkers, model.ndim, model.log_prob, vectorize=True,
-                                    moves=[(emcee.moves.StretchMove(), 1.0)])
+    Run by the package's emcee driver (:func:`bayes_rcsa.inference.sampler.run_ensemble`) in fixed-steps mode:
+    ``n_burn + n_steps x thin`` stretch-move steps, every ``thin``-th kept, the first ``n_burn`` steps burn-in;
+    the driver's verdict on convergence, tau, R-hat and bulk ESS are returned with the draws.
+    """
+    from ..inference.sampler import SamplerSettings, run_ensemble
+
     start = model.start(rng, n_walkers, laws)
-    rstate = np.random.RandomState(int(rng.integers(0, 2**32 - 1))).get_state()
-    state = sampler.run_mcmc(emcee.State(start, random_state=rstate), n_burn, progress=False)
-    sampler.reset()
-    sampler.run_mcmc(state, n_steps, thin_by=thin, progress=False)
-    flat = sampler.get_chain(flat=True)  # step-major: n_steps x n_walkers rows
+    total = n_burn + n_steps * thin
+    settings = SamplerSettings(n_walkers=n_walkers, n_steps=total, n_burn=n_burn, store_every=thin,
+                               check_every=max(1, total // 4), move="stretch", progress=False)
+    run = run_ensemble(model, settings, initial=start, rng=rng)
+    flat = run.chain[run.burn:].reshape(-1, model.ndim)  # step-major: n_steps x n_walkers rows
     a, b, ls, _ = model.laws(flat)
     s = np.exp(ls)
+    diag = run.diagnostics or {}
     return {"types": [np.concatenate([a[:, t], b[:, t], s[:, t]], axis=1) for t in range(model.T)],
             "tau_b": model.blocks(flat)[3],
-            "acceptance": float(np.mean(sampler.acceptance_fraction)), "n_walkers": n_walkers}
+            "acceptance": float(np.mean(run.acceptance_fraction)), "n_walkers": n_walkers,
+            "converged": run.converged, "convergence": run.reason, "tau_steps": run.tau * thin,
+            "rhat": diag.get("rhat"), "ess_bulk": diag.get("ess_bulk")}
 
 
 def sample_joint(log_likelihoods: Sequence[Callable[[np.ndarray], np.ndarray]], types: Sequence[int], x: np.ndarray,
@@ -245,7 +264,9 @@ def sample_joint(log_likelihoods: Sequence[Callable[[np.ndarray], np.ndarray]], 
     -------
     dict: ``types`` list of (N, 3d) draws of (a_t, b_t, sigma_t) per type, ``tau_b`` (N, d), pooled over the
     runs (each run's draws in step-major emcee order, ``n_steps x n_walkers`` rows); ``runs`` the same per run,
-    with its ``acceptance``
+    with its ``acceptance`` (over all its steps), and the sampler driver's ``converged``, ``convergence`` (the
+    reason), ``tau_steps``, ``rhat`` and ``ess_bulk`` (:func:`bayes_rcsa.inference.sampler.run_ensemble`,
+    fixed-steps mode: ``n_burn`` steps of burn-in, checked against three autocorrelation times)
     """
     model = JointModel(log_likelihoods, types, x, hyper, centred, nuisance)
     return pool_runs([_one_run(model, rng, n_steps, n_burn, n_walkers, start_laws, thin) for _ in range(n_runs)])

@@ -208,7 +208,6 @@ def _tail_corrected(job, folder: Path, draws, rng: np.random.Generator):
     """
     import json
 
-    from ..inference.posterior import LogPosterior
     from ..inference.problem import IdentificationOptions, build_problem_from_setup
     from ..inference.tail_check import importance_tail_check
     from ..io.setup import load_setup
@@ -218,7 +217,7 @@ def _tail_corrected(job, folder: Path, draws, rng: np.random.Generator):
     setup = load_setup(job.setup_file)
     problem = build_problem_from_setup(setup, IdentificationOptions.from_setup(
         setup.extra, method=summary["method"], lengths=None, band=None))
-    lp = LogPosterior(problem.priors, problem.likelihood.with_tempering(summary["likelihood"]["tempering"]))
+    lp = problem.log_posterior(summary["likelihood"]["tempering"])
     names = problem.priors.names
     missing = [n for n in names if n not in draws.values]
     if missing:

@@ -523,7 +523,7 @@ def write_study(study: Study, out_dir, plots: bool = True, posteriors: bool = Tr
     out.mkdir(parents=True, exist_ok=True)
     written = []
     if posteriors:
-        from ..inference.identify import write_outputs
+        from ..inference.outputs import write_outputs
 
         for f in study.fits:
             written += write_outputs(f.result, out / "fits" / f.spec.name, plots=False)
