@@ -155,13 +155,13 @@ def test_posterior_mode_reads_the_setup_once_and_posterior_nc_once(fitted, tmp_p
 
 
 def test_a_loaded_posterior_and_setup_are_not_read_again(fitted, monkeypatch):  # noqa: F811
-    from bayes_rcsa.inference.diagnostics import read_netcdf
+    from bayes_rcsa.store import read_posterior
     from bayes_rcsa.io.setup import load_setup
     from bayes_rcsa.posterior import load_posterior
 
     setup_path, posterior, _ = fitted
     setup = load_setup(setup_path, load_data=False, load_spindle=True)
-    idata = read_netcdf(posterior)
+    idata = read_posterior(posterior)
     loaded = SimpleNamespace(draws=load_posterior(posterior, setup, inference_data=idata), inference_data=idata,
                              summary=json.loads(posterior.with_name("summary.json").read_text()), path=posterior)
     by_path = lobes(setup=setup_path, posterior=posterior, **POSTERIOR_KW)

@@ -16,7 +16,8 @@ from scipy.stats import norm
 
 from bayes_rcsa.data import example_dir
 from bayes_rcsa.errors import SetupError
-from bayes_rcsa.inference.diagnostics import build_inference_data, write_netcdf
+from bayes_rcsa.inference.diagnostics import build_inference_data
+from bayes_rcsa.store import write_posterior
 from bayes_rcsa.io import load_setup
 from bayes_rcsa.model import Configuration, ConfigurationStack, ToolPointModel
 from bayes_rcsa.model.natural_frequencies import natural_frequency
@@ -189,7 +190,7 @@ def posterior(tmp_path_factory):
     idata = build_inference_data(post, np.zeros(shape), np.zeros(shape + (3,)), np.ones(3, complex),
                                  {"fit_clamping_length": np.array([0.025, 0.040])}, {"fit_clamping_length": ["fm"]},
                                  {"fm": ["a", "b"]}, {"method": "multi", "parameter_model": json.dumps(pm.to_dict())})
-    return write_netcdf(idata, tmp_path_factory.mktemp("post") / "posterior.nc")
+    return write_posterior(idata, tmp_path_factory.mktemp("post") / "posterior.nc")
 
 
 @pytest.fixture(scope="module")
