@@ -27,14 +27,13 @@ _LAZY = {"load_setup": ("bayes_rcsa.io.setup", "load_setup"), "example_setup": (
 
 def __getattr__(name: str):
     # the workflows import numpy, scipy, emcee, ...: only when first used, so that `bayes-rcsa --help` and
-    # `import bayes_rcsa` stay light
+    # `import bayes_rcsa` stay light.  importlib, not `from . import`, which would ask this function again.
     import importlib
 
-    from . import workflows
-
+    if name.startswith("_"):
+        raise AttributeError(f"module 'bayes_rcsa' has no attribute {name!r}")
+    workflows = importlib.import_module(f"{__name__}.workflows")
     if name in workflows.EXPORTS:
-        # from the defining module: once bayes_rcsa.workflows.simulate is imported, the package attribute
-        # `simulate` is that module, not the function of the same name
         return getattr(importlib.import_module(f"{workflows.__name__}.{workflows.EXPORTS[name]}"), name)
     if name in _LAZY:
         module, attr = _LAZY[name]
@@ -43,8 +42,9 @@ def __getattr__(name: str):
 
 
 def __dir__():
-    from . import workflows
+    import importlib
 
+    workflows = importlib.import_module(f"{__name__}.workflows")
     return sorted(set(globals()) | set(workflows.EXPORTS) | set(_LAZY))
 
 
