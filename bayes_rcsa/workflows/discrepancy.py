@@ -6,8 +6,8 @@ the tempered evidence supports; when the model is inadequate and nothing is name
 term widens the intervals instead.  It returns a :class:`ModelCheck`, which ``bayes-rcsa discrepancy`` saves.
 The method is :mod:`bayes_rcsa.discrepancy` (docs/discrepancy.md)::
 
-    import bayes_rcsa as br
-    check = br.workflows.discrepancy("setup.toml", lengths=[0.025, 0.040])
+    from bayes_rcsa.workflows.discrepancy import discrepancy
+    check = discrepancy("setup.toml", lengths=[0.025, 0.040])
     check.named_effect, check.gap_before, check.gap_after
     check.save("check")                     # discrepancy.json, summary.md, plots, setup.amended.toml
 """
