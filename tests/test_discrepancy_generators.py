@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from bayes_rcsa.discrepancy import DiscrepancyOptions, run_discrepancy
-from bayes_rcsa.discrepancy.workflow import summary_markdown
+from bayes_rcsa.discrepancy.render import summary_markdown
 from bayes_rcsa.io.setup import load_setup
 from bayes_rcsa.model.modes import find_modes, match_modes
 from bayes_rcsa.synthetic import rotor
@@ -156,7 +156,7 @@ def test_a_fit_on_the_limit_of_its_range_that_outranks_is_a_warning_and_a_summar
     in discrepancy.json) and a reason in summary.md; without it neither appears."""
     import copy
 
-    from bayes_rcsa.discrepancy.workflow import build_report
+    from bayes_rcsa.discrepancy.document import build_report
 
     res, _ = modulus
     assert not any("limit of its physical range" in w for w in res.report["warnings"])
@@ -271,7 +271,7 @@ def test_the_peak_noise_is_the_measurement_s_own_not_the_final_model_s_fitted_sc
     # from second differences is 1.00-1.02 of the realised noise on both benches.
     from bayes_rcsa.discrepancy.fit import laplace_draws
     from bayes_rcsa.discrepancy.noise import relative_noise_scale
-    from bayes_rcsa.discrepancy.workflow import _all_stack, _noise_sd
+    from bayes_rcsa.discrepancy.evaluate import _all_stack, _noise_sd
     from bayes_rcsa.inference.band import band_mask
 
     res, _ = modulus

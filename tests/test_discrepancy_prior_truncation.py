@@ -1,7 +1,7 @@
 """Which parameters the prior cuts the Laplace draws of: a MAP on a finite prior bound (``fit.truncated_by_prior``).
 
 There the draws of :func:`bayes_rcsa.discrepancy.fit.laplace_draws` lie on one side of the MAP, so the MAP's mode
-can lie beyond their 90 % interval without any mix-up of modes (``workflow.mode_entries`` flags it instead of
+can lie beyond their 90 % interval without any mix-up of modes (``evaluate.mode_entries`` flags it instead of
 refusing the run).  A joint on its rigid bound is drawn in its compliance and is not counted.
 """
 

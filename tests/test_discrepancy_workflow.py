@@ -17,7 +17,7 @@ import pytest
 
 from bayes_rcsa.cli import main as cli_main
 from bayes_rcsa.discrepancy import DiscrepancyOptions, run_discrepancy
-from bayes_rcsa.discrepancy.workflow import summary_markdown
+from bayes_rcsa.discrepancy.render import summary_markdown
 from bayes_rcsa.discrepancy.detect import compare_peaks, length_trend, standardised_residuals, systematic_bands
 from bayes_rcsa.io.setup import load_setup
 from bayes_rcsa.synthetic import default_bench_config, generate_campaign, true_contact, write_campaign

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from bayes_rcsa.discrepancy.detect import compare_peaks
-from bayes_rcsa.discrepancy.workflow import mode_entries, prediction_usability
+from bayes_rcsa.discrepancy.evaluate import mode_entries, prediction_usability
 from bayes_rcsa.errors import ModelError
 from bayes_rcsa.model.modes import find_modes, match_modes, mode_windows, track_modes
 from bayes_rcsa.model.natural_frequencies import natural_frequency

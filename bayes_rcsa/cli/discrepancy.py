@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from ..errors import SetupError
@@ -49,50 +48,17 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    from ..discrepancy.workflow import (HELD_OUT_GAP_NOTE, DiscrepancyOptions, run_discrepancy, validate,
-                                        write_discrepancy)
-    from ..io.atomic import directory_lock
-    from ..io.setup import load_setup
+    from ..workflows.discrepancy import discrepancy
 
-    out = Path(args.out)
-    check_output_directory(out, args.force)  # before anything is computed
-    lengths = tuple(parse_float_list(args.lengths, "--lengths", positive=True)) if args.lengths is not None else None
+    check_output_directory(args.out, args.force)  # before anything is computed
+    lengths = parse_float_list(args.lengths, "--lengths", positive=True) if args.lengths is not None else None
     cands = None
     if args.candidates is not None:
-        cands = tuple(c.strip() for c in args.candidates.split(",") if c.strip())
+        cands = [c.strip() for c in args.candidates.split(",") if c.strip()]
         if not cands:
             raise SetupError(f"--candidates {args.candidates!r}: expected a comma-separated list of effect names")
-    setup = load_setup(args.setup)
-    options = DiscrepancyOptions(lengths=lengths, candidates=cands, seed=args.seed, n_refit=args.refit)
-    validate(setup, options)  # bad candidates, too few lines: refused before anything is written
-    say = (lambda s: print(f"bayes-rcsa discrepancy: {s}", file=sys.stderr)) if args.verbose else None
-    with directory_lock(out):
-        check_output_directory(out, args.force)
-        result = run_discrepancy(setup, options, progress=say)
-        files = write_discrepancy(result, out, plots=not args.no_plots, overwrite=args.force)
-    r = result.report
-    def pct(key):
-        return "at the noise floor" if r[f"{key}_at_noise_floor"] else f"{100 * r[key]:.2g} %"
-
-    gap = f"systematic gap {pct('gap_before')} -> {pct('gap_after')}"
-    if r["named_effect"]:
-        extra = f" (confounded with {', '.join(r['confounded_with'])})" if r["confounded_with"] else ""
-        both = " + ".join([r["named_effect"], *r["also_named"]])
-        human = f"named {both}{extra}: {gap}; wrote {out}/discrepancy.json and setup.amended.toml"
-    elif r["adequate"]:
-        held = r.get("gap_held_out_after")
-        if held is not None and held > HELD_OUT_GAP_NOTE:
-            gaps = (f"systematic gap {100 * r['gap_fitted_after']:.3g} % at the fitted lengths, {100 * held:.3g} % "
-                    "at the others, where the fit does not carry")
-        else:
-            gaps = f"systematic gap {pct('gap_before')}"
-        human = f"model adequate, nothing named ({gaps}); wrote {out}/discrepancy.json"
-    else:
-        human = f"model inadequate and no known effect explains it: statistical discrepancy added ({gap}); " \
-                f"wrote {out}/discrepancy.json"
-    data = {"out": str(out), "files": [str(f) for f in files], "adequate": r["adequate"],
-            "named_effect": r["named_effect"], "also_named": r["also_named"], "confounded_with": r["confounded_with"],
-            "gap_before": r["gap_before"], "gap_after": r["gap_after"], "gap_grew": r["gap_grew"],
-            "usable_for_prediction": r["usable_for_prediction"]}
-    warnings = tuple(r["warnings"])
-    return Summary(human, data, warnings)
+    result = discrepancy(args.setup, lengths=lengths, candidates=cands, seed=args.seed, n_refit=args.refit,
+                         progress=args.verbose)
+    result.save(args.out, force=args.force, plots=not args.no_plots)
+    data = {"out": str(args.out), "files": [str(f) for f in result.saved_files], **result.summary_data()}
+    return Summary(result.summary_line(), data, result.warnings)

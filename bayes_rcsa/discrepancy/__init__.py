@@ -8,12 +8,18 @@ The loop (docs/discrepancy.md):
 * :mod:`.select` -- refits, the evidence criterion, winner / runner-up / confounded;
 * the statistical discrepancy term used when nothing is named is a model term,
   :mod:`bayes_rcsa.params.terms.statistical_discrepancy` (so a posterior holding it reads back anywhere);
-* :mod:`.workflow` -- the whole loop and its files; :mod:`.plots` -- its figures.
+* :mod:`.workflow` -- the whole loop (the computation); :mod:`.evaluate` -- a fit at every measurement;
+* :mod:`.document` -- discrepancy.json; :mod:`.render` -- summary.md and the closing line;
+  :mod:`.files` -- setup.amended.toml and the writing of every file; :mod:`.plots` -- its figures.
+
+The public entry point is :func:`bayes_rcsa.workflows.discrepancy.discrepancy` (``bayes_rcsa.discrepancy`` the
+function, reachable from the top level), which returns a :class:`~bayes_rcsa.workflows.discrepancy.ModelCheck`.
 
 Candidates are the registered model terms (:mod:`bayes_rcsa.params.terms`):
 adding a candidate is adding a model term (one file, one registration).
 """
 
-from .workflow import DiscrepancyOptions, DiscrepancyResult, run_discrepancy, write_discrepancy
+from .files import write_discrepancy
+from .workflow import DiscrepancyOptions, DiscrepancyResult, run_discrepancy
 
 __all__ = ["DiscrepancyOptions", "DiscrepancyResult", "run_discrepancy", "write_discrepancy"]

@@ -1,4 +1,10 @@
-"""PNG plots of the discrepancy workflow: the gap before and after, on the same axes."""
+"""Plots of the discrepancy workflow: the gap before and after, on the same axes.
+
+Every plot is drawn from the evaluation of the baseline and the final model (``evaluation["before"]`` and
+``["after"]`` of a :class:`~.workflow.DiscrepancyResult`): the natural-frequency and stiffness plots need only
+what discrepancy.json holds (``measurements``, ``stiffness``), the FRF and residual plots also the FRFs
+(``frf``), which only a computed result has.
+"""
 
 from __future__ import annotations
 
@@ -9,7 +15,10 @@ import numpy as np
 
 from ..io.figures import new_figure, save_png
 
-__all__ = ["write_plots"]
+#: The plots' names (their files are NAME.png), in the order they are written.
+PLOT_NAMES = ("frf_before_after", "residuals_before_after", "frequency_errors", "stiffness_before_after")
+
+__all__ = ["write_plots", "plot_figures", "PLOT_NAMES"]
 
 
 def _grid(n: int):
@@ -18,9 +27,9 @@ def _grid(n: int):
     return rows, cols
 
 
-def _panels(res, path: Path, label_after: str, height: float, draw, ylabel: str) -> None:
+def _panels(evaluation: dict, label_after: str, height: float, draw, ylabel: str):
     """One panel per measurement: ``draw(ax, j, f, measured, before, after)``; shared layout and labels."""
-    b, a = res.evaluation["before"], res.evaluation["after"]
+    b, a = evaluation["before"], evaluation["after"]
     n = len(b["measurements"])
     rows, cols = _grid(n)
     fig = new_figure(3.6 * cols, height * rows)
@@ -35,28 +44,28 @@ def _panels(res, path: Path, label_after: str, height: float, draw, ylabel: str)
         if j == 0:
             ax.legend(fontsize=6)
     fig.tight_layout()
-    save_png(fig, path)
+    return fig
 
 
-def _frf_plot(res, path: Path, label_after: str) -> None:
+def _frf_plot(evaluation: dict, label_after: str):
     def draw(ax, f, meas, before, after):
         ax.semilogy(f, np.abs(meas), "k.", ms=2, label="measured")
         ax.semilogy(f, np.abs(before), "C3-", lw=1, label="baseline")
         ax.semilogy(f, np.abs(after), "C0-", lw=1, label=label_after)
 
-    _panels(res, path, label_after, 2.8, draw, "|H| [m/N]")
+    return _panels(evaluation, label_after, 2.8, draw, "|H| [m/N]")
 
 
-def _residual_plot(res, path: Path, label_after: str) -> None:
+def _residual_plot(evaluation: dict, label_after: str):
     def draw(ax, f, meas, before, after):
         scale = np.abs(meas).max()
         ax.plot(f, np.abs(before - meas) / scale, "C3-", lw=1, label="baseline")
         ax.plot(f, np.abs(after - meas) / scale, "C0-", lw=1, label=label_after)
 
-    _panels(res, path, label_after, 2.4, draw, "|H_model - H_meas| / max|H_meas|")
+    return _panels(evaluation, label_after, 2.4, draw, "|H_model - H_meas| / max|H_meas|")
 
 
-def _frequency_plot(res, path: Path, label_after: str) -> None:
+def _frequency_plot(evaluation: dict, label_after: str):
     """Natural-frequency error of every matched mode of every measurement, with its 90 % interval.
 
     Errors are model mode k minus measured mode k (never two different modes), relative to the measured
@@ -68,7 +77,7 @@ def _frequency_plot(res, path: Path, label_after: str) -> None:
     fig = new_figure(5.4, 3.6)
     ax = fig.add_subplot(1, 1, 1)
     for k, (key, colour, lab) in enumerate((("before", "C3", "baseline"), ("after", "C0", label_after))):
-        for m in res.evaluation[key]["measurements"]:
+        for m in evaluation[key]["measurements"]:
             for r, md in enumerate(m["modes"]):
                 q, fm = md["model_interval"], md["measured_hz"]
                 lo, hi = (100 * (q[c] - fm) / fm for c in ("q05", "q95"))
@@ -90,15 +99,15 @@ def _frequency_plot(res, path: Path, label_after: str) -> None:
     ax.set_ylabel("mode k error [%], model - measured\n(bars: model 90 % interval)", fontsize=8)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    save_png(fig, path)
+    return fig
 
 
-def _stiffness_plot(res, path: Path, label_after: str) -> None:
+def _stiffness_plot(evaluation: dict, label_after: str):
     fig = new_figure(8.0, 3.2)
     for i, name in enumerate(("k_xf", "k_thetaM")):
         ax = fig.add_subplot(1, 2, i + 1)
         for k, (key, colour, lab) in enumerate((("before", "C3", "baseline"), ("after", "C0", label_after))):
-            st = res.evaluation[key]["stiffness"][name]
+            st = evaluation[key]["stiffness"][name]
             x = np.array([float(l) for l in st]) + (k - 0.5) * 0.3
             q = np.array([[v["q05"], v["q50"], v["q95"]] for v in st.values()])
             ax.errorbar(x, q[:, 1], yerr=[q[:, 1] - q[:, 0], q[:, 2] - q[:, 1]], fmt="o", color=colour, label=lab,
@@ -108,15 +117,33 @@ def _stiffness_plot(res, path: Path, label_after: str) -> None:
         ax.set_ylabel(f"{name} [{'N/m' if name == 'k_xf' else 'N m/rad'}] (90 % interval)")
         ax.legend(fontsize=7)
     fig.tight_layout()
-    save_png(fig, path)
+    return fig
+
+
+_DRAW = {"frf_before_after": _frf_plot, "residuals_before_after": _residual_plot,
+         "frequency_errors": _frequency_plot, "stiffness_before_after": _stiffness_plot}
+
+
+def plot_figures(evaluation: dict, final_model: str) -> dict:
+    """``{name: Figure}`` of the plots that ``evaluation`` can draw (all four when it holds the FRFs).
+
+    Parameters
+    ----------
+    evaluation : dict with ``"before"`` and ``"after"``, each with ``measurements`` and ``stiffness`` (as in
+        discrepancy.json) and, for the FRF and residual plots, ``frf``
+    final_model : str, the final model's label (``"baseline"`` when nothing was added)
+    """
+    label = final_model if final_model != "baseline" else "baseline (unchanged)"
+    with_frf = all("frf" in evaluation[k] for k in ("before", "after"))
+    return {name: _DRAW[name](evaluation, label) for name in PLOT_NAMES
+            if with_frf or name not in ("frf_before_after", "residuals_before_after")}
 
 
 def write_plots(res, out_dir: Path) -> list[str]:
-    """Write the four plots into ``out_dir``; returns the file names."""
-    label = res.final_label if res.final_label != "baseline" else "baseline (unchanged)"
+    """Write the four plots of a computed result (:class:`~.workflow.DiscrepancyResult`) into ``out_dir``;
+    returns the file names."""
     out = []
-    for name, fn in (("frf_before_after.png", _frf_plot), ("residuals_before_after.png", _residual_plot),
-                     ("frequency_errors.png", _frequency_plot), ("stiffness_before_after.png", _stiffness_plot)):
-        fn(res, Path(out_dir) / name, label)
-        out.append(name)
+    for name, fig in plot_figures(res.evaluation, res.final_label).items():
+        save_png(fig, Path(out_dir) / f"{name}.png")
+        out.append(f"{name}.png")
     return out
