@@ -31,7 +31,11 @@ def __getattr__(name: str):
     from . import workflows
 
     if name in workflows.EXPORTS:
-        return getattr(workflows, name)
+        import importlib
+
+        # through the defining module: once `bayes_rcsa.workflows.identify` (the module) is imported, the package
+        # attribute `workflows.identify` is that module, not the function of the same name
+        return getattr(importlib.import_module(f"{workflows.__name__}.{workflows.EXPORTS[name]}"), name)
     if name in _LAZY:
         import importlib
 
