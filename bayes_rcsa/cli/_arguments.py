@@ -2,16 +2,11 @@
 
 The cutting conditions of ``lobes``, ``update`` and ``design --next-cut``, the
 ``--cuts`` group of ``identify``, spindle-speed grids, fractions and
-coefficients with tolerances, and the executor options of ``batch`` and
-``library``.  Parsing only: numbers and names go to the workflows
+coefficients with tolerances.  Parsing only: numbers and names go to the workflows
 (:mod:`bayes_rcsa.workflows`), which build the domain objects.
 """
 
 from __future__ import annotations
-
-import argparse
-import os
-from pathlib import Path
 
 import numpy as np
 
@@ -19,8 +14,8 @@ from ..errors import SetupError
 from ._common import parse_float, parse_float_list, positive_int
 
 __all__ = ["DEFAULT_SPEED_POINTS", "KT_HELP", "KR_HELP", "add_cutting_arguments", "parse_speeds", "parse_fraction",
-           "parse_coefficient", "cutting_from_arguments", "boundary_width", "CUT_FLAGS", "add_cut_arguments",
-           "prepare_run", "dask_executor"]
+           "parse_coefficient", "cutting_from_arguments", "cutting_numbers", "cut_test_numbers",
+           "boundary_width_numbers", "boundary_width", "CUT_FLAGS", "add_cut_arguments"]
 
 DEFAULT_SPEED_POINTS = 400
 
@@ -125,6 +120,47 @@ def _cutting_and_tolerances(args, kr_tolerance: bool):
     return cutting, kt_tol, kr_tol, warnings
 
 
+def cutting_numbers(args, kr_tolerance: bool = False) -> dict:
+    """The cutting options as numbers (Pa, fractions, rad), the keywords of the workflows' cutting case.
+
+    Keys ``kt``, ``kt_tolerance``, ``kr``, ``kr_tolerance``, ``flutes``, ``radial_immersion``, ``entry_angle``,
+    ``exit_angle``, ``milling``, ``feed``, ``pitch_angles``, ``allow_unusual``; the workflow builds the
+    conditions (:func:`bayes_rcsa.stability.conditions.cutting_conditions`) and checks their plausibility.
+    """
+    kt, kt_tol = parse_coefficient(args.kt, "--kt")
+    kr, kr_tol = parse_coefficient(args.kr, "--kr")
+    if kr_tol and not kr_tolerance:
+        raise SetupError(f"--kr {args.kr!r}: give the tolerance on --kt; it scales the cutting-force level (Kt and "
+                         "Kr together, Kr/Kt fixed)")
+    out = {"kt": kt, "kt_tolerance": kt_tol, "kr": kr, "kr_tolerance": kr_tol, "flutes": args.flutes,
+           "milling": args.milling, "feed": args.feed, "allow_unusual": args.allow_unusual}
+    return {**out, **_geometry_numbers(args.immersion, args.angles, args.pitch)}
+
+
+def _geometry_numbers(immersion: str | None, angles: str | None, pitch: str | None) -> dict:
+    """``--immersion``, ``--angles`` (deg) and ``--pitch`` (deg) -> radial_immersion, entry_angle, exit_angle,
+    pitch_angles (rad); only those given."""
+    out = {}
+    if immersion is not None:
+        out["radial_immersion"] = parse_float(immersion, "--immersion", positive=True)
+    if angles is not None:
+        ang = parse_float_list(angles, "--angles")
+        if len(ang) != 2:
+            raise SetupError(f"--angles {angles!r}: expected ENTRY,EXIT in degrees")
+        out["entry_angle"], out["exit_angle"] = (np.radians(a) for a in ang)
+    if pitch is not None:
+        out["pitch_angles"] = tuple(float(np.radians(a)) for a in parse_float_list(pitch, "--pitch", positive=True))
+    return out
+
+
+def boundary_width_numbers(text: str, option: str = "--boundary-width") -> float | tuple[float, float]:
+    """``'W'`` -> W, ``'LO:HI'`` -> (LO, HI): the probit boundary width, fixed or log-uniform."""
+    if ":" in text:
+        lo, hi = text.split(":", 1)
+        return parse_float(lo, option, positive=True), parse_float(hi, option, positive=True)
+    return parse_float(text, option, positive=True)
+
+
 def boundary_width(text: str):
     from ..cuts import BoundaryWidth
 
@@ -163,33 +199,25 @@ def add_cut_arguments(p) -> None:
     g.add_argument("--cut-label-error", metavar="P", help=f"label error (default {DEFAULT_LABEL_ERROR:g})")
 
 
-def prepare_run(args: argparse.Namespace, marker: str, what: str):
-    """The checks and executor shared by ``batch`` and ``library``: (out, workers, client, executor).
-
-    ``--out`` must be new, empty, or hold an earlier run of this command (its file ``marker``) unless
-    ``--force``; ``--scheduler`` connects a Dask client (closed by the caller), else local processes.
-    """
-    from ..io.atomic import directory_is_empty
-
-    out = Path(args.out)
-    if not directory_is_empty(out) and not (out / marker).is_file() and not args.force:
-        raise SetupError(f"--out {out}: exists, is not empty and holds no earlier {what} run; use --force to "
-                         "write into it")
-    workers = args.workers or os.cpu_count() or 1
-    client = executor = None
-    if args.scheduler is not None:
-        client, executor = dask_executor(args.scheduler)
-    return out, workers, client, executor
-
-
-def dask_executor(address: str):
-    try:
-        from distributed import Client
-    except ImportError:
-        raise SetupError(f"--scheduler {address}: Dask distributed is not installed "
-                         "(pip install 'bayes-rcsa[cluster]')") from None
-    try:
-        client = Client(address, timeout="20s")
-    except (OSError, TimeoutError) as exc:
-        raise SetupError(f"--scheduler {address}: cannot connect ({exc})") from None
-    return client, client.get_executor()
+def cut_test_numbers(args) -> dict | None:
+    """The ``--cuts`` group of ``identify`` as numbers (None without ``--cuts``): the keywords of
+    :class:`bayes_rcsa.workflows.identify.CutTestOptions` (a missing ``--cut-kt``/``--cut-kr``/``--cut-flutes``
+    is None; the workflow names it)."""
+    if args.cuts is None:
+        given = [f"--{n.replace('_', '-')}" for n in CUT_FLAGS if getattr(args, n, None) is not None]
+        if given:
+            raise SetupError(f"{', '.join(given)} need(s) --cuts CSV")
+        return None
+    out = {"path": args.cuts, "flutes": args.cut_flutes, "kt": None, "kt_tolerance": 0.0, "kr": None,
+           "kr_tolerance": 0.0, "milling": args.cut_milling, "feed": args.cut_feed, "tool": args.cut_tool}
+    if args.cut_kt is not None:
+        out["kt"], out["kt_tolerance"] = parse_coefficient(args.cut_kt, "--kt")
+    if args.cut_kr is not None:
+        out["kr"], out["kr_tolerance"] = parse_coefficient(args.cut_kr, "--kr")
+    out.update(_geometry_numbers(args.cut_immersion, args.cut_angles, args.cut_pitch))
+    out["boundary_width"] = boundary_width_numbers(args.cut_boundary_width or "0.1", "--boundary-width")
+    if args.cut_label_error is not None:
+        out["label_error"] = parse_float(args.cut_label_error, "--cut-label-error")
+    if args.cut_clamping_length is not None:
+        out["clamping_length"] = parse_float(args.cut_clamping_length, "--cut-clamping-length", positive=True)
+    return out
