@@ -298,7 +298,11 @@ def _loaded(idata):
 
 
 def _frf_panels(ir, n_draws: int = 300) -> list[dict]:
-    """The panels of frf.png: measured |H| against the predicted 5/50/95 % band on each measurement's band."""
+    """The panels of frf.png: measured |H| against the predicted 5/50/95 % band on each measurement's band.
+
+    TODO(merge): the same as the private ``_frf_panels`` of the module that writes frf.png (inference.identify,
+    moving to inference.outputs); one public function there would serve both.
+    """
     import numpy as np
 
     from ..inference.band import band_mask
