@@ -9,20 +9,14 @@ coefficients with tolerances, and the executor options of ``batch`` and
 
 from __future__ import annotations
 
-import argparse
-import os
-from pathlib import Path
-
 import numpy as np
 
 from ..errors import SetupError
 from ._common import parse_float, parse_float_list, positive_int
 
 __all__ = ["DEFAULT_SPEED_POINTS", "KT_HELP", "KR_HELP", "add_cutting_arguments", "parse_speeds", "parse_fraction",
-           "parse_coefficient", "cutting_from_arguments", "cutting_keywords", "parse_averages", "optional_float",
-           "parse_directions",
-           "boundary_width", "CUT_FLAGS", "add_cut_arguments",
-           "prepare_run", "dask_executor"]
+           "parse_coefficient", "cutting_keywords", "parse_averages", "optional_float", "parse_directions",
+           "boundary_width_numbers", "CUT_FLAGS", "add_cut_arguments", "cut_test_numbers"]
 
 DEFAULT_SPEED_POINTS = 400
 
@@ -111,33 +105,24 @@ def cutting_keywords(args, kr_tolerance: bool = False) -> dict:
           "feed": args.feed, "allow_unusual": args.allow_unusual}
     if kr_tolerance:
         kw["kr_tolerance"] = kr_tol
-    if args.immersion is not None:
-        kw["radial_immersion"] = parse_float(args.immersion, "--immersion", positive=True)
-    if args.angles is not None:
-        ang = parse_float_list(args.angles, "--angles")
-        if len(ang) != 2:
-            raise SetupError(f"--angles {args.angles!r}: expected ENTRY,EXIT in degrees")
-        kw["entry_angle"], kw["exit_angle"] = (float(np.radians(a)) for a in ang)
-    if args.pitch is not None:
-        kw["pitch_angles"] = tuple(float(np.radians(a)) for a in parse_float_list(args.pitch, "--pitch", positive=True))
+    kw.update(_geometry_numbers(args.immersion, args.angles, args.pitch))
     return kw
 
 
-def cutting_from_arguments(args, kr_tolerance: bool = False):
-    """(CuttingConditions, Kt tolerance, warnings) from the cutting options (and Kr tolerance if ``kr_tolerance``)."""
-    from ..stability import CuttingConditions
-    from ..stability.plausibility import check_cutting_coefficients
-
-    kw = cutting_keywords(args, kr_tolerance=True)
-    kt_tol, kr_tol = kw.pop("kt_tolerance"), kw.pop("kr_tolerance")
-    if kr_tol and not kr_tolerance:
-        raise SetupError(f"--kr {args.kr!r}: give the tolerance on --kt; it scales the cutting-force level (Kt and "
-                         "Kr together, Kr/Kt fixed)")
-    warnings = check_cutting_coefficients(kw["kt"], kw["kr"], allow_unusual=kw.pop("allow_unusual"))
-    if (args.immersion is None) == (args.angles is None):
-        raise SetupError("give exactly one of --immersion (radial depth / diameter) and --angles ENTRY,EXIT (deg)")
-    cutting = CuttingConditions(**kw)
-    return (cutting, kt_tol, kr_tol, warnings) if kr_tolerance else (cutting, kt_tol, warnings)
+def _geometry_numbers(immersion: str | None, angles: str | None, pitch: str | None) -> dict:
+    """``--immersion``, ``--angles`` (deg) and ``--pitch`` (deg) -> radial_immersion, entry_angle, exit_angle,
+    pitch_angles (rad); only those given."""
+    out = {}
+    if immersion is not None:
+        out["radial_immersion"] = parse_float(immersion, "--immersion", positive=True)
+    if angles is not None:
+        ang = parse_float_list(angles, "--angles")
+        if len(ang) != 2:
+            raise SetupError(f"--angles {angles!r}: expected ENTRY,EXIT in degrees")
+        out["entry_angle"], out["exit_angle"] = (np.radians(a) for a in ang)
+    if pitch is not None:
+        out["pitch_angles"] = tuple(float(np.radians(a)) for a in parse_float_list(pitch, "--pitch", positive=True))
+    return out
 
 
 def parse_averages(text: str, option: str = "--averages") -> int:
@@ -164,15 +149,12 @@ def optional_float(text, option: str, positive: bool = True):
     return None if text is None else parse_float(text, option, positive=positive)
 
 
-def boundary_width(text: str):
-    from ..cuts import BoundaryWidth
-
+def boundary_width_numbers(text: str, option: str = "--boundary-width") -> float | tuple[float, float]:
+    """``'W'`` -> W, ``'LO:HI'`` -> (LO, HI): the probit boundary width, fixed or log-uniform."""
     if ":" in text:
         lo, hi = text.split(":", 1)
-        return BoundaryWidth(parse_float(lo, "--boundary-width", positive=True),
-                             parse_float(hi, "--boundary-width", positive=True))
-    w = parse_float(text, "--boundary-width", positive=True)
-    return BoundaryWidth(w, w)
+        return parse_float(lo, option, positive=True), parse_float(hi, option, positive=True)
+    return parse_float(text, option, positive=True)
 
 
 # ------------------------------------------------------------------------------------------
@@ -202,33 +184,25 @@ def add_cut_arguments(p) -> None:
     g.add_argument("--cut-label-error", metavar="P", help=f"label error (default {DEFAULT_LABEL_ERROR:g})")
 
 
-def prepare_run(args: argparse.Namespace, marker: str, what: str):
-    """The checks and executor shared by ``batch`` and ``library``: (out, workers, client, executor).
-
-    ``--out`` must be new, empty, or hold an earlier run of this command (its file ``marker``) unless
-    ``--force``; ``--scheduler`` connects a Dask client (closed by the caller), else local processes.
-    """
-    from ..io.atomic import directory_is_empty
-
-    out = Path(args.out)
-    if not directory_is_empty(out) and not (out / marker).is_file() and not args.force:
-        raise SetupError(f"--out {out}: exists, is not empty and holds no earlier {what} run; use --force to "
-                         "write into it")
-    workers = args.workers or os.cpu_count() or 1
-    client = executor = None
-    if args.scheduler is not None:
-        client, executor = dask_executor(args.scheduler)
-    return out, workers, client, executor
-
-
-def dask_executor(address: str):
-    try:
-        from distributed import Client
-    except ImportError:
-        raise SetupError(f"--scheduler {address}: Dask distributed is not installed "
-                         "(pip install 'bayes-rcsa[cluster]')") from None
-    try:
-        client = Client(address, timeout="20s")
-    except (OSError, TimeoutError) as exc:
-        raise SetupError(f"--scheduler {address}: cannot connect ({exc})") from None
-    return client, client.get_executor()
+def cut_test_numbers(args) -> dict | None:
+    """The ``--cuts`` group of ``identify`` as numbers (None without ``--cuts``): the keywords of
+    :class:`bayes_rcsa.workflows.identify.CutTestOptions` (a missing ``--cut-kt``/``--cut-kr``/``--cut-flutes``
+    is None; the workflow names it)."""
+    if args.cuts is None:
+        given = [f"--{n.replace('_', '-')}" for n in CUT_FLAGS if getattr(args, n, None) is not None]
+        if given:
+            raise SetupError(f"{', '.join(given)} need(s) --cuts CSV")
+        return None
+    out = {"path": args.cuts, "flutes": args.cut_flutes, "kt": None, "kt_tolerance": 0.0, "kr": None,
+           "kr_tolerance": 0.0, "milling": args.cut_milling, "feed": args.cut_feed, "tool": args.cut_tool}
+    if args.cut_kt is not None:
+        out["kt"], out["kt_tolerance"] = parse_coefficient(args.cut_kt, "--kt")
+    if args.cut_kr is not None:
+        out["kr"], out["kr_tolerance"] = parse_coefficient(args.cut_kr, "--kr")
+    out.update(_geometry_numbers(args.cut_immersion, args.cut_angles, args.cut_pitch))
+    out["boundary_width"] = boundary_width_numbers(args.cut_boundary_width or "0.1", "--boundary-width")
+    if args.cut_label_error is not None:
+        out["label_error"] = parse_float(args.cut_label_error, "--cut-label-error")
+    if args.cut_clamping_length is not None:
+        out["clamping_length"] = parse_float(args.cut_clamping_length, "--cut-clamping-length", positive=True)
+    return out

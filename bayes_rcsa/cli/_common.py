@@ -135,16 +135,11 @@ def finite_float(text: str) -> float:
 
 
 def sampler_int(table: dict, key: str, default, path):
-    """A positive integer from the setup's ``[sampler]`` table, or ``default``."""
-    if key not in table:
-        return default
-    v = table[key]
-    if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-        raise SetupError(f"{path}: [sampler] {key} = {v!r}: expected a positive integer")
-    from ..io.limits import check_count
+    """A positive integer from the setup's ``[sampler]`` table, or ``default``
+    (:func:`bayes_rcsa.workflows.identify.sampler_setting`)."""
+    from ..workflows.identify import sampler_setting
 
-    check_count(key, v, f"{path}: [sampler] {key} =")
-    return v
+    return sampler_setting(table, key, default, path)
 
 
 def check_output_path(path, option: str = "--out", kind: str = "dir") -> Path:

@@ -3,12 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 from pathlib import Path
 
-from ._arguments import prepare_run
-from ._common import Summary, command_warnings, merge_warnings, positive_int
+from ._common import Summary, positive_int
 
 __all__ = ["register", "run"]
 
@@ -48,46 +45,11 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    from ..batch import load_manifest, run_batch, write_summary
-    from ..io.atomic import atomic_write_text, directory_lock, new_output_directory
-    from .main import main as run_command
+    from ..workflows.batch import batch
 
-    jobs = load_manifest(args.manifest)
-    out, workers, client, executor = prepare_run(args, "batch.json", "batch")
-
-    def progress(k, n, row):
-        if not args.quiet:
-            conv = {True: ", converged", False: ", NOT converged"}.get(row.get("converged"), "")
-            print(f"bayes-rcsa batch: [{k}/{n}] {row['name']}: {row['status']}{conv}"
-                  + (f" ({row['error']})" if row.get("error") else ""), file=sys.stderr, flush=True)
-
-    try:
-        # a full disk or read-only folder: one line, and what this run made in --out goes again (an earlier
-        # batch run's files stay, so a resumed library keeps its finished setups)
-        with directory_lock(out), new_output_directory(out):
-            atomic_write_text(out / "batch.json", json.dumps({"manifest": str(args.manifest.resolve()),
-                                                              "setups": [j.name for j in jobs]}, indent=1))
-            result = run_batch(jobs, out, run_command, executor=executor, workers=workers, force=args.force,
-                               progress=progress)
-            not_conv = [r["name"] for r in result.rows if r.get("converged") is False]
-            warns = merge_warnings(
-                command_warnings(),  # the manifest's (a setup file outside its folder)
-                (f"{n}: the posterior did not converge" for n in not_conv),
-                (f"{r['name']}: {r['status']}: {r['error']}" for r in result.rows if r["status"] != "done"),
-                (f"{r['name']}: {r['n_warnings']} warning(s) (see the warnings column)" for r in result.rows
-                 if r.get("n_warnings")))
-            paths = write_summary(result.rows, out, title=args.manifest.name, warnings=warns)
-    finally:
-        if client is not None:
-            client.close()
-    n_bad = len(jobs) - result.count("done")
-    human = (f"{len(jobs)} setup(s): {result.count('done')} done ({len(result.reused)} from an earlier run), "
-             f"{result.count('failed')} failed, {result.count('lost')} lost; table in {paths['html']}")
-    return Summary(
-        human,
-        {"out": str(out), "summary_csv": str(paths["csv"]), "summary_html": str(paths["html"]),
-         "done": result.count("done"), "failed": result.count("failed"), "lost": result.count("lost"),
-         "ran": result.ran, "reused": result.reused},
-        warnings=tuple(warns),
-        status=1 if n_bad else 0,
-    )
+    result = batch(args.manifest, args.out, workers=args.workers, scheduler=args.scheduler, force=args.force,
+                   progress=not args.quiet)
+    out = result.folder
+    return Summary(result.summary_line(), {"out": str(out), "summary_csv": str(out / "summary.csv"),
+                                           "summary_html": str(out / "summary.html"), **result.summary_data()},
+                   warnings=result.warnings, status=1 if result.failed else 0)

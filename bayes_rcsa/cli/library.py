@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
-from ..errors import SetupError
-from ._common import Summary, command_warnings, merge_warnings, nonnegative_int, positive_int
+from ._common import Summary, nonnegative_int, positive_int
 
 __all__ = ["register", "run"]
 
@@ -60,52 +58,13 @@ def _default_max_steps() -> int:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    import json
+    from ..workflows.library import build_library
 
-    import numpy as np
-
-    from ..batch import load_manifest
-    from ..io.atomic import atomic_write_text, directory_lock, new_output_directory
-    from ..library.stage2 import Stage2Settings
-    from ..library.stage1 import check_setups, collect, run_stage1
-    from ..library.workflow import fit_library, write_library
-    from ._arguments import prepare_run
-    from .main import main as run_command
-
-    jobs = load_manifest(args.manifest)
-    try:
-        check_setups(jobs)  # everything a setup can be refused for, before stage 1 runs
-    except SetupError as exc:
-        raise SetupError(f"{args.manifest}: {exc}") from None
-    out, workers, client, executor = prepare_run(args, "library_run.json", "library")
-
-    def progress(k, n, row):
-        if not args.quiet:
-            print(f"bayes-rcsa library: stage 1 [{k}/{n}] {row['name']}: {row['status']}"
-                  + (f" ({row['error']})" if row.get("error") else ""), file=sys.stderr, flush=True)
-
-    try:
-        with directory_lock(out), new_output_directory(out):
-            atomic_write_text(out / "library_run.json", json.dumps({"manifest": str(args.manifest.resolve()),
-                                                                    "setups": [j.name for j in jobs]}, indent=1))
-            result = run_stage1(jobs, out, run_command, executor=executor, workers=workers, force=args.force,
-                                progress=progress)
-            stage1 = collect(jobs, out, result.rows, tail_correct=args.tail_correct,
-                             rng=np.random.default_rng([args.seed, 5]))
-            settings = {} if args.max_steps is None else {"settings": Stage2Settings(max_steps=args.max_steps)}
-            fit = fit_library(stage1, np.random.default_rng(args.seed), outliers=not args.no_outliers, stage1_dir=out,
-                              **settings)
-            fit.warnings[:0] = command_warnings()
-            paths = write_library(out, fit, plots=not args.no_plots, attrs={"seed": args.seed})
-    finally:
-        if client is not None:
-            client.close()
-    warns = merge_warnings(fit.warnings)
-    outliers = [r["name"] for r in fit.setups if r.get("outlier")]
-    human = (f"{len(fit.setups)} combination(s) in {len(fit.population.holder_types)} holder type(s) "
-             f"{list(fit.population.holder_types)}; outliers: {outliers or 'none'}; population in "
-             f"{paths['population']}")
-    return Summary(human, {"out": str(out), "population": str(paths["population"]), "laws": str(paths["laws_json"]),
-                           "library": str(paths["json"]), "holder_types": list(fit.population.holder_types),
-                           "outliers": outliers, "ran": result.ran, "reused": result.reused},
-                   warnings=tuple(warns))
+    result = build_library(args.manifest, args.out, workers=args.workers, scheduler=args.scheduler, force=args.force,
+                           seed=args.seed, max_steps=args.max_steps, outliers=not args.no_outliers,
+                           tail_correct=args.tail_correct, plots=not args.no_plots, progress=not args.quiet)
+    out = result.folder
+    return Summary(result.summary_line(), {"out": str(out), "population": str(out / "population.nc"),
+                                           "laws": str(out / "laws.json"), "library": str(out / "library.json"),
+                                           **result.summary_data()},
+                   warnings=result.warnings)

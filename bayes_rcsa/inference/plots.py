@@ -13,11 +13,16 @@ import numpy as np
 
 from ..io.figures import new_figure as _figure, save_png as _save
 
-__all__ = ["trace_plot", "corner_plot", "frf_plot"]
+__all__ = ["trace_plot", "corner_plot", "frf_plot", "trace_figure", "corner_figure", "frf_figure"]
 
 
 def trace_plot(chain: np.ndarray, labels: Sequence[str], burn: int, path, max_walkers: int = 32) -> Path:
-    """Walker traces of every parameter, burn-in shaded.
+    """:func:`trace_figure` written to ``path`` (PNG)."""
+    return _save(trace_figure(chain, labels, burn, max_walkers), path)
+
+
+def trace_figure(chain: np.ndarray, labels: Sequence[str], burn: int, max_walkers: int = 32):
+    """Walker traces of every parameter, burn-in shaded (a matplotlib Figure).
 
     Parameters
     ----------
@@ -25,7 +30,6 @@ def trace_plot(chain: np.ndarray, labels: Sequence[str], burn: int, path, max_wa
     labels : ndim axis labels
     burn : int
         Steps discarded as burn-in.
-    path : output PNG
     """
     n, nw, nd = chain.shape
     fig = _figure(9, 1.6 * nd + 0.6)
@@ -37,29 +41,38 @@ def trace_plot(chain: np.ndarray, labels: Sequence[str], burn: int, path, max_wa
         ax.set_ylabel(labels[j], fontsize=8)
     axes[-1].set_xlabel("step")
     fig.tight_layout()
-    return _save(fig, path)
+    return fig
 
 
 def corner_plot(samples: np.ndarray, labels: Sequence[str], path, truths: Sequence[float] | None = None) -> Path:
-    """Corner plot of kept samples (n, ndim) with the ``corner`` package."""
+    """:func:`corner_figure` written to ``path`` (PNG)."""
+    return _save(corner_figure(samples, labels, truths), path)
+
+
+def corner_figure(samples: np.ndarray, labels: Sequence[str], truths: Sequence[float] | None = None):
+    """Corner plot of kept samples (n, ndim) with the ``corner`` package (a matplotlib Figure)."""
     import corner
 
     nd = samples.shape[1]
     fig = _figure(2.0 * nd + 1, 2.0 * nd + 1)
     corner.corner(samples, labels=list(labels), truths=truths, fig=fig, quantiles=[0.05, 0.5, 0.95],
                   show_titles=True, title_fmt=".4g", title_kwargs={"fontsize": 8}, label_kwargs={"fontsize": 8})
-    return _save(fig, path)
+    return fig
 
 
 def frf_plot(panels: Sequence[dict], path) -> Path:
-    """Measured |H| against the predicted median and 90 % band, one panel per measurement.
+    """:func:`frf_figure` written to ``path`` (PNG)."""
+    return _save(frf_figure(panels), path)
+
+
+def frf_figure(panels: Sequence[dict]):
+    """Measured |H| against the predicted median and 90 % band, one panel per measurement (a matplotlib Figure).
 
     Parameters
     ----------
     panels : sequence of dict
         Keys ``title``, ``frequency_hz`` (n,), ``measured`` (n,) complex,
         ``q05``, ``q50``, ``q95`` (n,) of the predicted |H| (m/N).
-    path : output PNG
     """
     n = len(panels)
     cols = min(n, 2)
@@ -78,4 +91,4 @@ def frf_plot(panels: Sequence[dict], path) -> Path:
     for ax in axes[n:]:
         ax.set_visible(False)
     fig.tight_layout()
-    return _save(fig, path)
+    return fig

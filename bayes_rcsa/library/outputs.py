@@ -23,7 +23,8 @@ from ..errors import DataError
 from .population import D_REF, MODEL_VERSION, SCALES, coordinate_units
 from .predictive import Population
 
-__all__ = ["write_population", "read_population", "law_table", "write_law_table", "shrinkage_plot", "MAX_DRAWS"]
+__all__ = ["write_population", "read_population", "law_table", "write_law_table", "shrinkage_plot", "shrinkage_figure",
+           "MAX_DRAWS"]
 
 #: Hyperparameter draws stored per holder type (evenly thinned).
 MAX_DRAWS = 4000
@@ -176,8 +177,15 @@ def write_law_table(out_dir, rows: list[dict]) -> tuple[Path, Path]:
 
 
 def shrinkage_plot(path, names, setups: list[dict]) -> Path:
+    """:func:`shrinkage_figure` written to ``path`` (PNG)."""
+    from ..io.figures import save_png
+
+    return save_png(shrinkage_figure(names, setups), path)
+
+
+def shrinkage_figure(names, setups: list[dict]):
     """Each setup's own stage-1 median and 90 % interval against its pooled one, per coordinate, vs diameter."""
-    from ..io.figures import new_figure, save_png
+    from ..io.figures import new_figure
 
     fig = new_figure(4.0 * len(names), 3.6)
     types = sorted({s["holder_type"] for s in setups})
@@ -203,4 +211,4 @@ def shrinkage_plot(path, names, setups: list[dict]) -> Path:
                 fig.axes[0].plot([], [], "o", color="k", label="pooled")[0]]
     fig.legend(handles=handles, loc="upper center", ncol=len(handles), fontsize=8, frameon=False)
     fig.tight_layout(rect=(0, 0, 1, 0.9))
-    return save_png(fig, path)
+    return fig
