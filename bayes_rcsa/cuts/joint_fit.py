@@ -53,6 +53,7 @@ def joint_cut_term(problem, setup, path, *, flutes: int, kt: float, kr: float, k
         spindle directions, speeds outside the band.
     """
     from ..io.checks import warn_all
+    from ..io.frf import overlap_mask
     from ..stability.conditions import cutting_conditions
     from ..stability.posterior_frf import flute_length
     from ..stability.tests_io import read_cut_table
@@ -82,7 +83,7 @@ def joint_cut_term(problem, setup, path, *, flutes: int, kt: float, kr: float, k
         if d not in setup.spindle:
             raise SetupError(f"{setup.path}: [spindle] {d} is needed for --cuts (both directions are coupled)")
     sx, sy = setup.spindle["x"].frequency_hz, setup.spindle["y"].frequency_hz
-    f = sx[(sx >= max(sx[0], sy[0])) & (sx <= min(sx[-1], sy[-1]))]  # TODO(merge): io.frf.overlap_lines
+    f = sx[overlap_mask(sx, sy)]
     dummy = {k: (np.zeros((1, f.size), complex),) * 2 for k in cuts.setups()}
     cut_groups(cuts, dummy, f)  # refuses speeds outside the band before any sampling
     model = setup.model()

@@ -16,10 +16,23 @@ from . import results as R
 from .band import band_mask
 from .identify import IdentificationResult, predict_frf, sampling_labels
 
-__all__ = ["write_outputs"]
+__all__ = ["write_outputs", "frf_panels"]
 
 
-def _frf_panels(result: IdentificationResult, rng: np.random.Generator, n_draws: int = 300) -> list[dict]:
+def frf_panels(result: IdentificationResult, rng: np.random.Generator, n_draws: int = 300) -> list[dict]:
+    """The panels of frf.png: each measurement's |H| against the predicted 5/50/95 % band on its likelihood band.
+
+    Parameters
+    ----------
+    result : IdentificationResult
+    rng : numpy Generator, picks the plotted subset of at most ``n_draws`` draws
+    n_draws : int
+
+    Returns
+    -------
+    list of dict with ``title``, ``frequency_hz`` (n,) Hz, ``measured`` (n,) complex m/N and ``q05``, ``q50``,
+    ``q95`` (n,) m/N
+    """
     problem = result.problem
     panels = []
     for cfg, frf in problem.all_measurements:
@@ -54,7 +67,7 @@ def write_outputs(result: IdentificationResult, out_dir, plots: bool = True) -> 
         if result.chain is not None:
             written.append(P.trace_plot(result.chain.chain, labels, result.chain.burn, out / "trace.png"))
             written.append(P.corner_plot(result.flat_theta, labels, out / "corner.png"))
-        written.append(P.frf_plot(_frf_panels(result, np.random.default_rng(result.seed)), out / "frf.png"))
+        written.append(P.frf_plot(frf_panels(result, np.random.default_rng(result.seed)), out / "frf.png"))
     R.write_summary(out / "summary.json", result.summary)
     written.append(out / "summary.json")
     return written

@@ -151,12 +151,8 @@ class Identifiability(Result):
 
         Saved fits are read from fits/<name>/posterior.nc; fits only in memory carry their draws and summary.
         """
-        try:
-            from .identify import Posterior
-        except ImportError:  # TODO(merge): workflows.identify (helper wfa) defines Posterior; until then ArviZ data
-            from ..store import read_posterior
+        from .identify import Posterior
 
-            return {name: read_posterior(path, option=None) for name, path in self._posterior_files().items()}
         saved = self._posterior_files()
         if self.study is None:
             return {name: Posterior.load(path, setup=self.setup) for name, path in saved.items()}

@@ -260,23 +260,24 @@ class Posterior(Result):
     # -- pictures ------------------------------------------------------------------------------------------------
     def figures(self) -> dict:
         """``trace``, ``corner`` and ``frf`` of a run in memory; ``corner`` (physical values) of a loaded one."""
+        import numpy as np
+
         from ..inference import plots as P
 
         ir = self.identification
         if ir is not None:
             from ..inference.identify import sampling_labels
+            from ..inference.outputs import frf_panels
 
             labels = sampling_labels(ir.problem.parameters)
             out = {}
             if ir.chain is not None:
                 out["trace"] = P.trace_figure(ir.chain.chain, labels, ir.chain.burn)
                 out["corner"] = P.corner_figure(ir.flat_theta, labels)
-            out["frf"] = P.frf_figure(_frf_panels(ir))
+            out["frf"] = P.frf_figure(frf_panels(ir, np.random.default_rng(ir.seed)))
             return out
         if self.draws is None:
             return {}
-        import numpy as np
-
         names = self.draws.sampled
         samples = np.column_stack([self.draws.values[n] for n in names])
         labels = [f"{n} [{self.draws.parameters.unit(n)}]" for n in names]
@@ -297,42 +298,11 @@ def _loaded(idata):
     return idata
 
 
-def _frf_panels(ir, n_draws: int = 300) -> list[dict]:
-    """The panels of frf.png: measured |H| against the predicted 5/50/95 % band on each measurement's band.
-
-    TODO(merge): the same as the private ``_frf_panels`` of the module that writes frf.png (inference.identify,
-    moving to inference.outputs); one public function there would serve both.
-    """
-    import numpy as np
-
-    from ..inference.band import band_mask
-    from ..inference.identify import predict_frf
-
-    rng = np.random.default_rng(ir.seed)  # the stream write_outputs draws the plotted subset from
-    problem = ir.problem
-    panels = []
-    for cfg, frf in problem.all_measurements:
-        mask = band_mask(frf, problem.band_of(frf))
-        f = frf.frequency_hz[mask]
-        q05, q50, q95 = np.quantile(np.abs(predict_frf(ir, cfg, f, max_draws=n_draws, rng=rng)), [0.05, 0.5, 0.95],
-                                    axis=0)
-        used = any(o.configuration == cfg and o.source == frf.source for o in problem.observations)
-        panels.append({"title": f"{cfg.label()}{'' if used else ' (not fitted)'}", "frequency_hz": f,
-                       "measured": frf.values[mask], "q05": q05, "q50": q50, "q95": q95})
-    return panels
-
-
-def _write_outputs():
-    try:
-        from ..inference.outputs import write_outputs
-    except ImportError:  # TODO(merge): inference.outputs.write_outputs (the "inference" helper moves it there)
-        from ..inference.identify import write_outputs
-    return write_outputs
-
-
 def _write_identification(ir, folder: Path, plots: bool, cut_draws, summary: dict) -> None:
     """summary.json, posterior.nc and the plots of a run, and the cut coefficients of a joint fit."""
-    _write_outputs()(ir, folder, plots=plots)
+    from ..inference.outputs import write_outputs
+
+    write_outputs(ir, folder, plots=plots)
     if cut_draws is not None:
         from ..cuts.joint import add_coefficients_to_posterior
 
@@ -544,12 +514,13 @@ def _fit(problem, setup, seed, settings, resume, spindle_samples, tail_check, cu
     from ..inference.tail_check import check_identification
     from ..posterior.setup_match import GEOMETRY_KEY, setup_geometry
 
-    with _extra_terms(problem, cut_term) as problem:
-        result = run_identification(problem, seed=seed, settings=settings, checkpoint_path=checkpoint, resume=resume,
-                                    spindle_samples=spindle_samples)
-        if tail_check:
-            # its own stream: the chain's seed stays the chain's
-            result.summary["tail_check"] = check_identification(result, np.random.default_rng([seed, 7]))
+    if cut_term is not None:  # a joint fit: the cut outcomes are an extra likelihood term of the problem
+        problem = problem.with_extra_terms(cut_term)
+    result = run_identification(problem, seed=seed, settings=settings, checkpoint_path=checkpoint, resume=resume,
+                                spindle_samples=spindle_samples)
+    if tail_check:
+        # its own stream: the chain's seed stays the chain's
+        result.summary["tail_check"] = check_identification(result, np.random.default_rng([seed, 7]))
     cut_draws = None
     if cut_term is not None:
         from ..cuts.joint_fit import cut_coefficients
@@ -568,25 +539,6 @@ def _fit(problem, setup, seed, settings, resume, spindle_samples, tail_check, cu
                         "holder_type": setup.holder_type, "pooled_parameters": list(population.names)}
     return Posterior(summary=s, setup=setup, warnings=tuple(s["warnings"]), identification=result,
                      cut_draws=cut_draws)
-
-
-def _extra_terms(problem, cut_term):
-    """``problem`` with the cut term as an extra likelihood term (a joint fit), as a context."""
-    import contextlib
-
-    if cut_term is None:
-        return contextlib.nullcontext(problem)
-    if hasattr(problem, "with_extra_terms"):
-        return contextlib.nullcontext(problem.with_extra_terms(cut_term))
-    # TODO(merge): Problem.with_extra_terms replaces the context manager (the "inference" helper removes it)
-    from ..inference.posterior import extra_likelihood_terms
-
-    @contextlib.contextmanager
-    def block():
-        with extra_likelihood_terms(cut_term):
-            yield problem
-
-    return block()
 
 
 def _cut_term(cuts, problem, setup, method: str, resume: bool):
