@@ -7,8 +7,9 @@ The workflows are functions of this package that return result objects
     setup = br.load_setup("setup.toml")
     post = br.identify(setup, lengths=[0.025, 0.040], seed=1)
     pred = post.predict([0.030])
-    lob = br.lobes(post, clamping_length=0.030, flutes=4, kt=790e6, kr=230e6, radial_immersion=0.7,
-                   speeds_rpm=np.linspace(5000, 30000, 400))
+    lob = br.lobes(posterior=post, setup=setup, clamping_length=0.030, flutes=4, kt=790e6, kr=230e6,
+                   radial_immersion=0.7, speeds_rpm=np.linspace(5000, 30000, 400))
+    check = br.check_model(setup, lengths=[0.025, 0.040])
 
 Each result has ``save(folder)`` (the files of the matching ``bayes-rcsa``
 command), ``load(folder)``, ``to_dict()``, ``figures()`` and a notebook
@@ -50,6 +51,6 @@ def __dir__():
 
 __all__ = ["BayesRCSAError", "ConvergenceError", "DataError", "ModelError", "SetupError", "__version__",
            "load_setup", "example_setup", "Result", "identify", "Posterior", "predict", "Prediction", "lobes", "Lobes",
-           "discrepancy", "ModelCheck", "design", "Design", "update", "CutUpdate", "build_library", "Population",
-           "batch", "BatchRun", "report", "Report", "identifiability", "Identifiability", "identify_spindle",
+           "check_model", "ModelCheck", "design_test", "Design", "update", "CutUpdate", "build_library",
+           "Population", "run_batch", "BatchRun", "make_report", "Report", "identifiability", "Identifiability", "identify_spindle",
            "SpindleInterface", "synthesize", "Campaign", "simulate", "SimulatedFRF", "demo", "Demo"]

@@ -9,7 +9,7 @@ import pytest
 
 from bayes_rcsa.errors import SetupError
 from bayes_rcsa.synthetic import default_bench_config, generate_campaign, write_campaign
-from bayes_rcsa.workflows.batch import BatchRun, batch  # `bayes_rcsa.batch` is the batch machinery package
+from bayes_rcsa.workflows.batch_run import BatchRun, run_batch  # `bayes_rcsa.batch` is the batch machinery package
 from test_batch import MANIFEST
 
 
@@ -27,7 +27,7 @@ def manifest(tmp_path_factory):
 @pytest.fixture(scope="module")
 def run(manifest, tmp_path_factory):
     out = tmp_path_factory.mktemp("api_batch_out") / "batch"
-    return batch(manifest, out, workers=1)
+    return run_batch(manifest, out, workers=1)
 
 
 def test_batch_returns_the_table_it_writes(run):
@@ -45,7 +45,7 @@ def test_load_round_trips_and_a_second_run_resumes(run, manifest):
     back = BatchRun.load(run.folder)
     assert back.rows == json.loads(json.dumps(run.rows, default=str))
     assert back.table_title == manifest.name and back.warnings == run.warnings
-    again = batch(manifest, run.folder, workers=1)
+    again = run_batch(manifest, run.folder, workers=1)
     assert again.reused == ["tool0", "tool1"] and again.ran == []
     assert json.loads(json.dumps([{**r, "reused": False} for r in again.rows], default=str)) == \
         json.loads(json.dumps(run.rows, default=str))
@@ -57,4 +57,4 @@ def test_notebook_view_and_refusal(run, manifest, tmp_path):
     (tmp_path / "other").mkdir()
     (tmp_path / "other" / "x.txt").write_text("x")
     with pytest.raises(SetupError, match="holds no earlier batch run"):
-        batch(manifest, tmp_path / "other")
+        run_batch(manifest, tmp_path / "other")

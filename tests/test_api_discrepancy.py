@@ -1,4 +1,4 @@
-"""The public model check: ``bayes_rcsa.workflows.discrepancy`` and its :class:`ModelCheck`.
+"""The public model check: ``bayes_rcsa.workflows.model_check`` and its :class:`ModelCheck`.
 
 One computed check (a synthetic campaign with a hidden 2 g tip mass, 4 Hz lines, two candidates: the cheapest
 run that names an effect) serves every test; the command line is checked against it by handing it the same
@@ -20,8 +20,8 @@ from bayes_rcsa.cli import main as cli_main
 from bayes_rcsa.errors import SetupError
 from bayes_rcsa.io.setup import load_setup
 from bayes_rcsa.synthetic import default_bench_config, generate_campaign, write_campaign
-from bayes_rcsa.workflows import discrepancy as api
-from bayes_rcsa.workflows.discrepancy import ModelCheck, discrepancy
+from bayes_rcsa.workflows import model_check as api
+from bayes_rcsa.workflows.model_check import ModelCheck, check_model
 
 FIT = (0.025, 0.040)
 CANDIDATES = ("tip_mass", "contact_damping")
@@ -36,7 +36,7 @@ def campaign(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def check(campaign):
-    return discrepancy(campaign, lengths=FIT, candidates=CANDIDATES, seed=0)
+    return check_model(campaign, lengths=FIT, candidates=CANDIDATES, seed=0)
 
 
 def _fresh(check: ModelCheck) -> ModelCheck:
@@ -146,7 +146,7 @@ def test_warnings_issued_during_the_check_reach_the_result_and_every_file(check,
 
     monkeypatch.setattr(wf, "run_discrepancy", fake)
     with pytest.warns(UserWarning, match="coherence below"):  # a script sees it at once, and keeps it
-        result = discrepancy(campaign, lengths=FIT, candidates=CANDIDATES, progress=True)
+        result = check_model(campaign, lengths=FIT, candidates=CANDIDATES, progress=True)
     assert capsys.readouterr().err.startswith("bayes-rcsa discrepancy: screen: tip_mass 12\n")
     assert result.warnings[0] == "spindle file: coherence below 0.8 at 3 lines"
     assert result.warnings[1:] == check.warnings
@@ -157,6 +157,6 @@ def test_warnings_issued_during_the_check_reach_the_result_and_every_file(check,
 
 def test_bad_candidates_are_refused_before_any_fit(campaign):
     with pytest.raises(SetupError, match="flying_saucer.*tip_mass|tip_mass.*flying_saucer"):
-        discrepancy(campaign, lengths=FIT, candidates=("tip_mass", "flying_saucer"))
+        check_model(campaign, lengths=FIT, candidates=("tip_mass", "flying_saucer"))
     with pytest.raises(SetupError, match="at least one effect"):
-        discrepancy(campaign, lengths=FIT, candidates=())
+        check_model(campaign, lengths=FIT, candidates=())

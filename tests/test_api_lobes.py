@@ -1,4 +1,4 @@
-"""``bayes_rcsa.workflows.lobes``: the API result equals what ``bayes-rcsa lobes`` writes, round-trips through its
+"""``bayes_rcsa.workflows.stability_lobes``: the API result equals what ``bayes-rcsa lobes`` writes, round-trips through its
 files, and in posterior mode reads the setup once and posterior.nc once."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import pytest
 
 from bayes_rcsa.cli.main import main
 from bayes_rcsa.stability import ModalModel
-from bayes_rcsa.workflows.lobes import Lobes, lobes
+from bayes_rcsa.workflows.stability_lobes import Lobes, lobes
 
 from test_params_posterior import fitted  # noqa: F401  (a small fit written to DIR/posterior.nc)
 

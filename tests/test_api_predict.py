@@ -8,9 +8,9 @@ import json
 import pytest
 
 from bayes_rcsa.cli.main import main
-from bayes_rcsa.workflows.design import Design, design
-from bayes_rcsa.workflows.predict import Prediction, predict
-from bayes_rcsa.workflows.report import Report, report
+from bayes_rcsa.workflows.experiment_design import Design, design_test
+from bayes_rcsa.workflows.prediction import Prediction, predict
+from bayes_rcsa.workflows.reporting import Report, make_report
 
 from test_api_lobes import _count_reads
 from test_params_posterior import fitted  # noqa: F401  (a small fit written to DIR/posterior.nc)
@@ -65,7 +65,7 @@ def designed(fitted, tmp_path_factory):  # noqa: F811
     out = tmp_path_factory.mktemp("cli") / "design"
     args = ["--target", "frequency@0.035", "--candidates", "0.027,0.038", "--draws", "100", "--truths", "8"]
     assert main(["design", str(setup_path), "--posterior", str(posterior), *args, "--out", str(out)]) == 0
-    res = design(setup_path, posterior, target="frequency@0.035", candidates="0.027,0.038", draws=100, truths=8)
+    res = design_test(setup_path, posterior, target="frequency@0.035", candidates="0.027,0.038", draws=100, truths=8)
     return res, out
 
 
@@ -88,7 +88,7 @@ def test_report_equals_the_cli_file_and_round_trips(predicted, designed, tmp_pat
     (_, pred_dir), (_, design_dir) = predicted, designed
     cli_out = tmp_path / "cli.html"
     assert main(["report", str(pred_dir), str(design_dir), "--out", str(cli_out)]) == 0
-    res = report([pred_dir, design_dir])
+    res = make_report([pred_dir, design_dir])
     assert isinstance(res, Report) and res.path is None
     path = res.save(tmp_path / "api.html", summary_md=tmp_path / "api.md")
     assert path.read_text() == cli_out.read_text() == res.html

@@ -14,10 +14,10 @@ from bayes_rcsa.cli.main import main
 from bayes_rcsa.data import example_dir
 from bayes_rcsa.errors import DataWarning, SetupError
 from bayes_rcsa.spindle.uncertainty import SpindleSamples, load_spindle_samples
-from bayes_rcsa.workflows.identifiability import Identifiability
-from bayes_rcsa.workflows.simulate import SimulatedFRF
+from bayes_rcsa.workflows.identifiability_study import Identifiability
+from bayes_rcsa.workflows.simulation import SimulatedFRF
 from bayes_rcsa.workflows.spindle import SpindleInterface
-from bayes_rcsa.workflows.synthesize import Campaign
+from bayes_rcsa.workflows.synthesis import Campaign
 from test_synthetic_cli import SMALL as BENCH  # noqa: E402  (2 lengths x 1 direction, 301 lines)
 
 SIM = dict(clamping_length=0.03, kx=2e6, ktheta=5e5, cx=1.0, ctheta=0.5)

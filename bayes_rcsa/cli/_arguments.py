@@ -186,7 +186,7 @@ def add_cut_arguments(p) -> None:
 
 def cut_test_numbers(args) -> dict | None:
     """The ``--cuts`` group of ``identify`` as numbers (None without ``--cuts``): the keywords of
-    :class:`bayes_rcsa.workflows.identify.CutTestOptions` (a missing ``--cut-kt``/``--cut-kr``/``--cut-flutes``
+    :class:`bayes_rcsa.workflows.identification.CutTestOptions` (a missing ``--cut-kt``/``--cut-kr``/``--cut-flutes``
     is None; the workflow names it)."""
     if args.cuts is None:
         given = [f"--{n.replace('_', '-')}" for n in CUT_FLAGS if getattr(args, n, None) is not None]

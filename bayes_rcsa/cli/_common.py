@@ -136,8 +136,8 @@ def finite_float(text: str) -> float:
 
 def sampler_int(table: dict, key: str, default, path):
     """A positive integer from the setup's ``[sampler]`` table, or ``default``
-    (:func:`bayes_rcsa.workflows.identify.sampler_setting`)."""
-    from ..workflows.identify import sampler_setting
+    (:func:`bayes_rcsa.workflows.identification.sampler_setting`)."""
+    from ..workflows.identification import sampler_setting
 
     return sampler_setting(table, key, default, path)
 

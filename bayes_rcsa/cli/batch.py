@@ -45,9 +45,9 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    from ..workflows.batch import batch
+    from ..workflows.batch_run import run_batch
 
-    result = batch(args.manifest, args.out, workers=args.workers, scheduler=args.scheduler, force=args.force,
+    result = run_batch(args.manifest, args.out, workers=args.workers, scheduler=args.scheduler, force=args.force,
                    progress=not args.quiet)
     out = result.folder
     return Summary(result.summary_line(), {"out": str(out), "summary_csv": str(out / "summary.csv"),

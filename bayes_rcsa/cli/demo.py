@@ -2,7 +2,7 @@
 
 Parsing and printing only; the steps (identify, predict, lobes, the model
 check, report.html, index.html, summary.md) are
-:func:`bayes_rcsa.workflows.demo.demo`.
+:func:`bayes_rcsa.workflows.demo_run.demo`.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    from ..workflows.demo import demo
+    from ..workflows.demo_run import demo
 
     result = demo(args.out, seed=args.seed, max_steps=args.max_steps, force=args.force)
     return Summary(result.summary_line(), {"out": str(result.folder), **result.summary_data()})

@@ -76,11 +76,11 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    from ..workflows.design import design  # the package attribute "design" is the module once imported
+    from ..workflows.experiment_design import design_test
 
     kw = _next_cut_keywords(args) if args.next_cut else _hammer_keywords(args)
     check_output_directory(args.out, args.force)  # refused before the design is computed (again under the lock)
-    result = design(args.setup, args.posterior, target=args.target, draws=args.draws, seed=args.seed,
+    result = design_test(args.setup, args.posterior, target=args.target, draws=args.draws, seed=args.seed,
                     flutes=args.flutes, milling=args.milling, next_cut=args.next_cut, **kw)
     path = result.save(args.out, force=args.force, plots=not args.no_plots)
     return Summary(result.summary_line(), {"out": str(args.out), "design": str(path), **result.summary_data()},

@@ -48,7 +48,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    from ..workflows.discrepancy import discrepancy
+    from ..workflows.model_check import check_model
 
     check_output_directory(args.out, args.force)  # before anything is computed
     lengths = parse_float_list(args.lengths, "--lengths", positive=True) if args.lengths is not None else None
@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> Summary:
         cands = [c.strip() for c in args.candidates.split(",") if c.strip()]
         if not cands:
             raise SetupError(f"--candidates {args.candidates!r}: expected a comma-separated list of effect names")
-    result = discrepancy(args.setup, lengths=lengths, candidates=cands, seed=args.seed, n_refit=args.refit,
+    result = check_model(args.setup, lengths=lengths, candidates=cands, seed=args.seed, n_refit=args.refit,
                          progress=args.verbose)
     result.save(args.out, force=args.force, plots=not args.no_plots)
     data = {"out": str(args.out), "files": [str(f) for f in result.saved_files], **result.summary_data()}

@@ -62,7 +62,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    from ..workflows.identifiability import identifiability
+    from ..workflows.identifiability_study import identifiability
 
     lengths = parse_float_list(args.lengths, "--lengths", positive=True) if args.lengths is not None else None
     check_output_directory(args.out, args.force)  # before hours of sampling, not after (checked again on saving)

@@ -101,7 +101,7 @@ def register(subparsers) -> None:
 
 
 def run(args) -> Summary:
-    from ..workflows.identify import identify
+    from ..workflows.identification import identify
 
     cuts = cut_test_numbers(args)  # None without --cuts
     result = identify(args.setup, lengths=args.lengths, method=args.method, seed=args.seed, walkers=args.walkers,

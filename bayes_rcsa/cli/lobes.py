@@ -1,6 +1,6 @@
 """``bayes-rcsa lobes``: stability lobes and a robust operating point from measured FRFs or posterior draws.
 
-Parsing and printing only; the workflow is :func:`bayes_rcsa.workflows.lobes.lobes` (``bayes_rcsa.lobes``).
+Parsing and printing only; the workflow is :func:`bayes_rcsa.workflows.stability_lobes.lobes` (``bayes_rcsa.lobes``).
 See docs/stability.md.
 """
 
@@ -14,7 +14,7 @@ from ._common import Summary, add_force_argument, check_output_directory, nonneg
 
 __all__ = ["register", "run"]
 
-DEFAULT_BUDGET_S = 120.0  # = bayes_rcsa.workflows.lobes.DEFAULT_BUDGET_S (not imported: --help stays light)
+DEFAULT_BUDGET_S = 120.0  # = bayes_rcsa.workflows.stability_lobes.DEFAULT_BUDGET_S (not imported: --help stays light)
 
 
 def register(subparsers) -> None:
@@ -92,7 +92,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    from ..workflows.lobes import lobes  # the package attribute "lobes" is the module once imported
+    from ..workflows.stability_lobes import lobes
 
     kw = cutting_keywords(args)
     speeds = parse_speeds(args.speeds)

@@ -64,7 +64,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    from ..workflows.predict import predict  # the package attribute "predict" is the module once imported
+    from ..workflows.prediction import predict
 
     lengths = None if args.lengths is None else parse_float_list(args.lengths, "--lengths", positive=True)
     directions = None if args.directions is None else parse_directions(args.directions)

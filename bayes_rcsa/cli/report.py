@@ -45,7 +45,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    from ..workflows.report import report  # the package attribute "report" is the module once imported
+    from ..workflows.reporting import make_report
 
     out = check_output_path(args.out, "--out", kind="file")
     if out.exists() and not args.force:
@@ -53,6 +53,6 @@ def run(args: argparse.Namespace) -> Summary:
     md = None if args.summary is None else check_output_path(args.summary, "--summary", kind="file")
     if md is not None and md.exists() and not args.force:
         raise SetupError(f"--summary {md}: exists; use --force to replace it")
-    result = report(args.runs, title=args.title, seed=args.seed)
+    result = make_report(args.runs, title=args.title, seed=args.seed)
     result.save(out, force=args.force, summary_md=md)
     return Summary(result.summary_line(), result.summary_data(), warnings=result.warnings)

@@ -30,7 +30,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    from ..workflows.simulate import SimulatedFRF, simulate
+    from ..workflows.simulation import SimulatedFRF, simulate
 
     numbers = dict(clamping_length=parse_float(args.clamping_length, "--clamping-length", positive=True),
                    kx=parse_float(args.kx, "--kx", positive=True), ktheta=parse_float(args.ktheta, "--ktheta", positive=True),

@@ -38,7 +38,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    from ..workflows.synthesize import synthesize
+    from ..workflows.synthesis import synthesize
 
     check_output_directory(Path(args.out), args.force)  # before anything is generated
     cut = {} if not args.cuts else dict(  # parsed only with --cuts (the cut options have no effect without it)

@@ -1,8 +1,8 @@
 """``bayes-rcsa update``: cutting-test outcomes update an existing posterior (no new hammer-test fit).
 
-Parsing and printing only; the work is :func:`bayes_rcsa.workflows.update.update`
+Parsing and printing only; the work is :func:`bayes_rcsa.workflows.cut_update.update`
 (importance re-weighting with an ESS check), the files are written by
-:meth:`bayes_rcsa.workflows.update.CutUpdate.save`.  See docs/stability.md,
+:meth:`bayes_rcsa.workflows.cut_update.CutUpdate.save`.  See docs/stability.md,
 "Cutting tests update the posterior".
 """
 
@@ -83,7 +83,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> Summary:
-    from ..workflows.update import update
+    from ..workflows.cut_update import update
 
     cutting = cutting_keywords(args, kr_tolerance=True)
     numbers = dict(

@@ -12,8 +12,7 @@ The loop (docs/discrepancy.md):
 * :mod:`.document` -- discrepancy.json; :mod:`.render` -- summary.md and the closing line;
   :mod:`.files` -- setup.amended.toml and the writing of every file; :mod:`.plots` -- its figures.
 
-The public entry point is :func:`bayes_rcsa.workflows.discrepancy.discrepancy` (``bayes_rcsa.discrepancy`` the
-function, reachable from the top level), which returns a :class:`~bayes_rcsa.workflows.discrepancy.ModelCheck`.
+The public entry point is :func:`bayes_rcsa.workflows.model_check.check_model` (``bayes_rcsa.check_model``), which returns a :class:`~bayes_rcsa.workflows.model_check.ModelCheck`.
 
 Candidates are the registered model terms (:mod:`bayes_rcsa.params.terms`):
 adding a candidate is adding a model term (one file, one registration).

@@ -1,6 +1,6 @@
 """The files of the discrepancy workflow: setup.amended.toml and the writing of every file.
 
-``bayes-rcsa discrepancy`` (and :meth:`bayes_rcsa.workflows.discrepancy.ModelCheck.save`) write into one
+``bayes-rcsa discrepancy`` (and :meth:`bayes_rcsa.workflows.model_check.ModelCheck.save`) write into one
 folder: ``setup.amended.toml`` when an effect is named, ``discrepancy.json`` (:mod:`.document`), ``summary.md``
 (:mod:`.render`) and the PNG plots (:mod:`.plots`).  :func:`write_files` writes them into a folder the caller
 has made safe to write (locked, or a temporary one); :func:`write_discrepancy` does it atomically on its own.

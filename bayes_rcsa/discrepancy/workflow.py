@@ -3,7 +3,7 @@
 :func:`run_discrepancy` does the computation and returns a :class:`DiscrepancyResult` (nothing is written),
 whose ``report`` is the document discrepancy.json (:mod:`.document`).  Its presentation is elsewhere:
 summary.md in :mod:`.render`, setup.amended.toml and the writing of every file in :mod:`.files`, the plots in
-:mod:`.plots`; the public entry point is :func:`bayes_rcsa.workflows.discrepancy.discrepancy`.  See
+:mod:`.plots`; the public entry point is :func:`bayes_rcsa.workflows.model_check.check_model`.  See
 docs/discrepancy.md.
 
 Steps

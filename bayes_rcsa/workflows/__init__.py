@@ -7,7 +7,12 @@ Hz, rpm for spindle speeds) and returns a :class:`~bayes_rcsa.workflows.result.R
 subclass with ``save``/``load``, ``to_dict``, ``figures`` and a notebook view.
 
 The names are imported lazily (``import bayes_rcsa`` stays light); they are
-also available from the top level: ``bayes_rcsa.identify(...)``.
+also available from the top level: ``bayes_rcsa.identify(...)``.  Each lives
+in a module whose name differs from every public name (``identification``
+holds ``identify``), because importing a submodule makes it an attribute of
+its package: a module ``identify`` would hide the function ``identify``.
+For the same reason no public name equals a subpackage of ``bayes_rcsa``
+(the model check is ``check_model``, not ``discrepancy``).
 """
 
 from __future__ import annotations
@@ -17,20 +22,20 @@ import importlib
 #: public name -> module of this package that defines it
 EXPORTS: dict[str, str] = {
     "Result": "result",
-    "identify": "identify", "Posterior": "identify",
-    "predict": "predict", "Prediction": "predict",
-    "lobes": "lobes", "Lobes": "lobes",
-    "discrepancy": "discrepancy", "ModelCheck": "discrepancy",
-    "design": "design", "Design": "design",
-    "update": "update", "CutUpdate": "update",
+    "identify": "identification", "Posterior": "identification",
+    "predict": "prediction", "Prediction": "prediction",
+    "lobes": "stability_lobes", "Lobes": "stability_lobes",
+    "check_model": "model_check", "ModelCheck": "model_check",
+    "design_test": "experiment_design", "Design": "experiment_design",
+    "update": "cut_update", "CutUpdate": "cut_update",
     "build_library": "library", "Population": "library",
-    "batch": "batch", "BatchRun": "batch",
-    "report": "report", "Report": "report",
-    "identifiability": "identifiability", "Identifiability": "identifiability",
+    "run_batch": "batch_run", "BatchRun": "batch_run",
+    "make_report": "reporting", "Report": "reporting",
+    "identifiability": "identifiability_study", "Identifiability": "identifiability_study",
     "identify_spindle": "spindle", "SpindleInterface": "spindle",
-    "synthesize": "synthesize", "Campaign": "synthesize",
-    "simulate": "simulate", "SimulatedFRF": "simulate",
-    "demo": "demo", "Demo": "demo",
+    "synthesize": "synthesis", "Campaign": "synthesis",
+    "simulate": "simulation", "SimulatedFRF": "simulation",
+    "demo": "demo_run", "Demo": "demo_run",
 }
 
 __all__ = sorted(EXPORTS)

@@ -1,7 +1,7 @@
 """Inputs shared by the workflows that use a posterior (predict, lobes, design): a path or a loaded ``Posterior``.
 
 A workflow accepts the posterior as the path of a ``posterior.nc`` or as the
-:class:`~bayes_rcsa.workflows.identify.Posterior` an identification returned
+:class:`~bayes_rcsa.workflows.identification.Posterior` an identification returned
 (or :meth:`Posterior.load` read); with the latter it uses the draws and the
 file content it holds and never reads the file again.  The setup likewise is
 a path of the setup TOML or a loaded :class:`~bayes_rcsa.io.setup.Setup`.

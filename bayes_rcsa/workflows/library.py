@@ -17,7 +17,7 @@ from typing import Any, Callable, ClassVar
 
 from ..errors import SetupError
 from ..messages import current_warnings, merge_warnings, warning_log
-from .batch import CommandLine, check_run_folder, executor_for, progress_printer
+from .batch_run import CommandLine, check_run_folder, executor_for, progress_printer
 from .result import Result, saving
 
 __all__ = ["build_library", "Population"]

@@ -285,8 +285,8 @@ class Posterior(Result):
 
     # -- predictions ---------------------------------------------------------------------------------------------
     def predict(self, lengths, **kw):
-        """Tool-point FRF and natural frequencies at ``lengths`` (m): :func:`bayes_rcsa.workflows.predict.predict`."""
-        from .predict import predict
+        """Tool-point FRF and natural frequencies at ``lengths`` (m): :func:`bayes_rcsa.workflows.prediction.predict`."""
+        from .prediction import predict
 
         return predict(self.setup, self, lengths, **kw)
 

@@ -73,8 +73,8 @@ class CutUpdate(Result):
 
     @property
     def posterior(self):
-        """The updated posterior as a :class:`~bayes_rcsa.workflows.identify.Posterior` (read into memory)."""
-        from .identify import Posterior
+        """The updated posterior as a :class:`~bayes_rcsa.workflows.identification.Posterior` (read into memory)."""
+        from .identification import Posterior
 
         if self.folder is not None:
             return Posterior.load(Path(self.folder) / "posterior.nc", self._setup_object())

@@ -16,7 +16,7 @@ from ..errors import SetupError
 from ..messages import merge_warnings, warning_log
 from .result import Result
 
-__all__ = ["report", "Report"]
+__all__ = ["make_report", "Report"]
 
 
 @dataclass
@@ -90,7 +90,7 @@ class Report(Result):
         return cls(text, (), (), path)
 
 
-def report(run_dirs: Sequence, *, title: str | None = None, seed: int = 0) -> Report:
+def make_report(run_dirs: Sequence, *, title: str | None = None, seed: int = 0) -> Report:
     """Build the HTML report of ``run_dirs`` (output directories of the other commands).
 
     Parameters

@@ -22,7 +22,7 @@ from ..errors import SetupError
 from ..messages import current_warnings, merge_warnings, warning_log
 from .result import Result
 
-__all__ = ["batch", "BatchRun", "CommandLine", "executor_for", "check_run_folder"]
+__all__ = ["run_batch", "BatchRun", "CommandLine", "executor_for", "check_run_folder"]
 
 
 @dataclass(frozen=True)
@@ -177,7 +177,7 @@ class BatchRun(Result):
                    table_title=Path(run["manifest"]).name, warnings=tuple(doc.get("warnings", [])))
 
 
-def batch(manifest, out, *, workers: int | None = None, scheduler: str | None = None, force: bool = False,
+def run_batch(manifest, out, *, workers: int | None = None, scheduler: str | None = None, force: bool = False,
           progress=None, runner: Callable[[list[str]], int] | None = None) -> BatchRun:
     """Run identify, predict and lobes for every setup of ``manifest`` into ``out``, in parallel and resumably.
 

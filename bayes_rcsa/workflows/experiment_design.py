@@ -24,7 +24,7 @@ from ..messages import merge_warnings, warning_log
 from .result import Result, saving
 from ._posterior_input import is_path, posterior_parts, setup_of
 
-__all__ = ["design", "Design"]
+__all__ = ["design_test", "Design"]
 
 
 @dataclass
@@ -157,7 +157,7 @@ def _warnings_of(document: dict) -> list[str]:
     return [n for n in document.get("notes", []) if "collapsed" in n or n.startswith("warning:")]
 
 
-def design(setup, posterior=None, *, target=None, candidates=None, draws: int = 1500, truths: int = 120,
+def design_test(setup, posterior=None, *, target=None, candidates=None, draws: int = 1500, truths: int = 120,
            method: str = "auto", seed: int = 0, noise_scale: float | None = None, kt: float | None = None,
            kr: float | None = None, flutes: int | None = None, radial_immersion: float | None = None,
            milling: str = "down", next_cut: bool = False, speeds_rpm=None, depths_m=None,

@@ -6,8 +6,8 @@ the tempered evidence supports; when the model is inadequate and nothing is name
 term widens the intervals instead.  It returns a :class:`ModelCheck`, which ``bayes-rcsa discrepancy`` saves.
 The method is :mod:`bayes_rcsa.discrepancy` (docs/discrepancy.md)::
 
-    from bayes_rcsa.workflows.discrepancy import discrepancy
-    check = discrepancy("setup.toml", lengths=[0.025, 0.040])
+    from bayes_rcsa.workflows.model_check import check_model
+    check = check_model("setup.toml", lengths=[0.025, 0.040])
     check.named_effect, check.gap_before, check.gap_after
     check.save("check")                     # discrepancy.json, summary.md, plots, setup.amended.toml
 """
@@ -31,7 +31,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..discrepancy.workflow import DiscrepancyResult
     from ..io.setup import Setup
 
-__all__ = ["discrepancy", "ModelCheck", "Candidate"]
+__all__ = ["check_model", "ModelCheck", "Candidate"]
 
 #: Prefix of the progress lines (the command line's ``--verbose`` prints the same).
 PROGRESS_PREFIX = "bayes-rcsa discrepancy: "
@@ -364,7 +364,7 @@ class ModelCheck(Result):
                    amended_setup=load_document(amended) if amended.exists() else None)
 
 
-def discrepancy(setup, *, lengths: Sequence[float] | None = None, candidates: Sequence[str] | None = None,
+def check_model(setup, *, lengths: Sequence[float] | None = None, candidates: Sequence[str] | None = None,
                 seed: int = 0, n_refit: int | None = None, leave_one_out: bool = True,
                 progress: bool | Callable[[str], None] = False) -> ModelCheck:
     """Check the setup's model against its measurements: detect, name the missing effect, add it.

@@ -151,7 +151,7 @@ class Identifiability(Result):
 
         Saved fits are read from fits/<name>/posterior.nc; fits only in memory carry their draws and summary.
         """
-        from .identify import Posterior
+        from .identification import Posterior
 
         saved = self._posterior_files()
         if self.study is None:

@@ -82,8 +82,8 @@ class Demo(Result):
 
     @property
     def posterior(self):
-        """The identified contact (:class:`~bayes_rcsa.workflows.identify.Posterior` of ``folder/identify``)."""
-        from .identify import Posterior
+        """The identified contact (:class:`~bayes_rcsa.workflows.identification.Posterior` of ``folder/identify``)."""
+        from .identification import Posterior
 
         return Posterior.load(Path(self.folder) / "identify")
 
@@ -172,7 +172,7 @@ def _identify(title: str, setup, out: Path, seed: int, max_steps: int, force: bo
     """Step 1 through the workflow, printed as the command line prints it."""
     from ..errors import BayesRCSAError, OutputError
     from ..messages import current_warnings, merge_warnings
-    from .identify import identify
+    from .identification import identify
 
     argv = ["identify", str(setup), "--out", str(out), "--lengths", _text(FIT_LENGTHS), "--seed", str(seed),
             "--max-steps", str(max_steps), *(["--force"] if force else [])]
@@ -208,7 +208,7 @@ def demo(out=".", *, seed: int = 0, max_steps: int = 20000, force: bool = False,
     """
     from ..data import example_setup
     from ..report import write_demo_index, write_report_html
-    from .batch import CommandLine
+    from .batch_run import CommandLine
 
     out = Path(out)
     # the overwrite rule of every command, checked for all steps before the first one runs
@@ -224,7 +224,7 @@ def demo(out=".", *, seed: int = 0, max_steps: int = 20000, force: bool = False,
         _identify("1/4 identify the contact from the 25 and 40 mm tests", setup, out / "identify", seed, max_steps,
                   force)
         posterior = str(out / "identify" / "posterior.nc")
-        # TODO(merge): workflows.predict.predict, workflows.lobes.lobes and workflows.discrepancy.discrepancy
+        # TODO(merge): workflows.prediction.predict, workflows.stability_lobes.lobes and workflows.model_check.discrepancy
         # (written by the other helpers) instead of their command lines
         _command("2/4 predict 25-40 mm with credible intervals",
                  ["predict", setup, "--posterior", posterior, "--lengths", _text(PREDICT_LENGTHS), "--seed", str(seed),
