@@ -21,12 +21,13 @@ warnings that change the decision.
 
 from __future__ import annotations
 
-import contextlib
 import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, ClassVar
+
+import numpy as np
 
 from ..errors import SetupError
 from ..messages import warning_log
@@ -41,6 +42,10 @@ PREDICT_LENGTHS = (0.025, 0.030, 0.035, 0.040)
 #: The cutting case of the lobes step (command-line options of ``lobes``)
 LOBES_CASE = ["--clamping-length", "0.030", "--flutes", "4", "--kt", "790e6", "--kr", "230e6",
               "--immersion", "0.95", "--milling", "down", "--feed", "y", "--speeds", "5000:30000:400"]
+
+#: The same case as keywords of :func:`bayes_rcsa.lobes`
+LOBES_KW = dict(clamping_length=0.030, flutes=4, kt=790e6, kr=230e6, radial_immersion=0.95, milling="down", feed="y",
+                speeds_rpm=np.linspace(5000.0, 30000.0, 400))
 
 _STEPS = ("identify", "predict", "lobes", "discrepancy")
 _PAGES = ("report.html", "index.html", "summary.md")
@@ -120,35 +125,6 @@ class Demo(Result):
         return self.posterior.figures()
 
 
-class _HoldErrorLines:
-    """A stderr that passes every line through except a step's ``error:`` line, which it keeps.
-
-    A failed step's error becomes the demo's one error line (naming the step) instead of a second line.
-    """
-
-    def __init__(self, stream):
-        self.stream, self.pending, self.errors = stream, "", []
-
-    def write(self, text: str) -> int:
-        self.pending += text
-        *lines, self.pending = self.pending.split("\n")
-        for line in lines:
-            if re.match(r"^bayes-rcsa \w+: error: ", line):
-                self.errors.append(line.split(": error: ", 1)[1])
-            else:
-                self.stream.write(line + "\n")
-        return len(text)
-
-    def __getattr__(self, name):  # isatty, encoding, fileno, ...: the wrapped stream's
-        return getattr(self.stream, name)
-
-    def flush(self) -> None:
-        if self.pending:
-            self.stream.write(self.pending)
-            self.pending = ""
-        self.stream.flush()
-
-
 def _step_failed(step: str, why: str, output: bool = False):
     from ..errors import BayesRCSAError, OutputError
 
@@ -157,39 +133,29 @@ def _step_failed(step: str, why: str, output: bool = False):
     return kind(f"step '{step}' failed: {why}")
 
 
-def _command(title: str, argv: list[str], runner: Callable[[list[str]], int]) -> None:
-    """One step as a command line (its own closing lines on stderr; its error line kept for the demo's)."""
-    print(f"\n== {title}\n$ bayes-rcsa {' '.join(argv)}", file=sys.stderr)
-    held = _HoldErrorLines(sys.stderr)
-    with contextlib.redirect_stderr(held):
-        status = runner(argv)
-    held.flush()
-    if status != 0:
-        raise _step_failed(argv[0], held.errors[-1] if held.errors else f"exit status {status}")
+def _saved(result: Result, folder: Path, force: bool) -> Result:
+    result.save(folder, force=force)
+    return result
 
 
-def _identify(title: str, setup, out: Path, seed: int, max_steps: int, force: bool) -> None:
-    """Step 1 through the workflow, printed as the command line prints it."""
+def _step(title: str, argv: list[str], job: Callable[[], Result]) -> Result:
+    """One step through its workflow, printed as its command line would print it; its error is the demo's."""
     from ..errors import BayesRCSAError, OutputError
     from ..messages import current_warnings, merge_warnings
-    from .identification import identify
 
-    argv = ["identify", str(setup), "--out", str(out), "--lengths", _text(FIT_LENGTHS), "--seed", str(seed),
-            "--max-steps", str(max_steps), *(["--force"] if force else [])]
     print(f"\n== {title}\n$ bayes-rcsa {' '.join(argv)}", file=sys.stderr)
     with warning_log(echo=False):
         try:
-            post = identify(setup, lengths=FIT_LENGTHS, seed=seed, max_steps=max_steps, out=out, force=force,
-                            progress=True)
+            result = job()
         except BayesRCSAError as exc:
-            raise _step_failed("identify", " ".join(str(exc).split()), isinstance(exc, OutputError)) from None
-        for w in merge_warnings(current_warnings(), post.warnings):
-            print(f"bayes-rcsa identify: warning: {w}", file=sys.stderr)
-    print(f"bayes-rcsa identify: {' '.join(post.summary_line().split())}", file=sys.stderr)
+            raise _step_failed(argv[0], " ".join(str(exc).split()), isinstance(exc, OutputError)) from None
+        for w in merge_warnings(current_warnings(), result.warnings):
+            print(f"bayes-rcsa {argv[0]}: warning: {w}", file=sys.stderr)
+    print(f"bayes-rcsa {argv[0]}: {' '.join(result.summary_line().split())}", file=sys.stderr)
+    return result
 
 
-def demo(out=".", *, seed: int = 0, max_steps: int = 20000, force: bool = False,
-         runner: Callable[[list[str]], int] | None = None) -> Demo:
+def demo(out=".", *, seed: int = 0, max_steps: int = 20000, force: bool = False) -> Demo:
     """Run identify, predict, lobes and the model check on the bundled example campaign into ``out``.
 
     Parameters
@@ -199,8 +165,6 @@ def demo(out=".", *, seed: int = 0, max_steps: int = 20000, force: bool = False,
     seed : int, random seed of the whole run
     max_steps : int, sampler step cap of the identification
     force : bool, replace the outputs of an earlier demo in ``out``
-    runner : callable ``argv -> exit status`` or None, runs the steps given as command lines (None: the
-        ``bayes-rcsa`` entry point)
 
     Returns
     -------
@@ -208,7 +172,11 @@ def demo(out=".", *, seed: int = 0, max_steps: int = 20000, force: bool = False,
     """
     from ..data import example_setup
     from ..report import write_demo_index, write_report_html
-    from .batch_run import CommandLine
+    from ..io.setup import load_setup
+    from .identification import identify
+    from .model_check import check_model
+    from .prediction import predict
+    from .stability_lobes import lobes
 
     out = Path(out)
     # the overwrite rule of every command, checked for all steps before the first one runs
@@ -217,24 +185,29 @@ def demo(out=".", *, seed: int = 0, max_steps: int = 20000, force: bool = False,
     for name in _PAGES:
         if (out / name).exists() and not force:
             raise SetupError(f"--out {out}: {name} of an earlier run exists; use --force to replace it")
-    runner = runner or CommandLine()
     with warning_log() as log:
         flag = ["--force"] if force else []
-        setup = str(example_setup())
-        _identify("1/4 identify the contact from the 25 and 40 mm tests", setup, out / "identify", seed, max_steps,
-                  force)
+        setup = load_setup(example_setup())  # read once, used by every step
+        name = str(setup.path)
+        post = _step("1/4 identify the contact from the 25 and 40 mm tests",
+                     ["identify", name, "--out", str(out / "identify"), "--lengths", _text(FIT_LENGTHS), "--seed",
+                      str(seed), "--max-steps", str(max_steps), *flag],
+                     lambda: identify(setup, lengths=FIT_LENGTHS, seed=seed, max_steps=max_steps, out=out / "identify",
+                                      force=force, progress=True))
         posterior = str(out / "identify" / "posterior.nc")
-        # TODO(merge): workflows.prediction.predict, workflows.stability_lobes.lobes and workflows.model_check.discrepancy
-        # (written by the other helpers) instead of their command lines
-        _command("2/4 predict 25-40 mm with credible intervals",
-                 ["predict", setup, "--posterior", posterior, "--lengths", _text(PREDICT_LENGTHS), "--seed", str(seed),
-                  "--out", str(out / "predict"), *flag], runner)
-        _command("3/4 probabilistic stability lobes at 30 mm",
-                 ["lobes", setup, "--posterior", posterior, *LOBES_CASE, "--draws", "300", "--seed", str(seed),
-                  "--out", str(out / "lobes"), *flag], runner)
-        _command("4/4 model check: is anything missing from the model? (discrepancy workflow)",
-                 ["discrepancy", setup, "--lengths", _text(FIT_LENGTHS), "--seed", str(seed), "--out",
-                  str(out / "discrepancy"), *flag], runner)
+        _step("2/4 predict 25-40 mm with credible intervals",
+              ["predict", name, "--posterior", posterior, "--lengths", _text(PREDICT_LENGTHS), "--seed", str(seed),
+               "--out", str(out / "predict"), *flag],
+              lambda: _saved(predict(setup, post, PREDICT_LENGTHS, seed=seed, progress=True), out / "predict", force))
+        _step("3/4 probabilistic stability lobes at 30 mm",
+              ["lobes", name, "--posterior", posterior, *LOBES_CASE, "--draws", "300", "--seed", str(seed),
+               "--out", str(out / "lobes"), *flag],
+              lambda: _saved(lobes(posterior=post, setup=setup, draws=300, seed=seed, progress=True, **LOBES_KW),
+                             out / "lobes", force))
+        _step("4/4 model check: is anything missing from the model? (discrepancy workflow)",
+              ["discrepancy", name, "--lengths", _text(FIT_LENGTHS), "--seed", str(seed), "--out",
+               str(out / "discrepancy"), *flag],
+              lambda: _saved(check_model(setup, lengths=FIT_LENGTHS, seed=seed), out / "discrepancy", force))
         print("\n== report.html: one self-contained page of all four", file=sys.stderr)
         write_report_html([out / n for n in _STEPS], out / "report.html", seed=seed,
                           title="bayes_rcsa demo: ER32 collet + 7.94 mm end mill")
