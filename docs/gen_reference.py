@@ -34,9 +34,12 @@ HELP_WIDTH = 100  # columns of the generated --help text (argparse reads $COLUMN
 API_PACKAGES = (
     "bayes_rcsa.errors",
     "bayes_rcsa.registry",
+    "bayes_rcsa.messages",
+    "bayes_rcsa.stats",
     "bayes_rcsa.model",
     "bayes_rcsa.params",
     "bayes_rcsa.io",
+    "bayes_rcsa.store",
     "bayes_rcsa.inference",
     "bayes_rcsa.posterior",
     "bayes_rcsa.spindle",
@@ -45,6 +48,7 @@ API_PACKAGES = (
     "bayes_rcsa.design",
     "bayes_rcsa.synthetic",
     "bayes_rcsa.report",
+    "bayes_rcsa.workflows",
     "bayes_rcsa.data",
 )
 

@@ -80,7 +80,7 @@ def test_the_command_line_saves_the_check_of_the_same_call(check, campaign, tmp_
         calls.append((setup, kw))
         return _fresh(check)
 
-    monkeypatch.setattr(api, "discrepancy", fake)
+    monkeypatch.setattr(api, "check_model", fake)
     out = tmp_path / "disc"
     code = cli_main.main(["discrepancy", str(campaign), "--out", str(out), "--lengths", "0.025,0.040", "--seed", "0",
                           "--candidates", "tip_mass, contact_damping", "--no-plots", "--json"])

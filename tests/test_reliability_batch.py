@@ -211,13 +211,14 @@ def test_full_disk_synthesize_and_discrepancy(command, at, code, monkeypatch, tm
 
 
 def test_demo_step_failure_is_one_line(monkeypatch, tmp_path, capsys):
-    def failing_step(argv):
-        print(f"bayes-rcsa {argv[0]}: progress line", file=os.sys.stderr)
-        print(f"bayes-rcsa {argv[0]}: error: {tmp_path}/out/identify: cannot write summary.json: "
-              "No space left on device (ENOSPC)", file=os.sys.stderr)
-        return 2
+    import bayes_rcsa.workflows.identification as identification
+    from bayes_rcsa.errors import OutputError
 
-    monkeypatch.setattr(cli_main, "main", failing_step)
+    def failing_step(setup, **kw):
+        print("identify: progress line", file=os.sys.stderr)
+        raise OutputError(f"{tmp_path}/out/identify: cannot write summary.json: No space left on device (ENOSPC)")
+
+    monkeypatch.setattr(identification, "identify", failing_step)  # the demo's first step, looked up when it runs
     rc = MAIN(["demo", "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err
     assert rc == 2

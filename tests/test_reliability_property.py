@@ -757,15 +757,16 @@ def test_corrupted_inputs_exit_0_with_finite_outputs_or_2_with_one_line(command,
 # --------------------------------------------------------------------------- regressions found by the property test
 
 
-def test_spindle_without_samples_names_only_the_files_written(world, tmp_path, monkeypatch, capsys):
-    """``spindle --samples 0`` said "wrote spindle_x.csv and None in DIR" (the absent samples file as None)."""
-    import bayes_rcsa.spindle.identification as ident
-    import bayes_rcsa.spindle.outputs as outputs
+def test_spindle_without_samples_names_only_the_files_written(tmp_path):
+    """``spindle --samples 0`` said "wrote spindle_x.csv and None in DIR" (the absent samples file as None).
 
-    monkeypatch.setattr(ident, "identify_directions", lambda setup, directions, **kw: {d: None for d in directions})
-    monkeypatch.setattr(outputs, "write_outputs", lambda *a, **kw: {"directions": {}, "samples_file": None})
-    assert main(["spindle", str(world / "art" / "artifact.toml"), "--out", str(tmp_path / "out"), "--quiet",
-                 "--samples", "0", "--json"]) == 0
-    cap = capsys.readouterr()
-    assert cap.err.strip().splitlines()[-1] == f"bayes-rcsa spindle: wrote spindle_x.csv in {tmp_path / 'out'}"
-    assert json.loads(cap.out)["samples"] is None
+    The command prints :meth:`SpindleInterface.summary_line` and ``summary_data`` of the workflow's result."""
+    from bayes_rcsa.workflows.spindle import SpindleInterface
+
+    result = SpindleInterface(summary={"samples_file": None, "directions": {"x": {}}}, receptances={"x": None},
+                              raw={"x": None}, path=tmp_path / "out")
+    assert result.summary_line() == f"wrote spindle_x.csv in {tmp_path / 'out'}"
+    assert result.summary_data()["samples"] is None
+    with_samples = SpindleInterface(summary={"samples_file": "spindle_samples.npz", "directions": {"x": {}}},
+                                    receptances={"x": None}, raw={"x": None}, path=tmp_path / "out")
+    assert with_samples.summary_line() == f"wrote spindle_x.csv, spindle_samples.npz in {tmp_path / 'out'}"

@@ -229,16 +229,20 @@ def test_spindle_summary_carries_the_printed_warnings(tmp_path, monkeypatch, cap
         return {}
 
     written = {}
+    real_summary = outputs.summary_document
 
-    def write_outputs(setup, results, out, plots=True, seed=None, warnings=()):
-        written["warnings"] = list(warnings)
-        return {"directions": {}, "samples_file": None}
+    def summary_document(*a, **kw):  # what the workflow puts into spindle_summary.json
+        doc = real_summary(*a, **kw)
+        written["warnings"] = list(doc.get("warnings", []))
+        return doc
 
     monkeypatch.setattr(ident, "identify_directions", identify_directions)
-    monkeypatch.setattr(outputs, "write_outputs", write_outputs)
+    monkeypatch.setattr(outputs, "summary_document", summary_document)
     assert main(["spindle", str(tmp_path / "art" / "artifact.toml"), "--out", str(tmp_path / "out"), "--quiet",
-                 "--samples", "0", "--json"]) == 0
+                 "--samples", "0", "--json"]) == 0, capsys.readouterr().err
     cap = capsys.readouterr()
     printed = [ln.split(": warning: ", 1)[1] for ln in cap.err.splitlines() if ": warning: " in ln]
     assert printed == ["h11_x.csv: a data warning of the artifact tests"], cap.err
     assert written["warnings"] == printed and json.loads(cap.out)["warnings"] == printed
+    on_disk = json.loads((tmp_path / "out" / "spindle_summary.json").read_text())
+    assert on_disk["warnings"] == printed

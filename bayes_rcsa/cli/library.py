@@ -28,6 +28,8 @@ warnings) and shrinkage.png.  See docs/library.md.
 
 
 def register(subparsers) -> None:
+    from ..library.defaults import STAGE2_MAX_STEPS  # a light module: the help text imports no sampler
+
     p = subparsers.add_parser("library", help="fit a tool library's contact population (hierarchical, two stages)",
                               description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("manifest", type=Path, metavar="MANIFEST", help="manifest TOML file (the 'batch' format)")
@@ -41,7 +43,7 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=nonnegative_int, default=0, help="random seed of stage 2 (default 0)")
     p.add_argument("--max-steps", type=positive_int, default=None, metavar="N",
                    help="stage 2 stops unconverged, with a warning, after N steps (default "
-                        f"{_default_max_steps()}; a library of many holder types and setups may need more)")
+                        f"{STAGE2_MAX_STEPS}; a library of many holder types and setups may need more)")
     p.add_argument("--no-outliers", action="store_true", help="skip the leave-one-out outlier check")
     p.add_argument("--tail-correct", action="store_true",
                    help="check every stage-1 posterior's interval ends against importance sampling and pool "
@@ -49,12 +51,6 @@ def register(subparsers) -> None:
     p.add_argument("--no-plots", action="store_true", help="skip shrinkage.png")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=run)
-
-
-def _default_max_steps() -> int:
-    from ..library.defaults import STAGE2_MAX_STEPS
-
-    return STAGE2_MAX_STEPS
 
 
 def run(args: argparse.Namespace) -> Summary:

@@ -76,17 +76,18 @@ def write_files(folder: Path, report: dict, amended: dict | None = None, figures
     figures : dict or None, ``{name: Figure}`` (:func:`.plots.plot_figures`), each written as ``name.png``
     summary : str or None, the text of summary.md (default: :func:`.render.summary_markdown` of ``report``)
     """
+    from ..io.atomic import atomic_write_text
     from ..io.figures import save_png
     from ..io.jsonable import dumps_strict
 
     folder = Path(folder)
     names = []
     if amended is not None:
-        (folder / "setup.amended.toml").write_text(amended_setup_text(amended), encoding="utf-8")
+        atomic_write_text(folder / "setup.amended.toml", amended_setup_text(amended))
         names.append("setup.amended.toml")
-    (folder / "discrepancy.json").write_text(dumps_strict(report, indent=2) + "\n", encoding="utf-8")
-    (folder / "summary.md").write_text(summary_markdown(report) if summary is None else summary,
-                                         encoding="utf-8")
+    # each file whole or not at all (a full disk mid-write leaves no half file; the saving block removes the rest)
+    atomic_write_text(folder / "discrepancy.json", dumps_strict(report, indent=2) + "\n")
+    atomic_write_text(folder / "summary.md", summary_markdown(report) if summary is None else summary)
     names += ["discrepancy.json", "summary.md"]
     for name, fig in (figures or {}).items():
         save_png(fig, folder / f"{name}.png")

@@ -275,7 +275,8 @@ def _hpd_thresholds(hist: np.ndarray, masses: Sequence[float]) -> list[float]:
 def corner_overlay(groups: Sequence[Mapping], labels: Sequence[str], path, levels: Sequence[float] = (0.5, 0.9),
                    bins: int = 40, fit_order: Sequence[str] | None = None) -> dict:
     """:func:`corner_overlay_figure` written to ``path`` (PNG, its numbers in the metadata); returns the numbers."""
-    return save_plot(*corner_overlay_figure(groups, labels, levels, bins, fit_order), path)
+    fig, numbers = corner_overlay_figure(groups, labels, levels, bins, fit_order)
+    return save_plot(fig, path, numbers)
 
 
 def corner_overlay_figure(groups: Sequence[Mapping], labels: Sequence[str], levels: Sequence[float] = (0.5, 0.9),
@@ -366,7 +367,8 @@ def corner_overlay_figure(groups: Sequence[Mapping], labels: Sequence[str], leve
 
 def forest_plot(panels: Sequence[Mapping], path, fit_order: Sequence[str] | None = None, title: str = "") -> dict:
     """:func:`forest_figure` written to ``path`` (PNG, its numbers in the metadata); returns the numbers."""
-    return save_plot(*forest_figure(panels, fit_order, title), path)
+    fig, numbers = forest_figure(panels, fit_order, title)
+    return save_plot(fig, path, numbers)
 
 
 def forest_figure(panels: Sequence[Mapping], fit_order: Sequence[str] | None = None, title: str = "") -> tuple:

@@ -202,12 +202,12 @@ class Posterior(Result):
         if self.identification is not None:
             _write_identification(self.identification, folder, plots, self.cut_draws, self.summary)
         else:
-            from ..inference.diagnostics import write_netcdf
             from ..inference.results import write_summary
+            from ..store import write_posterior
             from ..io.atomic import atomic_write_text
 
             if self.inference_data is not None:
-                write_netcdf(self.inference_data, folder / "posterior.nc")
+                write_posterior(self.inference_data, folder / "posterior.nc")
             if self.zero_taps:  # the layout write_zero_tap uses
                 atomic_write_text(folder / "summary.json", json.dumps(self.summary, indent=1))
             else:
