@@ -65,5 +65,5 @@ def test_architecture_page_describes_every_layer_part_and_api_page_starts_with_t
     api = (DOCS / "api.md").read_text(encoding="utf-8")
     top = api.index("## The top-level API: `import bayes_rcsa`")
     assert top < api.index("# The packages")
-    for name in ("identify", "predict", "lobes", "discrepancy", "design", "build_library", "update", "report"):
+    for name in ("identify", "predict", "lobes", "check_model", "design_test", "build_library", "update", "make_report"):
         assert f"| `{name}` |" in api[top:api.index("# The packages")], name
