@@ -144,7 +144,7 @@ def artifact(tmp_path_factory):
     from bayes_rcsa.synthetic import default_bench_config
     from bayes_rcsa.synthetic.artifact import default_bench_artifact, generate_artifact_tests, write_artifact_tests
 
-    art = default_bench_artifact(frequency_start=400.0, frequency_stop=2600.0, frequency_step=2.0)
+    art = default_bench_artifact(frequency_start=400.0, frequency_stop=2600.0, frequency_step=4.0)
     tests = generate_artifact_tests(default_bench_config(), art, np.random.default_rng(2), directions=("x",))
     return write_artifact_tests(tests, tmp_path_factory.mktemp("artifact") / "tests")
 
