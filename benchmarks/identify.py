@@ -15,13 +15,23 @@ two comparisons measured in the same process:
 * batched crash-safe checkpoint (bayes_rcsa.inference.checkpoint) against
   emcee's own HDFBackend, which opens and closes the file every step.
 
-Run:  python benchmarks/identify.py [--runs 3]
+Both samplers side by side (``--sampler mcmc`` and ``--sampler importance``, issue #42): the in-process
+runs above once per sampler, and ``--cold`` cold-process runs of the bundled example's two-length
+identification (``python3 -m bayes_rcsa identify bayes_rcsa/data/example/setup.toml --lengths 0.025,0.040
+--no-plots``), whose wall and CPU (user + sys) medians are printed with their ratio; the CPU time says what
+the wall time would be on an idle machine when other jobs share the cores.
+
+Run:  python benchmarks/identify.py [--runs 3] [--cold 3]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import resource
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -82,9 +92,52 @@ def checkpoint_cost(n_walkers: int, ndim: int, steps: int = 300) -> tuple[float,
     return t_emcee, t_ours
 
 
+EXAMPLE = Path(__file__).resolve().parents[1] / "bayes_rcsa" / "data" / "example" / "setup.toml"
+
+
+def cold_run(sampler: str, seed: int) -> tuple[float, float, dict]:
+    """Wall and CPU seconds of one cold ``python3 -m bayes_rcsa identify`` of the bundled example, and its summary."""
+    import json
+
+    with tempfile.TemporaryDirectory() as d:
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "bayes_rcsa", "identify", str(EXAMPLE), "--lengths", "0.025,0.040",
+                        "--no-plots", "--quiet", "--seed", str(seed), "--sampler", sampler, "--out", d],
+                       check=True, stdout=subprocess.DEVNULL, cwd=Path(__file__).resolve().parents[1],
+                       env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])})
+        wall = time.perf_counter() - t0
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+        return wall, cpu, json.loads((Path(d) / "summary.json").read_text())
+
+
+def side_by_side(problem, runs: int, cold: int) -> None:
+    """Both samplers in one run: in-process on the synthetic bench, cold processes on the bundled example."""
+    print()
+    print(f"{'sampler side by side':<44}{'mcmc':>12}{'importance':>12}{'ratio':>8}")
+    walls = {}
+    for sampler in ("mcmc", "importance"):
+        walls[sampler] = [identify(problem, seed=200 + r, sampler=sampler,
+                                   settings=SamplerSettings(progress=False)).summary["timing"]["wall_time_s"]
+                          for r in range(runs)]
+    m, i = statistics.median(walls["mcmc"]), statistics.median(walls["importance"])
+    print(f"{'in process, synthetic bench, median s':<44}{m:>12.2f}{i:>12.2f}{m / i:>8.1f}")
+    if not cold:
+        return
+    res = {s: [cold_run(s, r) for r in range(cold)] for s in ("mcmc", "importance")}
+    for j, label in ((0, "cold process, bundled example, wall s"), (1, "cold process, bundled example, CPU s")):
+        m, i = (statistics.median(r[j] for r in res[s]) for s in ("mcmc", "importance"))
+        print(f"{label:<44}{m:>12.2f}{i:>12.2f}{m / i:>8.1f}")
+    modes = [r[2]["sampler"]["mode"] for r in res["importance"]]
+    print(f"importance runs accepted: {modes.count('importance')}/{len(modes)}; "
+          f"Pareto k {[round(r[2]['sampler']['pareto_k'] or float('nan'), 2) for r in res['importance']]}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--cold", type=int, default=3, help="cold-process runs of the bundled example per sampler")
     args = ap.parse_args()
     problem = make_problem()
     lines = [o.n_lines for o in problem.observations]
@@ -120,6 +173,7 @@ def main() -> None:
     print(f"{'checkpoint cost per step, emcee HDFBackend, ms':<52}{1e3 * t_emcee:>14.3f}{t_emcee / t_ours:>10.1f}")
     print(f"{'checkpoint cost per step, batched + mirror, ms':<52}{1e3 * t_ours:>14.3f}{1.0:>10.1f}")
     print(f"all runs converged: {all(conv)}")
+    side_by_side(problem, args.runs, args.cold)
 
 
 if __name__ == "__main__":

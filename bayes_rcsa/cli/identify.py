@@ -23,6 +23,8 @@ Methods:
 
 Writes to --out: summary.json, posterior.nc (ArviZ InferenceData; Bayesian methods), trace.png,
 corner.png, frf.png and the checkpoint chain.h5 (resumable with --resume after a crash).
+With --sampler importance (or auto) and accepted importance sampling: no chain, so no trace.png
+and no chain.h5; posterior.nc holds 4000 equally weighted (resampled) draws.
 The likelihood band, noise model and priors can be tuned in the setup's [likelihood], [priors] and
 [sampler] tables (see docs/identification.md).
 """
@@ -66,7 +68,12 @@ def register(subparsers) -> None:
     p.add_argument("--max-steps", type=positive_int, default=None, metavar="N",
                    help="cap on sampler steps; reaching it is reported as not converged "
                         "(default: [sampler] max_steps or 20000)")
-    p.add_argument("--resume", action="store_true", help="continue the run checkpointed in DIR/chain.h5")
+    p.add_argument("--resume", action="store_true", help="continue the run checkpointed in DIR/chain.h5 (an MCMC "
+                   "chain: refused with --sampler importance)")
+    p.add_argument("--sampler", choices=("mcmc", "importance", "auto"), default="mcmc",
+                   help="mcmc: the emcee chain (default); importance: importance-sample the exact posterior around "
+                        "its optimum, kept when Pareto k <= 0.7 and ESS >= 1000, else the chain runs with a warning "
+                        "saying why; auto: the same, the fall-back a note in summary.json's sampler block")
     add_force_argument(p, resumable=True)
     p.add_argument("--walkers", type=positive_int, default=None, metavar="N",
                    help="number of walkers (even; default max(32, 4 x parameters))")
@@ -110,7 +117,7 @@ def run(args) -> Summary:
                       spindle_samples=args.spindle_uncertainty, allow_no_resonance=args.allow_no_resonance,
                       tail_check=args.tail_check, library=args.library, no_taps=args.no_taps, cuts=cuts,
                       out=args.out, resume=args.resume, force=args.force, progress=not args.quiet,
-                      plots=not args.no_plots)
+                      plots=not args.no_plots, sampler=args.sampler)
     out = args.out
     data = {"out": str(out), **result.summary_data(), "summary": str(out / "summary.json"),
             "posterior": None if result.path is None else str(out / "posterior.nc")}

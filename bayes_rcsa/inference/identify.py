@@ -1,4 +1,4 @@
-"""The identification workflow: optimum -> tempering -> emcee -> summaries and files.
+"""The identification workflow: optimum -> tempering -> emcee (or importance sampling) -> summaries and files.
 
 :func:`identify` runs one method on a :class:`~.problem.Problem` and returns
 an :class:`IdentificationResult` (nothing is written except the optional
@@ -11,6 +11,9 @@ Random numbers: one :class:`numpy.random.Generator` is made from ``seed``
 and split with ``Generator.spawn`` into independent streams for the
 optimiser, the walker start and emcee's proposals, so changing one stage
 (e.g. a user start) does not change the random numbers of the others.
+Importance sampling (``sampler="importance"`` or ``"auto"``) draws from a
+fifth stream, so a run that falls back to the chain gives the chain of
+``sampler="mcmc"`` with the same seed.
 """
 
 from __future__ import annotations
@@ -26,11 +29,13 @@ from ..model.assembly import Configuration, ConfigurationStack
 from ..model.natural_frequencies import NATURAL_FREQUENCY_RULE, natural_frequency
 from ..params.forward import ForwardModel
 from ..params.model import ParameterModel
+from ..stats.weights import MIN_ESS_INTERVAL_END, PARETO_K_MAX
 from . import results as R
 from .band import band_mask, band_peak_warning
 from .checkpoint import Checkpoint
 from .deterministic import DeterministicFit, fit_deterministic
 from .fingerprint import resume_state, run_fingerprint
+from .importance import ImportanceResult, importance_posterior
 from .likelihood import residual_correlation_length
 from .posterior import LogPosterior
 from .problem import Problem
@@ -43,9 +48,15 @@ __all__ = [
     "predict_frf",
     "sampling_labels",
     "MAX_DRAWS",
+    "SAMPLERS",
+    "check_sampler",
 ]
 
 MAX_DRAWS = 4000  # kept posterior draws (after burn-in and tau-based thinning) stored and summarised
+#: How the posterior is sampled: "mcmc" the emcee chain; "importance" importance sampling around the optimum
+#: (:mod:`.importance`), falling back to the chain with a warning when its diagnostics refuse it; "auto" the same,
+#: but the fall-back is a note (summary.json's ``sampler`` block), not a warning, and a resume continues the chain.
+SAMPLERS = ("mcmc", "importance", "auto")
 
 
 @dataclass(frozen=True)
@@ -64,6 +75,7 @@ class IdentificationResult:
     natural_frequency : (n_chains, n_draws, n_all_measurements)
         Predicted dominant natural frequency (Hz) of every setup measurement.
     chain : ChainResult or None
+        The emcee run (None for the deterministic method and for accepted importance sampling).
     deterministic : DeterministicFit or None
     optimum : Optimum or None
     tempering : float
@@ -73,6 +85,9 @@ class IdentificationResult:
         Log-posterior evaluations (walker-parameter sets) in this process.
     wall_time : float
         Seconds of this process's work.
+    warnings : tuple of str
+    importance : ImportanceResult or None
+        The importance-sampling attempt (``sampler`` "importance" or "auto"), accepted or not.
     """
 
     problem: Problem
@@ -89,6 +104,12 @@ class IdentificationResult:
     evaluations: int = 0
     wall_time: float = 0.0
     warnings: tuple = field(default_factory=tuple)
+    importance: ImportanceResult | None = None
+
+    @property
+    def bayesian(self) -> bool:
+        """Posterior draws (a chain or accepted importance sampling), not a deterministic fit."""
+        return self.log_prob is not None
 
     @property
     def flat_theta(self) -> np.ndarray:
@@ -372,6 +393,20 @@ def _check_start(problem: Problem) -> dict[int, float]:
     return out
 
 
+def check_sampler(sampler: str, resume: bool) -> None:
+    """Refuse an unknown ``sampler`` (:data:`SAMPLERS`) and a resume with "importance" (it keeps no checkpoint).
+
+    Raises
+    ------
+    SetupError
+    """
+    if sampler not in SAMPLERS:
+        raise SetupError(f"--sampler {sampler!r}: expected one of {', '.join(SAMPLERS)}")
+    if resume and sampler == "importance":
+        raise SetupError("--resume continues an MCMC checkpoint: use --sampler mcmc or auto (importance sampling "
+                         "keeps no checkpoint)")
+
+
 def identify(
     problem: Problem,
     seed: int = 0,
@@ -381,6 +416,8 @@ def identify(
     max_draws: int = MAX_DRAWS,
     spindle_samples=None,
     moves=None,
+    sampler: str = "mcmc",
+    importance_options: dict | None = None,
 ) -> IdentificationResult:
     """Run the identification.
 
@@ -409,16 +446,25 @@ def identify(
         Passed to :func:`.sampler.run_ensemble` (default: differential
         evolution with ``settings.snooker_fraction`` snooker moves).  Not part
         of the resume fingerprint: resume with the moves of the original run.
+    sampler : {"mcmc", "importance", "auto"}
+        :data:`SAMPLERS`.  With "importance" or "auto" the posterior is first importance-sampled around the
+        optimum (:func:`.importance.importance_posterior`); accepted draws (Pareto k <= 0.7, ESS >= 1000) become
+        the result, refused ones give way to the chain (summary.json's ``sampler`` block says why).  A resume
+        continues the chain ("auto") or is refused ("importance": there is no checkpoint to continue).
+    importance_options : dict, optional
+        Keywords of :func:`.importance.importance_posterior` (e.g. ``proposal_shrink``, ``max_proposals``).
 
     Raises
     ------
     SetupError
         Resuming without a checkpoint or with one from a different run (the
-        message names what changed); a walker start outside the prior.
+        message names what changed); a walker start outside the prior; an unknown ``sampler``; a resume with
+        ``sampler="importance"``.
     """
     t_start = time.perf_counter()
-    # a fourth child leaves the first three streams (and so earlier results) unchanged
-    rng_opt, rng_init, rng_mcmc, rng_spindle = np.random.default_rng(seed).spawn(4)
+    check_sampler(sampler, resume)
+    # each further child leaves the earlier streams (and so earlier results) unchanged
+    rng_opt, rng_init, rng_mcmc, rng_spindle, rng_is = np.random.default_rng(seed).spawn(5)
     if problem.method == "deterministic":
         return _identify_deterministic(problem, seed, rng_opt, t_start)
 
@@ -429,15 +475,91 @@ def identify(
     state = resume_state(ckpt, checkpoint_path, fingerprint) if resume else None
     startup = _startup(problem, lp_full, state)
     lp = problem.log_posterior(startup.beta)
-    chain = _sample(problem, lp, startup, settings, n_walkers, fingerprint, ckpt, state, rng_init, rng_mcmc, moves)
-    theta, log_prob, extra = _thin(chain, max_draws)
-    return _summarise(problem, seed, settings, spindle_samples, rng_spindle, t_start, lp_full, lp, startup, chain,
-                      theta, log_prob, extra, n_walkers)
+    imp = None
+    if sampler != "mcmc" and state is None:
+        imp = importance_posterior(lp, startup.optimum.x, problem.priors.optimisation_bounds(), rng_is, max_draws,
+                                   **(importance_options or {}))
+    run = _Run(sampler, imp, settings, n_walkers)
+    if imp is not None and imp.accepted:
+        return _summarise(problem, seed, spindle_samples, rng_spindle, t_start, lp_full, lp, startup, run,
+                          imp.theta[None], imp.log_prob[None])
+    run.chain = _sample(problem, lp, startup, settings, n_walkers, fingerprint, ckpt, state, rng_init, rng_mcmc, moves)
+    theta, log_prob, run.extra = _thin(run.chain, max_draws)
+    return _summarise(problem, seed, spindle_samples, rng_spindle, t_start, lp_full, lp, startup, run, theta,
+                      log_prob)
 
 
-def _summarise(problem: Problem, seed: int, settings: SamplerSettings, spindle_samples, rng_spindle, t_start: float,
-               lp_full: LogPosterior, lp: LogPosterior, startup: _Startup, chain: ChainResult, theta: np.ndarray,
-               log_prob: np.ndarray, extra: int, n_walkers: int) -> IdentificationResult:
+@dataclass
+class _Run:
+    """How the posterior was sampled: the requested sampler, the importance attempt, the chain and its thinning."""
+
+    requested: str
+    importance: ImportanceResult | None
+    settings: SamplerSettings
+    n_walkers: int
+    chain: ChainResult | None = None
+    extra: int = 1
+
+    def sampler_block(self) -> dict:
+        """summary.json's ``sampler``: mode, requested, importance diagnostics, fall-back reason."""
+        imp = self.importance
+        out = {"mode": "mcmc" if self.chain is not None else "importance", "requested": self.requested,
+               "fallback_reason": None}
+        if imp is not None:
+            out.update(imp.describe())
+            if not imp.accepted:
+                out["fallback_reason"] = imp.reason
+        elif self.requested == "auto":
+            out["fallback_reason"] = "resumed: the checkpointed chain is continued"
+        return out
+
+    def diagnostics(self, names) -> tuple[dict, list[str], dict]:
+        """Per-parameter (R-hat, bulk ESS, tail ESS), convergence warnings and the summary's convergence fields.
+
+        Importance sampling has no chain: R-hat is None, both ESS are the weights' Kish ESS, and convergence is
+        the acceptance rule (Pareto k and ESS) instead of R-hat and tau.
+        """
+        imp, chain, settings = self.importance, self.chain, self.settings
+        if chain is None:
+            per = {n: (None, imp.ess, imp.ess) for n in names}
+            fields = {"converged": True, "stop_reason": f"importance sampling accepted: Pareto k = "
+                      f"{imp.pareto_k:.2f} <= {PARETO_K_MAX:g}, ESS {imp.ess:.0f} >= {MIN_ESS_INTERVAL_END} (no chain: R-hat "
+                      "and tau do not apply)",
+                      "tau": None, "n_steps": None, "burn_in": None, "thin": None, "acceptance_fraction": None,
+                      "n_walkers": None}
+            return per, [], fields
+        diag = chain.diagnostics or {}
+        get = lambda key, j: float(diag[key][j]) if key in diag else None  # noqa: E731
+        per = {n: (get("rhat", j), get("ess_bulk", j), get("ess_tail", j)) for j, n in enumerate(names)}
+        warnings = []
+        if imp is not None and not imp.accepted and self.requested == "importance":
+            warnings.append(f"{imp.reason}; the emcee chain was run instead")
+        if not chain.converged:
+            warnings.append(f"not converged: {chain.reason}")
+        if diag:
+            for j, n in enumerate(names):
+                if not diag["rhat"][j] < settings.rhat_max:
+                    warnings.append(f"{n}: R-hat = {diag['rhat'][j]:.4f} >= {settings.rhat_max}")
+                if not diag["ess_bulk"][j] >= settings.ess_min:
+                    warnings.append(f"{n}: bulk ESS = {diag['ess_bulk'][j]:.0f} < {settings.ess_min:g}")
+        fields = {"converged": bool(chain.converged), "stop_reason": chain.reason, "tau": R.tau_dict(names, chain.tau),
+                  "n_steps": chain.n_steps, "burn_in": chain.burn, "thin": chain.thin * self.extra,
+                  "acceptance_fraction": float(np.mean(chain.acceptance_fraction)), "n_walkers": self.n_walkers}
+        return per, warnings, fields
+
+    def timing(self, wall: float, per: dict, evals: int) -> dict:
+        """summary.json's ``timing`` (s; ``per`` from :meth:`diagnostics`; ``evals`` log-posterior evaluations)."""
+        ess = [v[1] for v in per.values() if v[1] is not None]
+        chain = self.chain
+        return {"wall_time_s": wall, "sampling_time_s": self.importance.wall_time if chain is None else chain.wall_time,
+                "new_steps": None if chain is None else chain.n_new_steps, "log_posterior_evaluations": evals,
+                "evaluations_per_second": evals / wall if wall > 0 else None,
+                "min_ess_bulk_per_second": float(np.min(ess)) / wall if ess and wall > 0 else None}
+
+
+def _summarise(problem: Problem, seed: int, spindle_samples, rng_spindle, t_start: float, lp_full: LogPosterior,
+               lp: LogPosterior, startup: _Startup, run: _Run, theta: np.ndarray,
+               log_prob: np.ndarray) -> IdentificationResult:
     """Step 5: parameter, stiffness and natural-frequency summaries, warnings, timing."""
     flat = theta.reshape(-1, theta.shape[-1])
     beta, tau_r, optimum = startup.beta, startup.tau_r, startup.optimum
@@ -446,22 +568,9 @@ def _summarise(problem: Problem, seed: int, settings: SamplerSettings, spindle_s
     pm = problem.parameters
     values = pm.values(flat)
     names = pm.names
-    diag = chain.diagnostics or {}
-    params = {}
-    for j, n in enumerate(names):
-        get = lambda key: float(diag[key][j]) if key in diag else None  # noqa: E731
-        params[n] = R.parameter_summary(values[n], get("rhat"), get("ess_bulk"), get("ess_tail"), pm.unit(n))
+    per, warnings, convergence = run.diagnostics(names)
+    params = {n: R.parameter_summary(values[n], *per[n], pm.unit(n)) for n in names}
     stiffness, freqs = _stiffness_and_frequencies(problem, flat, nat, measured_nat)
-
-    warnings: list[str] = []
-    if not chain.converged:
-        warnings.append(f"not converged: {chain.reason}")
-    if diag:
-        for j, n in enumerate(names):
-            if not diag["rhat"][j] < settings.rhat_max:
-                warnings.append(f"{n}: R-hat = {diag['rhat'][j]:.4f} >= {settings.rhat_max}")
-            if not diag["ess_bulk"][j] >= settings.ess_min:
-                warnings.append(f"{n}: bulk ESS = {diag['ess_bulk'][j]:.0f} < {settings.ess_min:g}")
     # only sampled growth factors can pile up; a fixed g = 0 (one clamping length) is not a conflict
     growth_warnings = R.growth_bound_warnings({n: values[n] for n in names}, problem.growth.growth_bound)
     warnings += growth_warnings
@@ -489,17 +598,13 @@ def _summarise(problem: Problem, seed: int, settings: SamplerSettings, spindle_s
     if spindle_samples is not None:
         summary["spindle_uncertainty"] = spindle_samples.describe()
     summary.update({
-        "converged": bool(chain.converged),
-        "stop_reason": chain.reason,
+        "converged": convergence["converged"],
+        "stop_reason": convergence["stop_reason"],
+        "sampler": run.sampler_block(),
         "parameters": params,
         "stiffness": stiffness,
         "natural_frequencies": freqs,
-        "tau": R.tau_dict(names, chain.tau),
-        "n_steps": chain.n_steps,
-        "burn_in": chain.burn,
-        "thin": chain.thin * extra,
-        "acceptance_fraction": float(np.mean(chain.acceptance_fraction)),
-        "n_walkers": n_walkers,
+        **{k: convergence[k] for k in ("tau", "n_steps", "burn_in", "thin", "acceptance_fraction", "n_walkers")},
         "n_draws": int(flat.shape[0]),
         "likelihood": {
             "tempering": beta,
@@ -510,21 +615,14 @@ def _summarise(problem: Problem, seed: int, settings: SamplerSettings, spindle_s
             "min_coherence": problem.likelihood.noise.min_coherence,
         },
         "optimum": {n: float(v[0]) for n, v in pm.values(optimum.x[None, :]).items() if n in names},
-        "timing": {
-            "wall_time_s": wall,
-            "sampling_time_s": chain.wall_time,
-            "new_steps": chain.n_new_steps,
-            "log_posterior_evaluations": evals,
-            "evaluations_per_second": evals / wall if wall > 0 else None,
-            "min_ess_bulk_per_second": (float(np.min(diag["ess_bulk"])) / wall) if diag and wall > 0 else None,
-        },
+        "timing": run.timing(wall, per, evals),
         "warnings": [w for w in warnings if w],
     })
     return IdentificationResult(
         problem=problem, summary=summary, theta=theta, log_prob=log_prob,
-        natural_frequency=nat.reshape(theta.shape[0], theta.shape[1], -1), chain=chain, deterministic=None,
+        natural_frequency=nat.reshape(theta.shape[0], theta.shape[1], -1), chain=run.chain, deterministic=None,
         optimum=optimum, tempering=beta, residual_correlation=tau_r, seed=int(seed), evaluations=evals, wall_time=wall,
-        warnings=tuple(w for w in warnings if w),
+        warnings=tuple(w for w in warnings if w), importance=run.importance,
     )
 
 

@@ -50,6 +50,8 @@ def frf_panels(result: IdentificationResult, rng: np.random.Generator, n_draws: 
 def write_outputs(result: IdentificationResult, out_dir, plots: bool = True) -> list[Path]:
     """Write summary.json, posterior.nc (Bayesian methods) and PNG plots to ``out_dir``.
 
+    trace.png only of a chain (not of accepted importance sampling: its draws are independent).
+
     Returns
     -------
     list of Path written
@@ -58,14 +60,15 @@ def write_outputs(result: IdentificationResult, out_dir, plots: bool = True) -> 
     out.mkdir(parents=True, exist_ok=True)
     written = []
     problem = result.problem
-    if result.chain is not None:
+    if result.bayesian:
         written.append(_write_posterior(result, out / "posterior.nc"))
     if plots:
         from . import plots as P
 
         labels = sampling_labels(problem.parameters)
-        if result.chain is not None:
+        if result.chain is not None:  # independent importance draws have no trace
             written.append(P.trace_plot(result.chain.chain, labels, result.chain.burn, out / "trace.png"))
+        if result.bayesian:
             written.append(P.corner_plot(result.flat_theta, labels, out / "corner.png"))
         written.append(P.frf_plot(frf_panels(result, np.random.default_rng(result.seed)), out / "frf.png"))
     R.write_summary(out / "summary.json", result.summary)

@@ -172,7 +172,16 @@ class Posterior(Result):
         if self.zero_taps:
             return f"zero taps: population predictive of holder type {self.summary['holder_type']}; results in {where}"
         status = "converged" if self.converged else "NOT converged"
-        return f"{self.method}: {status}; results in {where}"
+        return f"{self.method}: {status}{self._sampler_note()}; results in {where}"
+
+    def _sampler_note(self) -> str:
+        """How the draws were made, when importance sampling was asked for (accepted, or why the chain ran)."""
+        block = self.summary.get("sampler") or {}
+        if block.get("requested", "mcmc") == "mcmc":
+            return ""
+        if block.get("mode") == "importance":
+            return f" (importance sampling: Pareto k = {block['pareto_k']:.2f}, ESS {block['ess']:.0f})"
+        return f" (emcee chain; {block.get('fallback_reason')})"
 
     def summary_data(self) -> dict:
         if self.zero_taps:
@@ -213,7 +222,7 @@ class Posterior(Result):
             else:
                 write_summary(folder / "summary.json", self.summary)
         self._folder = folder
-        bayesian = self.identification.chain is not None if self.identification is not None \
+        bayesian = self.identification.bayesian if self.identification is not None \
             else self.inference_data is not None
         self.path = folder / "posterior.nc" if bayesian else None
 
@@ -273,6 +282,7 @@ class Posterior(Result):
             out = {}
             if ir.chain is not None:
                 out["trace"] = P.trace_figure(ir.chain.chain, labels, ir.chain.burn)
+            if ir.bayesian:
                 out["corner"] = P.corner_figure(ir.flat_theta, labels)
             out["frf"] = P.frf_figure(frf_panels(ir, np.random.default_rng(ir.seed)))
             return out
@@ -318,7 +328,7 @@ def identify(setup, *, lengths: Sequence[float] | None = None, method: str = "mu
              ess_min: float = 400.0, checkpoint_interval: float = 2.0, band: tuple[float, float] | None = None,
              spindle_samples=None, allow_no_resonance: bool = False, tail_check: bool = False, library=None,
              no_taps: bool = False, cuts: CutTestOptions | dict | None = None, out=None, resume: bool = False,
-             force: bool = False, progress: bool = False, plots: bool = True) -> Posterior:
+             force: bool = False, progress: bool = False, plots: bool = True, sampler: str = "mcmc") -> Posterior:
     """Identify the tool-holder contact (k_xf, k_thetaM, ...) from the setup's measured tool-point FRFs.
 
     Parameters
@@ -348,6 +358,13 @@ def identify(setup, *, lengths: Sequence[float] | None = None, method: str = "mu
     force : bool, replace an earlier run's files in ``out``
     progress : bool, progress lines on stderr while sampling
     plots : bool, write the PNG plots (with ``out``)
+    sampler : {"mcmc", "importance", "auto"}
+        "mcmc" the emcee chain (default).  "importance" importance-samples the exact posterior around its optimum
+        and keeps the draws when the Pareto shape k <= 0.7 and the weights' ESS >= 1000, else runs the chain with a
+        warning naming why; "auto" the same with the fall-back as a note, not a warning (summary.json's
+        ``sampler`` block: mode, pareto_k, ess, n_proposals, fallback_reason; docs/identification.md, "Exact
+        posteriors by importance sampling").  ``resume`` continues a chain: refused with "importance", the
+        chain with "auto".  Bayesian methods only (ignored by "deterministic").
 
     Returns
     -------
@@ -361,7 +378,7 @@ def identify(setup, *, lengths: Sequence[float] | None = None, method: str = "mu
     with warning_log():
         return _identify(setup, lengths, method, seed, walkers, max_steps, check_every, ess_min, checkpoint_interval,
                          band, spindle_samples, allow_no_resonance, tail_check, library, no_taps, cuts,
-                         None if out is None else Path(out), resume, force, progress, plots)
+                         None if out is None else Path(out), resume, force, progress, plots, sampler)
 
 
 def _population(library, method: str, resume: bool, no_taps: bool, lengths, spindle_samples):
@@ -393,7 +410,7 @@ def _setup(setup, load_data: bool = True):
 
 def _identify(setup, lengths, method, seed, walkers, max_steps, check_every, ess_min, checkpoint_interval, band,
               spindle_samples, allow_no_resonance, tail_check, library, no_taps, cuts, out, resume, force, progress,
-              plots) -> Posterior:
+              plots, sampler) -> Posterior:
     import numpy as np
 
     from ..inference.problem import IdentificationOptions, build_problem_from_setup
@@ -405,6 +422,9 @@ def _identify(setup, lengths, method, seed, walkers, max_steps, check_every, ess
     if checkpoint_interval < 0:
         raise SetupError(f"--checkpoint-interval {checkpoint_interval!r}: expected a number >= 0 (seconds)")
     bayesian = method != "deterministic"
+    from ..inference.identify import check_sampler
+
+    check_sampler(sampler, resume)
     if resume and not bayesian:
         raise SetupError("--resume applies to the Bayesian methods only")
     if resume and out is None:
@@ -446,7 +466,7 @@ def _identify(setup, lengths, method, seed, walkers, max_steps, check_every, ess
         check_memory(2 * 8.0 * settings.max_steps * n_walkers * (problem.priors.ndim + 1),
                      f"--max-steps {settings.max_steps} x {n_walkers} walkers", "lower --max-steps or --walkers")
     spindle_samples = _spindle_samples(spindle_samples, setup)
-    run = dict(problem=problem, setup=setup, seed=seed, settings=settings, resume=resume,
+    run = dict(problem=problem, setup=setup, seed=seed, settings=settings, resume=resume, sampler=sampler,
                spindle_samples=spindle_samples, tail_check=tail_check and bayesian, cut_term=cut_term,
                population=population, library=library)
     if out is None:
@@ -496,7 +516,7 @@ def _in_memory(posterior: Posterior) -> Posterior:
     from ..posterior.draws import draws_from_result
 
     ir = posterior.identification
-    if ir.chain is None:
+    if not ir.bayesian:
         return posterior
     posterior.draws = draws_from_result(ir)
     with tempfile.TemporaryDirectory(prefix="bayes_rcsa_identify_") as tmp:
@@ -505,7 +525,7 @@ def _in_memory(posterior: Posterior) -> Posterior:
     return posterior
 
 
-def _fit(problem, setup, seed, settings, resume, spindle_samples, tail_check, cut_term, population, library,
+def _fit(problem, setup, seed, settings, resume, sampler, spindle_samples, tail_check, cut_term, population, library,
          checkpoint) -> Posterior:
     """Sample (or fit), then the summary's additions: tail check, cut coefficients, warnings, geometry, library."""
     import numpy as np
@@ -517,7 +537,7 @@ def _fit(problem, setup, seed, settings, resume, spindle_samples, tail_check, cu
     if cut_term is not None:  # a joint fit: the cut outcomes are an extra likelihood term of the problem
         problem = problem.with_extra_terms(cut_term)
     result = run_identification(problem, seed=seed, settings=settings, checkpoint_path=checkpoint, resume=resume,
-                                spindle_samples=spindle_samples)
+                                spindle_samples=spindle_samples, sampler=sampler)
     if tail_check:
         # its own stream: the chain's seed stays the chain's
         result.summary["tail_check"] = check_identification(result, np.random.default_rng([seed, 7]))

@@ -1,0 +1,131 @@
+"""identify by importance sampling (``sampler="importance"``, :mod:`bayes_rcsa.inference.importance`).
+
+A small campaign (x direction, 8-Hz lines, 25 and 40 mm): the importance posterior's 5/50/95 % points agree with
+an MCMC reference; a proposal deliberately too narrow is refused by its Pareto k and the chain runs instead, with
+the reason in summary.json; posterior.nc of the importance mode is read by ``load_posterior`` and ``predict``
+works on it; the command line's ``--sampler`` and its refusal of ``--resume``.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import bayes_rcsa
+from bayes_rcsa.cli.main import main
+from bayes_rcsa.errors import SetupError
+from bayes_rcsa.inference.identify import identify
+from bayes_rcsa.inference.importance import systematic_resample
+from bayes_rcsa.inference.problem import IdentificationOptions, build_problem_from_setup
+from bayes_rcsa.io.setup import load_setup
+
+from test_api_identify import setup_file  # noqa: F401  (the module-scoped campaign of the API tests)
+from test_inference_support import quick_settings
+
+LENGTHS = (0.025, 0.040)
+#: the fall-back runs need no converged chain: they test the dispatch, not the chain
+SHORT = dict(max_steps=300, check_every=100)
+
+
+@pytest.fixture(scope="module")
+def problem(setup_file):  # noqa: F811
+    setup = load_setup(setup_file)
+    return build_problem_from_setup(setup, IdentificationOptions.from_setup(setup.extra, lengths=LENGTHS))
+
+
+@pytest.fixture(scope="module")
+def by_importance(problem):
+    return identify(problem, seed=5, sampler="importance", settings=quick_settings())
+
+
+def test_importance_quantiles_agree_with_an_mcmc_reference(problem, by_importance):
+    """Every parameter's 5/50/95 % point agrees with a converged chain's within the tail check's tolerance.
+
+    :data:`bayes_rcsa.inference.tail_check.TOLERANCE_SD` (0.4 posterior sd): four times the Monte Carlo error of
+    a 95 % point from 400 effective chain draws (the chain's convergence bound), the importance estimate's (ESS >=
+    1000) being smaller.  The default chain's own tail deficit (issue #42: up to 0.57 sd on the tail bench) is
+    why the bound is not tighter; benchmarks/importance_accuracy.py compares with long stretch-move chains.
+    """
+    from bayes_rcsa.inference.tail_check import TOLERANCE_SD
+
+    imp = by_importance.importance
+    assert imp.accepted and by_importance.chain is None
+    s = by_importance.summary
+    assert s["converged"] is True and s["sampler"]["mode"] == "importance"
+    assert s["sampler"]["pareto_k"] <= 0.7 and s["sampler"]["ess"] >= 1000
+    assert s["tau"] is None and s["n_steps"] is None and "R-hat and tau do not apply" in s["stop_reason"]
+    ref = identify(problem, seed=6, sampler="mcmc", settings=quick_settings())
+    assert ref.summary["converged"]
+    q_is = np.quantile(by_importance.flat_theta, (0.05, 0.5, 0.95), axis=0)
+    q_ref = np.quantile(ref.flat_theta, (0.05, 0.5, 0.95), axis=0)
+    sd = by_importance.flat_theta.std(axis=0)
+    shift = np.abs(q_is - q_ref) / sd
+    assert shift.max() <= TOLERANCE_SD, shift
+    # and a posterior shifted by 0.5 sd would not pass: the test can fail
+    assert (np.abs(q_is + 0.5 * sd - q_ref) / sd).max() > TOLERANCE_SD
+
+
+def test_resampled_draws_are_equally_weighted_and_systematic(by_importance):
+    theta = by_importance.theta
+    assert theta.shape == (1, 4000, by_importance.problem.parameters.ndim)
+    assert np.all(np.isfinite(by_importance.log_prob))
+    # systematic resampling: a draw of weight w appears floor(n w) or ceil(n w) times
+    w = np.array([0.5, 0.3, 0.15, 0.05])
+    counts = np.bincount(systematic_resample(w, 20, np.random.default_rng(0)), minlength=4)
+    assert np.all(np.abs(counts - 20 * w) < 1)
+
+
+def test_too_narrow_proposal_falls_back_to_the_chain_and_says_why(problem):
+    res = identify(problem, seed=5, sampler="importance", settings=quick_settings(**SHORT),
+                   importance_options={"proposal_shrink": 0.1, "max_proposals": 6000})
+    block = res.summary["sampler"]
+    assert not res.importance.accepted and res.chain is not None
+    assert block["mode"] == "mcmc" and block["requested"] == "importance"
+    assert block["pareto_k"] > 0.7
+    assert "Pareto shape k" in block["fallback_reason"]
+    assert res.summary["n_steps"] > 0 and res.summary["tau"] is not None
+    assert any(w.startswith("importance sampling refused") for w in res.summary["warnings"])
+    # the fall-back chain is the chain of sampler="mcmc" with the same seed (importance sampling has its own stream)
+    plain = identify(problem, seed=5, sampler="mcmc", settings=quick_settings(**SHORT))
+    np.testing.assert_array_equal(res.theta, plain.theta)
+    # "auto": the same fall-back, noted in the sampler block but not a warning
+    auto = identify(problem, seed=5, sampler="auto", settings=quick_settings(**SHORT),
+                    importance_options={"proposal_shrink": 0.1, "max_proposals": 6000})
+    assert auto.summary["sampler"]["fallback_reason"] == block["fallback_reason"]
+    assert not any(w.startswith("importance sampling refused") for w in auto.summary["warnings"])
+
+
+def test_importance_posterior_nc_is_read_and_predict_works(setup_file, tmp_path):  # noqa: F811
+    out = tmp_path / "identify"
+    post = bayes_rcsa.identify(setup_file, lengths=LENGTHS, seed=3, sampler="importance", out=out, plots=True)
+    assert post.summary["sampler"]["mode"] == "importance"
+    assert "importance sampling: Pareto k" in post.summary_line()
+    assert (out / "corner.png").is_file() and (out / "frf.png").is_file()
+    assert not (out / "trace.png").exists() and not (out / "chain.h5").exists()
+    draws = bayes_rcsa.posterior.load_posterior(out / "posterior.nc")
+    assert draws.n_draws == 4000
+    kx = draws.values["k_xf"]
+    q = post.summary["parameters"]["k_xf"]
+    assert np.quantile(kx, 0.5) == pytest.approx(q["q50"], rel=1e-12)
+    pred = bayes_rcsa.predict(setup_file, out / "posterior.nc", lengths=[0.030], max_draws=200)
+    assert pred.converged is True and pred.document["n_draws"] == 200
+    dominant = [m for m in pred.predictions if m["dominant"]][0]
+    assert dominant["q05_hz"] < dominant["q50_hz"] < dominant["q95_hz"]
+
+
+def test_cli_sampler_option_and_resume(setup_file, tmp_path, capsys):  # noqa: F811
+    out = tmp_path / "cli"
+    argv = ["identify", str(setup_file), "--out", str(out), "--lengths", "0.025,0.040", "--quiet", "--no-plots"]
+    assert main([*argv, "--sampler", "importance"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["sampler"]["mode"] == "importance" and summary["converged"] is True
+    capsys.readouterr()
+    # a resume continues a chain: with importance sampling it is refused in one line, before the folder is touched
+    assert main([*argv, "--sampler", "importance", "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert "--resume continues an MCMC checkpoint" in err and len(err.strip().splitlines()) == 1
+    assert json.loads((out / "summary.json").read_text()) == summary
+    with pytest.raises(SetupError, match="--sampler 'gibbs'"):
+        bayes_rcsa.identify(setup_file, lengths=LENGTHS, sampler="gibbs")
