@@ -133,7 +133,15 @@ def test_stage2_stops_converged_by_default_and_reports_no_more_than_the_arviz_bu
                                                                                                  max_steps=100))
     assert not short.converged and short.n_steps == 100
     warn = next(w for w in short.warnings if "unconverged" in w)
-    assert f"R-hat {np.max(short.rhat):.3f}" in warn and f"bulk ESS {short.ess:.0f}" in warn, warn
+    assert f"R-hat {np.max(short.rhat):.3f}" in warn and f"bulk ESS {np.min(short.quality.ess_bulk):.0f}" in warn, warn
+    # a chain too short to measure its own tau has no ESS (issue #42: stage 2's first 500 steps measured tau 47-72
+    # where long chains measure 153-369, an ESS overstated ~5x): unknown, not the bulk ESS ArviZ computes from it
+    assert fit.quality.tau_measured and math.isfinite(fit.ess) and fit.quality.summary()["ess"] == fit.ess
+    assert short.n_steps <= 50 * np.max(short.tau) and not short.quality.tau_measured
+    assert np.min(short.quality.ess_bulk) > 0 and math.isnan(short.ess)
+    row = short.quality.summary()
+    assert row["ess"] is None and row["tau_measured"] is False and "not measured" in row["ess_reason"]
+    assert "ESS unknown (chain shorter than 50 autocorrelation times)" in warn, warn
 
 
 def test_two_stage_hyperparameters_match_joint_emcee_on_four_combinations(four_combinations):

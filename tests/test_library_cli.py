@@ -229,10 +229,11 @@ def test_library_outputs_and_the_report_section(tmp_path):
     q = fit.stage2.fit.quality
     for row in doc["stage2"].values():
         assert row["rhat_max"] == pytest.approx(np.max(q.rhat)) and row["ess_bulk_min"] == pytest.approx(np.min(q.ess_bulk))
-        assert row["ess"] == pytest.approx(q.ess) and row["ess"] <= row["ess_bulk_min"] and row["converged"] is False
+        # 300 steps cannot measure tau (50 tau): the ESS is unknown, not the bulk ESS of so short a chain
+        assert not q.tau_measured and row["ess"] is None and row["converged"] is False and row["tau_measured"] is False
         assert row["steps"] == 300 and row["ess_tail_min"] > 0 and row["autocorrelation_steps"] > 0
     assert doc["pooling"]["stage2_rhat_max"] == pytest.approx(np.max(q.rhat))
-    assert doc["pooling"]["stage2_ess"] == pytest.approx(q.ess) and doc["pooling"]["stage2_steps"] == 300
+    assert doc["pooling"]["stage2_ess"] is None and doc["pooling"]["stage2_steps"] == 300
     assert any("stage 2 stopped at max_steps = 300 unconverged" in w for w in doc["warnings"])
     html = write_report_html([tmp_path / "lib"], tmp_path / "report.html").read_text()
     assert "Tool library: the contact population" in html and html.count("<td>ER32</td><td>k_xf</td>") == 1

@@ -90,9 +90,11 @@ def test_exact_option_moves_stage2_onto_the_known_two_stage_target_where_the_sur
     # the same chain (same seed): the re-weighted draws are rows of the surrogate's draws, resampled
     assert np.all(np.isin(auto.fit.theta[:, 0], sur.fit.theta[:, 0]))
     assert 0.1 < auto.exact["weight_ess_fraction"] < 0.95  # the weights do work, and did not degenerate
+    # 500 steps cannot measure the chain's tau (50 tau): its ESS, and so the re-weighted draws' worth (chain ESS x
+    # the weights' ESS fraction), is unknown, not a number from an underestimated tau (issue #42), and said so
     eff = auto.exact["effective_draws"]
-    assert eff == pytest.approx(auto.fit.ess * auto.exact["weight_ess_fraction"])
-    assert any("effective draws" in w for w in auto.warnings) == (eff < SETTINGS.ess_target)
+    assert not auto.fit.quality.tau_measured and eff is None and np.isnan(auto.fit.ess)
+    assert any("leaves about an unknown number of effective draws" in w for w in auto.warnings), auto.warnings
     lw = _analytic_log_weights(sur.fit, setups, means)
     w = np.exp(lw - lw.max())
     w /= w.sum()

@@ -51,17 +51,30 @@ def test_no_verdict_where_the_proposal_cannot_cover_the_posterior():
     assert r["verdict"] == "unreliable" and "inside the prior" in r["reason"]
 
 
-def test_identify_tail_check_option_writes_its_verdict_and_warns_when_it_is_not_consistent(example, tmp_path):
+def test_identify_tail_check_is_on_by_default_and_part_of_the_reported_convergence(example, tmp_path):
     from bayes_rcsa.cli.main import main
 
     out = tmp_path / "fit"
     rc = main(["identify", str(example), "--lengths", "0.025,0.040", "--out", str(out), "--quiet", "--max-steps", "300",
-               "--check-every", "100", "--walkers", "18", "--no-plots", "--tail-check"])
+               "--check-every", "100", "--walkers", "18", "--no-plots"])
     assert rc == 0
     s = json.loads((out / "summary.json").read_text())
     tc = s["tail_check"]
     assert tc["verdict"] in ("consistent", "disagrees", "unreliable") and np.isfinite(tc["pareto_k"])
     assert set(tc["parameters"]) == set(s["parameter_names"])
     assert f"within {TOLERANCE_SD} posterior sd" in tc["rule"] and "{" not in tc["rule"]  # the rule as applied
-    # every warning printed also goes into the JSON output
-    assert any(w.startswith("tail check") for w in s["warnings"]) == (tc["verdict"] != "consistent")
+    # every warning printed also goes into the JSON output; only a disagreement is one (no verdict says nothing)
+    assert any(w.startswith("tail check") for w in s["warnings"]) == (tc["verdict"] == "disagrees")
+    # part of the reported convergence: a disagreement makes the run not converged, with the reason
+    conv = s["convergence"]
+    assert conv["tail_check"]["verdict"] == tc["verdict"] and conv["converged"] is s["converged"]
+    assert s["converged"] == (conv["chain"]["converged"] and tc["verdict"] != "disagrees")
+    assert ("tail check:" in conv["reason"]) == (tc["verdict"] == "disagrees")
+    # on by default (with as many importance draws as the chain's evaluations, 2e4-1e5), off on request
+    out2 = tmp_path / "fit2"
+    assert main(["identify", str(example), "--lengths", "0.025,0.040", "--out", str(out2), "--quiet", "--max-steps",
+                 "300", "--check-every", "100", "--walkers", "18", "--no-plots", "--no-tail-check"]) == 0
+    s2 = json.loads((out2 / "summary.json").read_text())
+    assert "tail_check" not in s2 and s2["convergence"]["tail_check"]["verdict"] == "not run"
+    assert s2["converged"] is s2["convergence"]["converged"] is s2["convergence"]["chain"]["converged"]
+    assert tc["n"] == min(max(s["timing"]["log_posterior_evaluations"], 20_000), 100_000)

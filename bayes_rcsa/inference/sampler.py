@@ -92,6 +92,8 @@ __all__ = [
     "burn_and_thin",
     "check_schedule",
     "MOVES",
+    "default_moves",
+    "snooker_move",
 ]
 
 
@@ -121,7 +123,7 @@ class SamplerSettings:
     progress : bool
         Progress line on stderr.
     snooker_fraction : float
-        Probability of a DESnookerMove (the rest are DEMoves) of the
+        Probability of a snooker move (:func:`snooker_move`; the rest are DEMoves) of the
         ``"differential"`` moves.
     n_steps : int or None
         ``None``: converge mode.  A number: fixed-steps mode, exactly this many steps (burn-in included).
@@ -604,14 +606,70 @@ def _store_phase(settings: SamplerSettings) -> int:
     return settings.total_steps % settings.store_every if settings.fixed else 0
 
 
-def _moves(settings: SamplerSettings):
-    """emcee's moves of ``settings.move``."""
+def snooker_move(gamma: float = 1.7):
+    """The differential-evolution snooker move of ter Braak & Vrugt (2008), in detailed balance.
+
+    emcee's own :class:`emcee.moves.DESnookerMove` (up to 3.1.6) is not: it scales the direction ``x - z`` by
+    ``1 / sqrt(|x - z|)`` instead of ``1 / |x - z|`` (the jump then grows with the distance from ``z``, a
+    multiplicative move whose Jacobian it omits) and raises the distance ratio to ``(d - 1) / 2`` instead of
+    ``d - 1`` (fixed upstream in emcee pull request 531, not released).  The chain it drives is not stationary
+    on the posterior: it under-samples a long one-sided tail while R-hat, tau and ESS pass
+    (``benchmarks/sampler_tail.py``, docs/identification.md "Sampler moves and the tails").  This move is the
+    published one: for each walker ``x`` of the current half, ``z, z1, z2`` from the other walkers (one from each of
+    three of the four splits, emcee's scheme), the jump ``gamma (z1 - z2) . e`` along the unit vector
+    ``e = (x - z) / |x - z|``, accepted with the extra factor ``(|x' - z| / |x - z|)^(d - 1)``.
+
+    Parameters
+    ----------
+    gamma : float, the jump's scale (1.7, the reference's value)
+
+    Returns
+    -------
+    emcee.moves.RedBlueMove
+    """
+    from emcee.moves.red_blue import RedBlueMove
+
+    class _Snooker(RedBlueMove):
+        def __init__(self):
+            super().__init__(nsplits=4)
+
+        def get_proposal(self, s, c, random):
+            ns, nd = s.shape
+            # one walker of each of the three other splits per walker, in random order
+            w = np.stack([c[j][random.randint(len(c[j]), size=ns)] for j in range(3)], axis=1)  # (ns, 3, nd)
+            order = np.argsort(random.rand(ns, 3), axis=1)
+            w = np.take_along_axis(w, order[:, :, None], axis=1)
+            z, z1, z2 = w[:, 0], w[:, 1], w[:, 2]
+            delta = s - z
+            norm = np.linalg.norm(delta, axis=1)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                e = delta / norm[:, None]
+                q = s + gamma * e * np.sum(e * (z1 - z2), axis=1, keepdims=True)
+                factor = (nd - 1.0) * (np.log(np.linalg.norm(q - z, axis=1)) - np.log(norm))
+            bad = ~np.isfinite(factor)  # a walker on top of z: no direction, stay
+            q[bad], factor[bad] = s[bad], 0.0
+            return q, factor
+
+    return _Snooker()
+
+
+def default_moves(move: str = "differential", snooker_fraction: float = 0.2) -> list:
+    """emcee's weighted moves of :attr:`SamplerSettings.move` (what :func:`run_ensemble` uses without ``moves``).
+
+    ``"differential"``: :class:`emcee.moves.DEMove` with probability ``1 - snooker_fraction`` and the snooker move
+    (:func:`snooker_move`, not emcee's) with ``snooker_fraction``; ``"stretch"``: the stretch move alone.
+    """
     import emcee
 
-    if settings.move == "stretch":
+    if move == "stretch":
         return [(emcee.moves.StretchMove(), 1.0)]
-    return [(emcee.moves.DEMove(), 1.0 - settings.snooker_fraction),
-            (emcee.moves.DESnookerMove(), settings.snooker_fraction)]
+    out = [(emcee.moves.DEMove(), 1.0 - snooker_fraction)]
+    return out + [(snooker_move(), snooker_fraction)] if snooker_fraction > 0 else out
+
+
+def _moves(settings: SamplerSettings):
+    """emcee's moves of ``settings.move``."""
+    return default_moves(settings.move, settings.snooker_fraction)
 
 
 def run_ensemble(

@@ -1,9 +1,10 @@
 """An importance-sampling check of the posterior's interval ends, independent of the chain's mixing.
 
 R-hat, the autocorrelation time and the ESS are computed from the chain itself: a sampler that mixes quickly
-in the bulk and seldom enters a long one-sided tail passes them all.  That is what identify's default emcee
-moves do where a stiffness is bounded by the data from one side only (docs/identification.md, "Known
-limit"; ``benchmarks/sampler_tail.py``).  This check samples the same log posterior by importance sampling
+in the bulk and seldom enters a long one-sided tail passes them all.  That is what identify's old default emcee
+moves did (emcee's DESnookerMove is not in detailed balance) where a stiffness is bounded by the data from one side
+only (docs/identification.md, "Sampler moves and the tails"; ``benchmarks/sampler_tail.py``); identify runs this
+check by default as part of its convergence report.  This check samples the same log posterior by importance sampling
 from a multivariate t fitted to the draws (``df`` degrees of freedom, covariance ``scale`` times the draws',
 refitted once to a weighted pilot), which needs no mixing, smooths the weights (PSIS, Vehtari et al. 2024) and compares the 5 % and 95 % points
 of every parameter with the chain's.

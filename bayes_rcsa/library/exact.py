@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import dataclasses
 
+import math
+
 import numpy as np
 
 from ..stats.weights import MIN_ESS, effective_sample_size, normalise_log_weights
@@ -203,5 +205,6 @@ def reweight_exact(fit, setups, rng: np.random.Generator, mode="auto", max_draws
         return fit, info
     idx = systematic_resample(w, rng)
     types = {t: dataclasses.replace(tf, chain=tf.flat[idx].reshape(tf.chain.shape)) for t, tf in fit.types.items()}
-    info.update(used=True, effective_draws=float(fit.ess * ess / H))
+    # None where the chain's ESS is unknown (too short to measure its tau): no effective draws are vouched for
+    info.update(used=True, effective_draws=float(fit.ess * ess / H) if math.isfinite(fit.ess) else None)
     return dataclasses.replace(fit, theta=fit.theta[idx], types=types), info

@@ -346,6 +346,8 @@ class ChainQuality:
     n_draws : int, kept draws (the chain evenly thinned to at most :data:`MAX_KEPT`)
     converged : bool, the rule of :class:`Stage2Settings` was met before ``max_steps``
     reason : str, why the chain stopped
+    tau_factor : float, the chain length in autocorrelation times below which ``tau`` (and so any ESS) is not
+        measured (``Stage2Settings.tau_factor``)
     """
 
     n_walkers: int
@@ -358,19 +360,39 @@ class ChainQuality:
     n_draws: int
     converged: bool
     reason: str
+    tau_factor: float = 50.0
+
+    @property
+    def tau_measured(self) -> bool:
+        """Whether the chain is long enough to measure its own autocorrelation time: longer than ``tau_factor``
+        times the largest ``tau`` (the first rule of :mod:`bayes_rcsa.inference.sampler`'s convergence).  A
+        shorter chain underestimates ``tau``: stage 2's 500-step chains measured 47-72 steps where chains of
+        10,000+ steps measured 153-369 (issue #42)."""
+        t = float(np.max(self.tau)) if np.size(self.tau) else math.nan
+        return math.isfinite(t) and self.n_steps > self.tau_factor * t
 
     @property
     def ess(self) -> float:
-        """Effective draws of the kept draws: their smallest ArviZ bulk ESS, at most their number; 0 where it could
+        """Effective draws of the kept draws: their smallest ArviZ bulk ESS, at most their number; NaN (unknown)
+        where the chain is too short to measure its own autocorrelation time (:attr:`tau_measured`) or the ESS could
         not be computed.
 
         The bulk ESS alone, as stage 1 reports it and as the stopping rule judges it.  The tau-based
         ``n_walkers (n_steps - burn) / max tau`` was above it in every run measured: 3.6-3.8x on the 250-step
         chains the old rule stopped at (which reported it), 10-20 % on converged ones (docs/library.md, "Stage
-        2"); a minimum of the two would be the bulk ESS.
+        2"); a minimum of the two would be the bulk ESS.  Neither is an ESS where ``tau`` itself is not measured:
+        both then rest on an underestimated ``tau`` (about fivefold on stage 2's first 500 steps).
         """
         v = float(np.min(self.ess_bulk))
-        return min(v, float(self.n_draws)) if math.isfinite(v) else 0.0
+        return min(v, float(self.n_draws)) if (math.isfinite(v) and self.tau_measured) else math.nan
+
+    @property
+    def ess_text(self) -> str:
+        """:attr:`ess` for messages: ``"1234"`` or ``"unknown (chain shorter than 50 autocorrelation times)"``."""
+        e = self.ess
+        return f"{e:.0f}" if math.isfinite(e) else (
+            f"unknown (chain shorter than {self.tau_factor:g} autocorrelation times)" if not self.tau_measured
+            else "unknown")
 
     def summary(self) -> dict:
         """JSON-ready numbers of the outputs (``library.json``, ``population.nc``): ``ess`` (:attr:`ess`), ``steps``,
@@ -379,7 +401,12 @@ class ChainQuality:
         def worst(v, f):
             return float(f(v)) if np.all(np.isfinite(v)) else None
 
-        return {"ess": self.ess, "steps": int(self.n_steps), "autocorrelation_steps": worst(self.tau, np.max),
+        e = self.ess
+        return {"ess": e if math.isfinite(e) else None, "ess_reason": None if math.isfinite(e) else (
+                    f"not measured: the chain of {int(self.n_steps)} steps is not longer than {self.tau_factor:g} "
+                    "autocorrelation times" if not self.tau_measured else "could not be computed"),
+                "tau_measured": self.tau_measured, "steps": int(self.n_steps),
+                "autocorrelation_steps": worst(self.tau, np.max),
                 "rhat_max": worst(self.rhat, np.max), "ess_bulk_min": worst(self.ess_bulk, np.min),
                 "ess_tail_min": worst(self.ess_tail, np.min), "converged": bool(self.converged)}
 
@@ -610,14 +637,14 @@ def fit_hyper(groups, hyper: Hyperprior, rng: np.random.Generator, settings: Sta
     # R-hat than the kept draws or the whole chain (within 4 % at the default settings; docs/library.md)
     diag = chain_diagnostics(np.swapaxes(kept, 0, 1))
     quality = ChainQuality(n_walkers, run.n_steps, run.burn, np.asarray(run.tau), diag["rhat"], diag["ess_bulk"],
-                           diag["ess_tail"], theta.shape[0], run.converged, run.reason)
+                           diag["ess_tail"], theta.shape[0], run.converged, run.reason, settings.tau_factor)
     warns = []
     if not run.converged:
         warns.append(f"stage 2 stopped at max_steps = {settings.max_steps} unconverged: R-hat "
                      f"{np.max(diag['rhat']):.3f} (required < {settings.rhat_max:g}), bulk ESS "
                      f"{np.min(diag['ess_bulk']):.0f} (required >= {settings.ess_target:g}), autocorrelation time "
                      f"{np.max(run.tau):.0f} steps (required < 1/{settings.tau_factor:g} of the chain); the "
-                     f"hyperparameter intervals are approximate (ESS {quality.ess:.0f}; a larger max_steps helps: "
+                     f"hyperparameter intervals are approximate (ESS {quality.ess_text}; a larger max_steps helps: "
                      "'bayes-rcsa library --max-steps')")
     draws = _type_draws(theta, groups, hyper, rng) if type_draws else [np.zeros((theta.shape[0], 0))] * T
     acc = float(np.mean(run.acceptance_fraction))

@@ -202,7 +202,7 @@ def _tail_corrected(job, folder: Path, draws, rng: np.random.Generator):
     The stage-1 chain's interval ends are compared with an importance-sampling estimate of the same log
     posterior (:func:`bayes_rcsa.inference.tail_check.importance_tail_check`).  Where they disagree and the
     importance estimate is reliable, the draws are replaced by as many importance draws, resampled
-    from the check's own importance draws (``resample``): identify's default moves under-sample a
+    from the check's own importance draws (``resample``): identify's old default moves under-sampled a
     one-sided tail (docs/identification.md), and a population pooled from such draws inherits it.  The log
     posterior is rebuilt from the setup file and the run's summary, and must reproduce the stored one.
     """

@@ -270,13 +270,14 @@ def fit_population(setups, hyper: Hyperprior, rng: np.random.Generator, settings
     warns += [w for w in hfit.warnings if w not in warns]  # the longer chain's, where its draws are used
     if exact_info["sound"] is False:  # requested, judged and found unsound (not: switched off, or too costly)
         warns.append(f"stage 2: exact two-stage re-weighting not used: {exact_info['reason']}")
-    elif exact_info["used"] and exact_info["effective_draws"] < settings.ess_target:
+    elif exact_info["used"] and not (exact_info["effective_draws"] or 0.0) >= settings.ess_target:  # None: unknown
         # resampling keeps the draws' number, not their information: chain ESS x the weights' ESS fraction
         rerun = exact_info["rerun"]
         longer = ("" if rerun is None else f" after one longer chain ({rerun['n_steps']} steps, ESS target "
                   f"{rerun['ess_target']:.0f}, cap {settings.max_steps})")
-        warns.append(f"stage 2: the exact two-stage re-weighting leaves about {exact_info['effective_draws']:.0f} "
-                     f"effective draws (chain ESS {hfit.ess:.0f} x weight ESS fraction "
+        eff = exact_info["effective_draws"]
+        warns.append(f"stage 2: the exact two-stage re-weighting leaves about {'an unknown number of' if eff is None else f'{eff:.0f}'} "
+                     f"effective draws (chain ESS {hfit.quality.ess_text} x weight ESS fraction "
                      f"{exact_info['weight_ess_fraction']:.2f}){longer} < the ESS target {settings.ess_target:g}; "
                      "the interval ends carry that much more Monte Carlo error (a larger max_steps reduces it: "
                      "'bayes-rcsa library --max-steps')")
@@ -330,20 +331,27 @@ def _exact_step(hfit: HyperFit, groups, setups, hyper: Hyperprior, rng: np.rando
     """
     fit, info = reweight_exact(hfit, setups, rng, exact)
     info["rerun"] = None
-    if not info["used"] or info["effective_draws"] >= settings.ess_target or hfit.n_steps >= settings.max_steps:
+    if not info["used"] or hfit.n_steps >= settings.max_steps:
+        return fit, info
+    if info["effective_draws"] is not None and info["effective_draws"] >= settings.ess_target:  # None: unknown
         return fit, info
     target = RERUN_MARGIN * settings.ess_target / info["weight_ess_fraction"]
     longer = fit_hyper(groups, hyper, rng, dataclasses.replace(settings, ess_target=target), start_from=hfit.theta)
     fit2, info2 = reweight_exact(longer, setups, rng, exact)
-    rerun = {"ess_target": float(target), "n_steps": int(longer.n_steps), "chain_ess": float(longer.ess),
+    rerun = {"ess_target": float(target), "n_steps": int(longer.n_steps), "chain_ess": _known(longer.ess),
              "used": bool(info2["used"]), "first_effective_draws": info["effective_draws"],
-             "first_weight_ess_fraction": info["weight_ess_fraction"], "first_chain_ess": float(hfit.ess),
+             "first_weight_ess_fraction": info["weight_ess_fraction"], "first_chain_ess": _known(hfit.ess),
              "first_n_steps": int(hfit.n_steps)}
     if not info2["used"]:  # keep the first, sound, re-weighting
         info["rerun"] = rerun
         return fit, info
     info2["rerun"] = rerun
     return fit2, info2
+
+
+def _known(ess: float) -> float | None:
+    """An ESS for the outputs: None where unknown (NaN: the chain too short to measure its tau)."""
+    return float(ess) if math.isfinite(ess) else None
 
 
 def _weighted_quantiles(v: np.ndarray, w: np.ndarray, q) -> np.ndarray:
@@ -355,5 +363,5 @@ def _weighted_quantiles(v: np.ndarray, w: np.ndarray, q) -> np.ndarray:
 
 def check_converged(result: Stage2Result) -> None:
     """Raise :class:`ConvergenceError` if the stage-2 chain has fewer than 100 effective draws."""
-    if result.fit is not None and result.fit.ess < 100:
-        raise ConvergenceError(f"stage-2 ESS {result.fit.ess:.0f} < 100; rerun with more steps")
+    if result.fit is not None and not result.fit.ess >= 100:  # NaN: the chain too short to measure its ESS
+        raise ConvergenceError(f"stage-2 ESS {result.fit.quality.ess_text} < 100; rerun with more steps")

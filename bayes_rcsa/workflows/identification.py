@@ -326,7 +326,7 @@ def _write_identification(ir, folder: Path, plots: bool, cut_draws, summary: dic
 def identify(setup, *, lengths: Sequence[float] | None = None, method: str = "multi", seed: int = 0,
              walkers: int | None = None, max_steps: int | None = None, check_every: int | None = None,
              ess_min: float = 400.0, checkpoint_interval: float = 2.0, band: tuple[float, float] | None = None,
-             spindle_samples=None, allow_no_resonance: bool = False, tail_check: bool = False, library=None,
+             spindle_samples=None, allow_no_resonance: bool = False, tail_check: bool = True, library=None,
              no_taps: bool = False, cuts: CutTestOptions | dict | None = None, out=None, resume: bool = False,
              force: bool = False, progress: bool = False, plots: bool = True, sampler: str = "mcmc") -> Posterior:
     """Identify the tool-holder contact (k_xf, k_thetaM, ...) from the setup's measured tool-point FRFs.
@@ -345,7 +345,9 @@ def identify(setup, *, lengths: Sequence[float] | None = None, method: str = "mu
     spindle_samples : path of spindle_samples.npz or SpindleSamples, optional (Bayesian methods): the predicted
         natural-frequency intervals mix the posterior draws with these flange-receptance samples
     allow_no_resonance : bool, proceed (with a warning) when a measurement holds no resonance in its band
-    tail_check : bool, compare every parameter's 90 % interval ends with an importance-sampling estimate
+    tail_check : bool, compare every parameter's 90 % interval ends with an importance-sampling estimate (Bayesian
+        methods; on by default, part of the reported convergence: ``summary["convergence"]``, and a disagreement
+        makes ``converged`` false)
     library : path of population.nc or a Population (``bayes-rcsa library``), optional (method "multi"): the
         contact prior is the population predictive of the setup's holder type and shank diameter
     no_taps : bool, with ``library``: use no measurement; the posterior is the population predictive
@@ -525,6 +527,43 @@ def _in_memory(posterior: Posterior) -> Posterior:
     return posterior
 
 
+#: Importance draws of the default tail check: as many as the chain's log-posterior evaluations, within these bounds
+#: (its cost then stays at most about that of the chain; 1e5 evaluations take ~2 s on the bundled example).
+TAIL_CHECK_MIN, TAIL_CHECK_MAX = 20_000, 100_000
+
+
+def convergence_report(summary: dict) -> dict:
+    """The ``convergence`` entry of an identify summary, and its verdict in ``summary["converged"]``.
+
+    Two independent checks: the chain's own rule (tau, R-hat, bulk ESS; :mod:`bayes_rcsa.inference.sampler`) and
+    the importance-sampling check of the 5 % and 95 % points (:mod:`bayes_rcsa.inference.tail_check`), which sees
+    a tail the chain under-samples while its own diagnostics pass (docs/identification.md, "Sampler moves and the
+    tails").  A ``"disagrees"`` verdict makes the run not converged (``summary["converged"]`` set to False); an
+    ``"unreliable"`` one (Pareto k > 0.7 or too few effective weights) cannot judge and leaves the chain's verdict.
+
+    Returns
+    -------
+    dict: ``converged``, ``reason``, ``chain`` ({``converged``, ``reason``}) and ``tail_check`` (its verdict,
+    ``pareto_k``, ``ess`` and ``reason``; ``"not run"`` without one)
+    """
+    chain = {"converged": bool(summary["converged"]), "reason": summary.get("stop_reason", "")}
+    tc = summary.get("tail_check")
+    if tc is None:
+        tail = {"verdict": "not run", "reason": "identify ran with tail_check=False (--no-tail-check)"}
+    else:
+        tail = {"verdict": tc["verdict"], "reason": tc["reason"], "pareto_k": tc.get("pareto_k"),
+                "ess": tc.get("ess"), "n": tc.get("n")}
+    reasons = [] if chain["converged"] else [f"chain: {chain['reason']}"]
+    if tail["verdict"] == "disagrees":
+        reasons.append(f"tail check: {tail['reason']}")
+    converged = not reasons
+    summary["converged"] = converged
+    return {"converged": converged, "reason": "; ".join(reasons) if reasons else (
+        "chain converged" + ("; tail check consistent" if tail["verdict"] == "consistent" else
+                             f"; tail check {tail['verdict']} (no verdict)")),
+        "chain": chain, "tail_check": tail}
+
+
 def _fit(problem, setup, seed, settings, resume, sampler, spindle_samples, tail_check, cut_term, population, library,
          checkpoint) -> Posterior:
     """Sample (or fit), then the summary's additions: tail check, cut coefficients, warnings, geometry, library."""
@@ -538,9 +577,13 @@ def _fit(problem, setup, seed, settings, resume, sampler, spindle_samples, tail_
         problem = problem.with_extra_terms(cut_term)
     result = run_identification(problem, seed=seed, settings=settings, checkpoint_path=checkpoint, resume=resume,
                                 spindle_samples=spindle_samples, sampler=sampler)
-    if tail_check:
-        # its own stream: the chain's seed stays the chain's
-        result.summary["tail_check"] = check_identification(result, np.random.default_rng([seed, 7]))
+    if tail_check and result.chain is not None:  # an accepted importance-sampling posterior is its own check
+        # its own stream: the chain's seed stays the chain's; cheap: at most as many evaluations as the chain's
+        # (between TAIL_CHECK_MIN and TAIL_CHECK_MAX, ~2 s at the maximum)
+        n_check = int(np.clip(result.summary["timing"]["log_posterior_evaluations"], TAIL_CHECK_MIN, TAIL_CHECK_MAX))
+        result.summary["tail_check"] = check_identification(result, np.random.default_rng([seed, 7]), n=n_check)
+    if problem.method != "deterministic":
+        result.summary["convergence"] = convergence_report(result.summary)
     cut_draws = None
     if cut_term is not None:
         from ..cuts.joint_fit import cut_coefficients
@@ -548,7 +591,8 @@ def _fit(problem, setup, seed, settings, resume, sampler, spindle_samples, tail_
         cut_draws, result.summary["cuts"] = cut_coefficients(result.flat_theta, cut_term, seed)
     s = result.summary
     tc = s.get("tail_check")
-    if tc is not None and tc["verdict"] != "consistent":
+    # "unreliable" (no verdict) is recorded in summary["convergence"], not warned about: it says nothing of the chain
+    if tc is not None and tc["verdict"] == "disagrees":
         s.setdefault("warnings", []).append(f"tail check {tc['verdict']}: {tc['reason']}")
     # the data-plausibility warnings of the run travel with the results too
     s["warnings"] = merge_warnings(current_warnings(), s.get("warnings", []))
