@@ -152,8 +152,8 @@ def zoa_lobes(
     max_lobes : int or None
         Number of lobes; default :func:`lobe_count` for the lowest speed.
     chunk : int or None
-        Draws processed together; default keeps the (draws x lines x 2 x K)
-        work arrays near 2e6 elements (~16 MB each).
+        Draws processed together; default keeps the (draws x lines x 2)
+        work arrays near 4e6 elements (64 MB of complex eigenvalues).
 
     Returns
     -------
@@ -172,7 +172,7 @@ def zoa_lobes(
     h0 = mean_directional_matrix(cutting)
     n_draw = gx.shape[0]
     if chunk is None:
-        chunk = max(1, int(2e6 // (f.size * 2 * K)))
+        chunk = max(1, int(4e6 // (f.size * 2)))  # the (draws x lines x 2) eigenvalue arrays stay near 64 MB
     depth = np.full((n_draw, n.size), np.inf)
     chat = np.full((n_draw, n.size), np.nan)
     lobe = np.full((n_draw, n.size), -1, dtype=int)
@@ -213,55 +213,47 @@ def lobe_points(mu: np.ndarray, frequency_hz: np.ndarray, flutes: int, lobes: in
     return speed, depth
 
 
+def _segment_ends(h0, gx, gy):
+    """Depth 1/(2 Re μ) (+inf where Re μ <= 0) and phase ε of every (draw, line, branch): (D, F, 2) x2.
+
+    The same arithmetic as :func:`lobe_points` (which also forms the speeds of every lobe; the compiled
+    envelope forms them per segment instead).
+    """
+    mu = oriented_eigenvalues(h0, gx, gy)
+    mu_r = mu.real
+    valid = mu_r > 0
+    safe = np.where(valid, mu_r, 1.0)
+    return np.where(valid, 0.5 / safe, np.inf), np.pi + 2.0 * np.arctan(mu.imag / safe)
+
+
+def _envelope_of_ends(depth_pts, eps, f, flutes, speeds, K, track=True):
+    """Lower envelope of all lobe segments from :func:`_segment_ends`: depth (D, S) m, and with ``track`` the
+    chatter frequency (D, S) Hz and the lobe number (D, S) of the limiting segment (else None, None).
+
+    Segments join consecutive lines of one eigenvalue branch and one lobe where both ends are physical
+    (Re μ > 0); each grid speed inside a segment's speed range gets the linearly interpolated depth, and the
+    lowest of them is the limit (compiled loop, :mod:`._zoa_kernel`).
+    """
+    from ._zoa_kernel import lower_envelope
+
+    n_draw = depth_pts.shape[0]
+    f = np.ascontiguousarray(f, dtype=float)
+    speeds = np.ascontiguousarray(speeds, dtype=float)
+    depth = np.full((n_draw, speeds.size), np.inf)
+    shape = (n_draw, speeds.size) if track else (1, 1)
+    chat = np.full(shape, np.nan)
+    lob = np.full(shape, -1, dtype=np.int64)
+    steps = np.diff(speeds)
+    uniform = bool(steps.size > 0 and np.all(np.abs(steps - steps.mean()) <= 1e-9 * steps.mean()))
+    lower_envelope(np.ascontiguousarray(depth_pts), np.ascontiguousarray(eps), 2 * np.pi * f, f, int(flutes),
+                   int(K), speeds, uniform, depth, chat, lob, bool(track))
+    return (depth, chat, lob) if track else (depth, None, None)
+
+
 def _envelope(h0, gx, gy, f, flutes, speeds, K):
     """Lower envelope of all lobe segments for a chunk of draws: (n_draw, n_speed) x3."""
-    n_draw = gx.shape[0]
-    mu = oriented_eigenvalues(h0, gx, gy)  # (D, F, 2)
-    spd, a = lobe_points(mu, f, flutes, K)  # (D,F,2,K), (D,F,2)
-    valid = np.isfinite(a)
-    # segments between consecutive lines, both ends physical
-    s0, s1 = spd[:, :-1], spd[:, 1:]
-    a0, a1 = a[:, :-1, :, None], a[:, 1:, :, None]
-    ok = (valid[:, :-1] & valid[:, 1:])[..., None] & np.ones(K, dtype=bool)
-    lo = np.minimum(s0, s1)
-    hi = np.maximum(s0, s1)
-    # index range of the speed grid covered by each segment
-    i0 = np.searchsorted(speeds, lo, side="left")
-    i1 = np.searchsorted(speeds, hi, side="right")  # exclusive
-    count = np.where(ok, i1 - i0, 0)
-    sel = np.nonzero(count > 0)
-    cnt = count[sel]
-    total = int(cnt.sum())
-    depth = np.full((n_draw, speeds.size), np.inf)
-    chat = np.full((n_draw, speeds.size), np.nan)
-    lob = np.full((n_draw, speeds.size), -1, dtype=int)
-    if total == 0:
-        return depth, chat, lob
-    rep = np.repeat(np.arange(cnt.size), cnt)
-    offs = np.arange(total) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-    grid_idx = i0[sel][rep] + offs
-    d_idx, f_idx, b_idx, k_idx = (x[rep] for x in sel)
-    x0 = s0[d_idx, f_idx, b_idx, k_idx]
-    x1 = s1[d_idx, f_idx, b_idx, k_idx]
-    y0 = a0[d_idx, f_idx, b_idx, 0]
-    y1 = a1[d_idx, f_idx, b_idx, 0]
-    x = speeds[grid_idx]
-    span = x1 - x0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.where(span != 0, (x - x0) / np.where(span != 0, span, 1.0), 0.0)
-    val = y0 + t * (y1 - y0)
-    fc = f[f_idx] + t * (f[f_idx + 1] - f[f_idx])
-    # lower envelope: sort by (draw, speed, value) and keep the first of each cell
-    cell = d_idx * speeds.size + grid_idx
-    order = np.lexsort((val, cell))
-    cell_sorted = cell[order]
-    first = np.ones(order.size, dtype=bool)
-    first[1:] = cell_sorted[1:] != cell_sorted[:-1]
-    pick = order[first]
-    depth.reshape(-1)[cell[pick]] = val[pick]
-    chat.reshape(-1)[cell[pick]] = fc[pick]
-    lob.reshape(-1)[cell[pick]] = k_idx[pick]
-    return depth, chat, lob
+    depth_pts, eps = _segment_ends(h0, gx, gy)
+    return _envelope_of_ends(depth_pts, eps, f, flutes, speeds, K)
 
 
 # ----------------------------------------------------------------------------------------
@@ -282,11 +274,26 @@ class ZOAMethod:
     def depth_limits(self, frf_x, frf_y, frequency_hz, cutting, speeds_rpm, options, progress=None):
         from .methods import MethodResult
 
-        lim = zoa_lobes(frf_x, frf_y, frequency_hz, cutting, speeds_rpm).depth_limit_m
+        if not cutting.equal_pitch:
+            raise SetupError("the zero-order approximation here assumes equal pitch; use method 'sdm' for variable "
+                             "pitch")
+        gx, gy, f = _check_frfs(frf_x, frf_y, frequency_hz)
+        gx, gy = gx.reshape(-1, f.size), gy.reshape(-1, f.size)
+        n = np.asarray(speeds_rpm, dtype=float)
+        if n.ndim != 1 or n.size < 1 or np.any(n <= 0) or np.any(np.diff(n) <= 0):
+            raise SetupError("speed_rpm must be a strictly increasing 1-D array of positive speeds")
+        # the eigenvalues once: the recommendation's checks between grid speeds (limits_at) reuse them
+        ends = _segment_ends(mean_directional_matrix(cutting), gx, gy)
+
+        def limits_at(speeds):
+            s = np.asarray(speeds, dtype=float)
+            return _envelope_of_ends(*ends, f, cutting.flutes, s, lobe_count(f, cutting.flutes, s[0]),
+                                     track=False)[0]
+
+        lim = limits_at(n)
         if progress is not None:
             progress(1.0)
-        return MethodResult(np.atleast_2d(lim), limits_at=lambda s: np.atleast_2d(
-            zoa_lobes(frf_x, frf_y, frequency_hz, cutting, s).depth_limit_m))
+        return MethodResult(lim, limits_at=limits_at)
 
 
 def _register() -> None:
