@@ -268,8 +268,10 @@ class ZOAMethod:
         return None
 
     def estimate_seconds(self, n_draws: int, n_speeds: int, n_freq: int) -> float:
-        # measured: 500 draws x 400 speeds x 1200 lines in about 2 s on the reference machine
-        return 0.3 + 2.0 * (n_draws * n_speeds * n_freq) / (500 * 400 * 1200)
+        # measured on the bundled 30 mm files (1501 lines), 500 draws x 25001 speeds, compiled envelope (issue 44):
+        # about 1.5 s fixed (imports, figure), 2.5 s per 500 x 25001 (draw, speed) cells (envelope, map, order
+        # statistics) and 0.5 s per 500 x 1500 (draw, line) eigenproblems
+        return 1.5 + 2.5 * (n_draws * n_speeds) / (500 * 25001) + 0.5 * (n_draws * n_freq) / (500 * 1500)
 
     def depth_limits(self, frf_x, frf_y, frequency_hz, cutting, speeds_rpm, options, progress=None):
         from .methods import MethodResult
