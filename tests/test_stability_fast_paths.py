@@ -123,7 +123,7 @@ def test_compiled_envelope_is_the_numpy_envelope(grid):
     np.testing.assert_array_equal(res.lobe, ref[2])
 
 
-def test_map_level_and_window_equal_the_direct_forms():
+def test_map_level_and_window_equal_the_direct_forms(monkeypatch):
     rng = np.random.default_rng(5)
     lim = rng.lognormal(-8.0, 0.4, size=(37, 500))
     lim[rng.random(lim.shape) < 0.05] = np.inf  # speeds where a draw finds no chatter
@@ -131,7 +131,11 @@ def test_map_level_and_window_equal_the_direct_forms():
     depths = np.linspace(1e-5, 1e-3, 90)
     depths = np.append(depths, lim[0, 3])  # a depth exactly at a limit: a < a_lim is strict
     depths.sort()
-    np.testing.assert_array_equal(probabilistic.probability_map(lim, depths), _reference_probability_map(lim, depths))
+    ref_map = _reference_probability_map(lim, depths)
+    np.testing.assert_array_equal(probabilistic.probability_map(lim, depths), ref_map)
+    monkeypatch.setattr(probabilistic, "_COMPILED_MAP_CELLS", 1)  # the compiled histogram of large maps
+    np.testing.assert_array_equal(probabilistic.probability_map(lim, depths), ref_map)
+    np.testing.assert_array_equal(probabilistic.probability_map(np.sort(lim, axis=0), depths), ref_map)
     ordered = np.sort(lim, axis=0)
     for level in (0.5, 0.8, 0.95, 1.0):
         ref = _reference_level_limit(lim, level)

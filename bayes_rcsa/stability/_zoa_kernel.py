@@ -94,3 +94,29 @@ def lower_envelope(depth_pts, eps, omega, f, flutes, lobes, speeds, uniform, dep
                             if track:
                                 chat[d, i] = f[j] + t * (f[j + 1] - f[j])
                                 lobe[d, i] = k
+
+
+@njit(cache=True, nogil=True)
+def stable_fractions(lim, depths, out):  # pragma: no cover - compiled
+    """P(stable) map in place: ``out[s, j] = #{d : depths[j] < lim[d, s]} / n_draws``.
+
+    Parameters
+    ----------
+    lim : (D, S) m, per-draw limits (+inf allowed, no NaN)
+    depths : (P,) m, increasing
+    out : (S, P) float, filled on return
+
+    One binary search per (draw, speed) puts the limit above the depths below it (a histogram per speed);
+    the counts summed from the top give the map, divided by D exactly as the numpy mean divides its sum.
+    """
+    n_draw, n_speed = lim.shape
+    n_depth = depths.size
+    hist = np.zeros((n_speed, n_depth + 1), dtype=np.int64)
+    for d in range(n_draw):  # draws outer: lim is read in memory order
+        for s in range(n_speed):
+            hist[s, np.searchsorted(depths, lim[d, s], side="left")] += 1
+    for s in range(n_speed):
+        acc = 0
+        for j in range(n_depth - 1, -1, -1):
+            acc += hist[s, j + 1]
+            out[s, j] = acc / n_draw

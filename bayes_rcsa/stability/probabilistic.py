@@ -41,6 +41,9 @@ __all__ = [
 ]
 
 QUANTILES = (0.05, 0.5, 0.95)
+# (draw, speed) cells above which the P(stable) map is counted by the compiled loop (numba is loaded by then for
+# the ZOA envelope; smaller maps, e.g. of the design and cuts modules, stay in numpy and import no compiler)
+_COMPILED_MAP_CELLS = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -103,7 +106,8 @@ def probability_map(depth_limit_m, depth_m, chunk: int | None = None) -> np.ndar
     -----
     a_j < a_lim,d exactly when j < #{depths below a_lim,d} (one ``searchsorted`` of every limit in the depth
     grid), so the map is a per-speed histogram of those counts summed from the top: O(n_draws n_speed) instead
-    of comparing every draw with every depth.  The counts are exact, so the values equal the direct mean.
+    of comparing every draw with every depth (compiled for large maps).  The counts are exact, so the values
+    equal the direct mean.
     """
     lim = np.asarray(depth_limit_m, dtype=float)
     if lim.ndim == 1:
@@ -114,6 +118,12 @@ def probability_map(depth_limit_m, depth_m, chunk: int | None = None) -> np.ndar
     n_draw, n_speed = lim.shape
     if a.size > 1 and np.any(np.diff(a) < 0):  # an unsorted grid (never ours): the direct comparison
         return np.mean(a[None, None, :] < lim[:, :, None], axis=0)
+    if lim.size >= _COMPILED_MAP_CELLS:  # a fine grid: the compiled histogram, no (D, S) temporaries
+        from ._zoa_kernel import stable_fractions
+
+        out = np.empty((n_speed, a.size))
+        stable_fractions(np.ascontiguousarray(lim), np.ascontiguousarray(a), out)
+        return out
     below = np.searchsorted(a, lim, side="left")  # (D, S): number of depths a_j < a_lim,d
     cell = (np.arange(n_speed) * (a.size + 1))[None, :] + below
     hist = np.bincount(cell.ravel(), minlength=n_speed * (a.size + 1)).reshape(n_speed, a.size + 1)
