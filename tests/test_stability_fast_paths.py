@@ -2,9 +2,10 @@
 
 The ZOA lower envelope (compiled loop), the P(stable) map (histogram of searchsorted counts), the level limit
 (partial sort), the window minimum of the recommendation (sparse table) and the order statistics shared by
-the whole pipeline must give exactly what the earlier numpy code gave.  The earlier code is kept here as the
-slow reference (the envelope as it was in 7337b3c, materialising every (segment, grid speed) pair and sorting
-them); :func:`test_pipeline_equals_the_reference_pipeline` runs ``lobes_from_frf_draws`` once with the
+the whole pipeline must give exactly what the earlier numpy code gave.  The earlier code is the slow reference:
+here for the map, the level limit and the window minimum, and for the envelope ``zoa._envelope_numpy`` (the
+7337b3c algorithm, materialising every (segment, grid speed) pair and sorting them; still used for jobs too
+small to pay for loading numba); :func:`test_pipeline_equals_the_reference_pipeline` runs ``lobes_from_frf_draws`` once with the
 reference functions patched in and once as shipped, on the bundled measured files with their random error.
 """
 
@@ -32,47 +33,8 @@ CUT = CuttingConditions(kt=790e6, kr=230e6, flutes=4, milling="down", feed="y", 
 
 # ------------------------------------------------------------------------------------------ slow references
 def _reference_envelope_of_ends(depth_pts, eps, f, flutes, speeds, K, track=True):
-    """The numpy envelope of 7337b3c (zoa._envelope after lobe_points), from the segment ends."""
-    n_draw = depth_pts.shape[0]
-    omega = 2 * np.pi * np.asarray(f, dtype=float)
-    k = np.arange(K)
-    spd = 60.0 * omega[:, None, None] / (flutes * (eps[..., None] + 2 * np.pi * k))
-    a = depth_pts
-    valid = np.isfinite(a)
-    s0, s1 = spd[:, :-1], spd[:, 1:]
-    a0, a1 = a[:, :-1, :, None], a[:, 1:, :, None]
-    ok = (valid[:, :-1] & valid[:, 1:])[..., None] & np.ones(K, dtype=bool)
-    lo, hi = np.minimum(s0, s1), np.maximum(s0, s1)
-    i0 = np.searchsorted(speeds, lo, side="left")
-    i1 = np.searchsorted(speeds, hi, side="right")
-    count = np.where(ok, i1 - i0, 0)
-    sel = np.nonzero(count > 0)
-    cnt = count[sel]
-    total = int(cnt.sum())
-    depth = np.full((n_draw, speeds.size), np.inf)
-    chat = np.full((n_draw, speeds.size), np.nan)
-    lob = np.full((n_draw, speeds.size), -1, dtype=np.int64)
-    if total:
-        rep = np.repeat(np.arange(cnt.size), cnt)
-        offs = np.arange(total) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-        grid_idx = i0[sel][rep] + offs
-        d_idx, f_idx, b_idx, k_idx = (x[rep] for x in sel)
-        x0, x1 = s0[d_idx, f_idx, b_idx, k_idx], s1[d_idx, f_idx, b_idx, k_idx]
-        y0, y1 = a0[d_idx, f_idx, b_idx, 0], a1[d_idx, f_idx, b_idx, 0]
-        x = speeds[grid_idx]
-        span = x1 - x0
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = np.where(span != 0, (x - x0) / np.where(span != 0, span, 1.0), 0.0)
-        val = y0 + t * (y1 - y0)
-        fc = f[f_idx] + t * (f[f_idx + 1] - f[f_idx])
-        cell = d_idx * speeds.size + grid_idx
-        order = np.lexsort((val, cell))
-        first = np.ones(order.size, dtype=bool)
-        first[1:] = cell[order][1:] != cell[order][:-1]
-        pick = order[first]
-        depth.reshape(-1)[cell[pick]] = val[pick]
-        chat.reshape(-1)[cell[pick]] = fc[pick]
-        lob.reshape(-1)[cell[pick]] = k_idx[pick]
+    """The numpy envelope (materialise every (segment, grid speed) pair, sort, keep the lowest), as in 7337b3c."""
+    depth, chat, lob = zoa._envelope_numpy(depth_pts, eps, np.asarray(f, dtype=float), flutes, speeds, K)
     return (depth, chat, lob) if track else (depth, None, None)
 
 
@@ -101,12 +63,13 @@ def _draws(n_draws, seed=3):
 
 # ------------------------------------------------------------------------------------------ the pieces
 @pytest.mark.parametrize("grid", ["uniform", "uneven"])
-def test_compiled_envelope_is_the_numpy_envelope(grid):
+def test_compiled_envelope_is_the_numpy_envelope(grid, monkeypatch):
     pair = _draws(12)
     if grid == "uniform":
         speeds = np.linspace(6000.0, 24000.0, 1801)
     else:  # the binary-search branch of the kernel
         speeds = np.sort(np.random.default_rng(0).uniform(6000.0, 24000.0, 900))
+    monkeypatch.setattr(zoa, "_COMPILED_ENVELOPE_CELLS", 1)  # the compiled loop even for this small job
     ends = zoa._segment_ends(mean_directional_matrix(CUT), pair.frf_x, pair.frf_y)
     K = zoa.lobe_count(pair.frequency_hz, CUT.flutes, speeds[0])
     new = zoa._envelope_of_ends(*ends, pair.frequency_hz, CUT.flutes, speeds, K)
@@ -165,7 +128,10 @@ def test_pipeline_equals_the_reference_pipeline(monkeypatch):
     pair = _draws(60)
     speeds = np.linspace(9000.0, 21000.0, 2401)
     kw = dict(method="zoa", level=0.95, tolerances=Tolerances(0.02, 0.1, 0.0), depth_points=120)
-    new = lobes_from_frf_draws(pair.frf_x, pair.frf_y, pair.frequency_hz, CUT, speeds, **kw)
+    with monkeypatch.context() as m:
+        m.setattr(zoa, "_COMPILED_ENVELOPE_CELLS", 1)  # the compiled envelope and map, as for a full-size job
+        m.setattr(probabilistic, "_COMPILED_MAP_CELLS", 1)
+        new = lobes_from_frf_draws(pair.frf_x, pair.frf_y, pair.frequency_hz, CUT, speeds, **kw)
     with monkeypatch.context() as m:
         m.setattr(zoa, "_envelope_of_ends", _reference_envelope_of_ends)
         m.setattr(probabilistic, "probability_map", _reference_probability_map)

@@ -226,19 +226,28 @@ def _segment_ends(h0, gx, gy):
     return np.where(valid, 0.5 / safe, np.inf), np.pi + 2.0 * np.arctan(mu.imag / safe)
 
 
+# (draw, speed) cells from which the compiled envelope pays for loading numba (about 1 s of a process's CPU):
+# a deterministic chart (one draw) stays in numpy, as fast as before and without the compiler
+_COMPILED_ENVELOPE_CELLS = 200_000
+
+
 def _envelope_of_ends(depth_pts, eps, f, flutes, speeds, K, track=True):
     """Lower envelope of all lobe segments from :func:`_segment_ends`: depth (D, S) m, and with ``track`` the
     chatter frequency (D, S) Hz and the lobe number (D, S) of the limiting segment (else None, None).
 
     Segments join consecutive lines of one eigenvalue branch and one lobe where both ends are physical
     (Re μ > 0); each grid speed inside a segment's speed range gets the linearly interpolated depth, and the
-    lowest of them is the limit (compiled loop, :mod:`._zoa_kernel`).
+    lowest of them is the limit.  Large jobs run the compiled loop of :mod:`._zoa_kernel`, small ones
+    :func:`_envelope_numpy`; both give the same numbers bit for bit.
     """
-    from ._zoa_kernel import lower_envelope
-
-    n_draw = depth_pts.shape[0]
     f = np.ascontiguousarray(f, dtype=float)
     speeds = np.ascontiguousarray(speeds, dtype=float)
+    n_draw = depth_pts.shape[0]
+    if n_draw * speeds.size < _COMPILED_ENVELOPE_CELLS:
+        depth, chat, lob = _envelope_numpy(depth_pts, eps, f, flutes, speeds, K)
+        return (depth, chat, lob) if track else (depth, None, None)
+    from ._zoa_kernel import lower_envelope
+
     depth = np.full((n_draw, speeds.size), np.inf)
     shape = (n_draw, speeds.size) if track else (1, 1)
     chat = np.full(shape, np.nan)
@@ -248,6 +257,50 @@ def _envelope_of_ends(depth_pts, eps, f, flutes, speeds, K, track=True):
     lower_envelope(np.ascontiguousarray(depth_pts), np.ascontiguousarray(eps), 2 * np.pi * f, f, int(flutes),
                    int(K), speeds, uniform, depth, chat, lob, bool(track))
     return (depth, chat, lob) if track else (depth, None, None)
+
+
+def _envelope_numpy(depth_pts, eps, f, flutes, speeds, K):
+    """The lower envelope in numpy: every (segment, grid speed) pair materialised, sorted by (cell, depth), the
+    first of each cell kept (ties: the first segment in (line, branch, lobe) order).  Memory and time grow
+    with the number of pairs (about 4 x 10^5 per draw at 25001 speeds): for small jobs.  Returns depth,
+    chatter frequency and lobe number, (D, S) each."""
+    n_draw = depth_pts.shape[0]
+    k = np.arange(K)
+    spd = 60.0 * (2 * np.pi * f)[:, None, None] / (flutes * (eps[..., None] + 2 * np.pi * k))  # as lobe_points
+    a = depth_pts
+    valid = np.isfinite(a)
+    s0, s1 = spd[:, :-1], spd[:, 1:]
+    a0, a1 = a[:, :-1, :, None], a[:, 1:, :, None]
+    ok = (valid[:, :-1] & valid[:, 1:])[..., None] & np.ones(K, dtype=bool)
+    i0 = np.searchsorted(speeds, np.minimum(s0, s1), side="left")
+    i1 = np.searchsorted(speeds, np.maximum(s0, s1), side="right")  # exclusive
+    count = np.where(ok, i1 - i0, 0)
+    sel = np.nonzero(count > 0)
+    cnt = count[sel]
+    total = int(cnt.sum())
+    depth = np.full((n_draw, speeds.size), np.inf)
+    chat = np.full((n_draw, speeds.size), np.nan)
+    lob = np.full((n_draw, speeds.size), -1, dtype=np.int64)
+    if total == 0:
+        return depth, chat, lob
+    rep = np.repeat(np.arange(cnt.size), cnt)
+    grid_idx = i0[sel][rep] + np.arange(total) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+    d_idx, f_idx, b_idx, k_idx = (x[rep] for x in sel)
+    x0, x1 = s0[d_idx, f_idx, b_idx, k_idx], s1[d_idx, f_idx, b_idx, k_idx]
+    y0, y1 = a0[d_idx, f_idx, b_idx, 0], a1[d_idx, f_idx, b_idx, 0]
+    span = x1 - x0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(span != 0, (speeds[grid_idx] - x0) / np.where(span != 0, span, 1.0), 0.0)
+    val = y0 + t * (y1 - y0)
+    cell = d_idx * speeds.size + grid_idx
+    order = np.lexsort((val, cell))
+    first = np.ones(order.size, dtype=bool)
+    first[1:] = cell[order][1:] != cell[order][:-1]
+    pick = order[first]
+    depth.reshape(-1)[cell[pick]] = val[pick]
+    chat.reshape(-1)[cell[pick]] = f[f_idx[pick]] + t[pick] * (f[f_idx[pick] + 1] - f[f_idx[pick]])
+    lob.reshape(-1)[cell[pick]] = k_idx[pick]
+    return depth, chat, lob
 
 
 def _envelope(h0, gx, gy, f, flutes, speeds, K):
