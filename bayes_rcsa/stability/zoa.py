@@ -226,8 +226,9 @@ def _segment_ends(h0, gx, gy):
     return np.where(valid, 0.5 / safe, np.inf), np.pi + 2.0 * np.arctan(mu.imag / safe)
 
 
-# (draw, speed) cells from which the compiled envelope pays for loading numba (about 1 s of a process's CPU):
-# a deterministic chart (one draw) stays in numpy, as fast as before and without the compiler
+# work (draws x (speeds + segments per lobe count)) from which the compiled envelope pays for loading numba
+# (about 1 s of a process's CPU): a deterministic chart (one draw) stays in numpy, as fast as before and without
+# the compiler; many draws go compiled even at a few speeds (the numpy version's cost is per segment too)
 _COMPILED_ENVELOPE_CELLS = 200_000
 
 
@@ -243,7 +244,7 @@ def _envelope_of_ends(depth_pts, eps, f, flutes, speeds, K, track=True):
     f = np.ascontiguousarray(f, dtype=float)
     speeds = np.ascontiguousarray(speeds, dtype=float)
     n_draw = depth_pts.shape[0]
-    if n_draw * speeds.size < _COMPILED_ENVELOPE_CELLS:
+    if n_draw * (speeds.size + 2 * f.size * int(K)) < _COMPILED_ENVELOPE_CELLS:
         depth, chat, lob = _envelope_numpy(depth_pts, eps, f, flutes, speeds, K)
         return (depth, chat, lob) if track else (depth, None, None)
     from ._zoa_kernel import lower_envelope
