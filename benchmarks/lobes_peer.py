@@ -1,7 +1,18 @@
-"""End to end against the peer: ``bayes-rcsa lobes`` vs acornel5's AltintasSLD in Octave (issue 22).
+"""End to end against the peer: ``bayes-rcsa lobes`` vs acornel5's AltintasSLD in Octave (issues 22 and 44).
 
-Run: ``python benchmarks/lobes_peer.py --peer-dir /tmp/peer [--runs 5]`` (or ``python benchmarks/lobes.py
---end-to-end --peer-dir /tmp/peer``; ``BAYES_RCSA_PEER_DIR`` instead of ``--peer-dir``).
+Run: ``python benchmarks/lobes_peer.py --peer-dir /tmp/peer [--runs 5] [--posterior posterior.nc] [--sdm]``
+(or ``python benchmarks/lobes.py --end-to-end --peer-dir /tmp/peer``; ``BAYES_RCSA_PEER_DIR`` instead of
+``--peer-dir``).
+
+Paths timed against the peer's one deterministic chart, interleaved in the same run (issue 44):
+
+- ``deterministic``: ``--deterministic``, like for like with the peer;
+- ``default``: what a user gets from the bundled files, which carry coherence and ``# averages = 5``: 500
+  realisations of the measured FRFs' random error, P(stable) map, robust envelope and recommendation;
+- ``posterior`` (with ``--posterior FILE``, a posterior.nc of the bundled example, e.g. the demo's): 300
+  posterior-predictive draws at 30 mm (``SETUP --posterior FILE --clamping-length 0.03 --draws 300``);
+- ``sdm`` (with ``--sdm``): ``--method sdm`` on the measured files at the default speeds (5000-30000 rpm,
+  400 speeds; probabilistic, 500 realisations), timed once after the interleaved runs (minutes).
 
 The peer is not part of this project and not a test dependency.  Export it once (MIT licence) from
 https://github.com/acornel5/Bayesian-stability-and-cutting-force::
@@ -155,11 +166,24 @@ def _run(argv, cwd, env=None):
     return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
-def project_argv(out: Path, speeds=SPEEDS, method="zoa") -> list[str]:
-    return [sys.executable, "-m", "bayes_rcsa", "lobes", "--measured-x", str(FX), "--measured-y", str(FY),
+def project_env() -> dict:
+    """The environment of the project's processes: this tree first on the path (they run in a temporary
+    directory, where ``python -m bayes_rcsa`` would otherwise find whichever copy is installed)."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), *filter(None, [env.get("PYTHONPATH")])])
+    return env
+
+
+def project_argv(out: Path, speeds=SPEEDS, method="zoa", path="deterministic", posterior=None) -> list[str]:
+    """The project's command for one path: "deterministic", "default" (the files' random error), "posterior"."""
+    source = (["--measured-x", str(FX), "--measured-y", str(FY)] if path != "posterior" else
+              [str(EXAMPLE / "setup.toml"), "--posterior", str(posterior), "--clamping-length", "0.03",
+               "--draws", "300"])
+    return [sys.executable, "-m", "bayes_rcsa", "lobes", *source,
             "--flutes", CUT["flutes"], "--kt", CUT["kt"], "--kr", CUT["kr"], "--immersion", CUT["immersion"],
             "--milling", CUT["milling"], "--feed", CUT["feed"], "--method", method,
-            "--speeds", ":".join(str(v) for v in speeds), "--deterministic", "--out", str(out), "--force", "--quiet"]
+            "--speeds", ":".join(str(v) for v in speeds), *(["--deterministic"] if path == "deterministic" else []),
+            "--out", str(out), "--force", "--quiet"]
 
 
 def peer_argv(out: Path) -> list[str]:
@@ -193,7 +217,7 @@ def accuracy(peer_out: Path | None, zoa_dir: Path, tmp: Path) -> dict:
     s, zoa = _limit(zoa_dir)
     sdm_dir = tmp / "sdm"
     subprocess.run(project_argv(sdm_dir, (*WINDOW, (WINDOW[1] - WINDOW[0]) // 10 + 1), "sdm"), check=True,
-                   capture_output=True, cwd=tmp)
+                   capture_output=True, cwd=tmp, env=project_env())
     s_sdm, sdm = _limit(sdm_dir)
     res = {"speeds": s_sdm, "sdm": sdm, "zoa": np.interp(s_sdm, s, zoa), "peer": None}
     if peer_out is not None:
@@ -208,51 +232,70 @@ def accuracy(peer_out: Path | None, zoa_dir: Path, tmp: Path) -> dict:
     return res
 
 
-def run(peer_dir=None, runs: int = 5, peer_seconds: float | None = None) -> dict:
+LABELS = {"deterministic": "bayes-rcsa lobes --deterministic (ZOA, json, npz, png)",
+          "default": "bayes-rcsa lobes, default: 500 FRF realisations (ZOA)",
+          "posterior": "bayes-rcsa lobes, posterior mode: 300 draws (ZOA)",
+          "peer": "AltintasSLD, octave-cli (one deterministic chart)"}
+
+
+def run(peer_dir=None, runs: int = 5, peer_seconds: float | None = None, posterior=None, sdm: bool = False) -> dict:
     peer_file, why = find_peer(peer_dir)
+    print(f"project: {ROOT}", flush=True)
     if peer_file is None:
         print(f"peer skipped: {why} (see benchmarks/lobes_peer.py for how to export AltintasSLD.m)")
+    if posterior is None:
+        print("posterior mode skipped: no --posterior (a posterior.nc of the bundled example, e.g. the demo's)")
     load0 = os.getloadavg()
     with tempfile.TemporaryDirectory() as tmpdir:
         tmp = Path(tmpdir)
         work = prepare_peer(peer_file, tmp) if peer_file is not None else None
-        sides = {"project": lambda k: _run(project_argv(tmp / f"project_{k}"), tmp)}
+        env = project_env()
+        sides = {path: (lambda k, path=path: _run(project_argv(tmp / f"{path}_{k}", path=path, posterior=posterior),
+                                                  tmp, env))
+                 for path in ("deterministic", "default", "posterior") if path != "posterior" or posterior}
         if work is not None:
             sides["peer"] = lambda k: _run(peer_argv(tmp / f"peer_{k}.txt"), work)
         for fn in sides.values():
             fn("warm")
         times: dict[str, list] = {name: [] for name in sides}
         for k in range(runs):
-            order = list(sides) if k % 2 == 0 else list(sides)[::-1]
+            names = list(sides)
+            order = names[k % len(names):] + names[:k % len(names)]  # every side takes every position in turn
             for name in order:
                 times[name].append(sides[name](k))
         load1 = os.getloadavg()
-        acc = accuracy(tmp / "peer_0.txt" if work is not None else None, tmp / "project_0", tmp)
+        sdm_wall = None
+        if sdm:
+            sdm_wall = _run(project_argv(tmp / "sdm_default", (5000, 30000, 400), "sdm", path="default"), tmp, env)
+        acc = accuracy(tmp / "peer_0.txt" if work is not None else None, tmp / "deterministic_0", tmp)
     med = {name: (statistics.median(t[0] for t in v), statistics.median(t[1] for t in v), min(t[0] for t in v),
                   max(t[0] for t in v)) for name, v in times.items()}
     peer_wall = med["peer"][0] if "peer" in med else peer_seconds
+    ratios = {name: None if peer_wall is None else peer_wall / m[0] for name, m in med.items() if name != "peer"}
     out = {"machine": machine(), "load": (load0, load1), "runs": runs, "median": med, "peer_wall": peer_wall,
-           "ratio": None if peer_wall is None else peer_wall / med["project"][0], "accuracy": acc}
+           "ratios": ratios, "ratio": ratios["deterministic"], "sdm": sdm_wall, "accuracy": acc}
     report(out)
     return out
 
 
 def report(r: dict) -> None:
     (l0, l1), med, acc = r["load"], r["median"], r["accuracy"]
-    print(f"end to end, deterministic lobes on the bundled 30 mm files, 25001 speeds (1 rpm), median of "
-          f"{r['runs']} alternating runs")
+    print(f"end to end on the bundled 30 mm files, 25001 speeds (1 rpm), median of {r['runs']} interleaved runs")
     print(f"machine: {r['machine']}")
     print(f"load average (1/5/15 min): before {l0[0]:.2f}/{l0[1]:.2f}/{l0[2]:.2f}, after "
           f"{l1[0]:.2f}/{l1[1]:.2f}/{l1[2]:.2f}")
-    print(f"| process | wall median s | wall min-max s | CPU median s |\n|---|---|---|---|")
-    labels = {"project": "bayes-rcsa lobes (ZOA, writes json, npz, png)",
-              "peer": "AltintasSLD, octave-cli (writes the limits)"}
+    print("| process | wall median s | wall min-max s | CPU median s | peer / this (wall) |\n|---|---|---|---|---|")
     for name, (w, c, lo, hi) in med.items():
-        print(f"| {labels[name]} | {w:.2f} | {lo:.2f}-{hi:.2f} | {c:.2f} |")
-    if r["ratio"] is not None:
-        src = "measured" if "peer" in med else "--peer-seconds"
-        print(f"ratio peer / project (wall, {src}): {r['ratio']:.2f}x" + (
-            f"; CPU {med['peer'][1] / med['project'][1]:.2f}x" if "peer" in med else "") + " (target >= 2)")
+        ratio = r["ratios"].get(name)
+        print(f"| {LABELS[name]} | {w:.2f} | {lo:.2f}-{hi:.2f} | {c:.2f} | "
+              f"{'-' if ratio is None else f'{ratio:.2f}x'} |")
+    if r["peer_wall"] is not None:
+        src = "measured in this run" if "peer" in med else "--peer-seconds"
+        print(f"peer wall time {r['peer_wall']:.2f} s ({src}); ratios peer / project: "
+              + ", ".join(f"{name} {v:.2f}x" for name, v in r["ratios"].items()) + " (target >= 1, aim 2)")
+    if r["sdm"] is not None:
+        print(f"--method sdm, measured files, default speeds (400, 500 realisations): {r['sdm'][0]:.1f} s wall, "
+              f"{r['sdm'][1]:.1f} s CPU (target < 20 s)")
     print(f"\naccuracy at {WINDOW[0]}-{WINDOW[1]} rpm (depth limit, mm):")
     print("| rpm | peer | ZOA | SDM |\n|---|---|---|---|")
     for i in range(0, acc["speeds"].size, 10):
@@ -274,8 +317,10 @@ def main(argv=None) -> int:
     ap.add_argument("--peer-dir", help=f"directory holding the peer's {PEER_FILE} (default ${ENV_VAR})")
     ap.add_argument("--runs", type=int, default=5, help="timed runs of each side, alternating (default 5)")
     ap.add_argument("--peer-seconds", type=float, help="peer wall time measured elsewhere (when the peer is absent)")
+    ap.add_argument("--posterior", help="posterior.nc of the bundled example: also time posterior-mode lobes")
+    ap.add_argument("--sdm", action="store_true", help="also time --method sdm on the measured files (minutes)")
     args = ap.parse_args(argv)
-    run(args.peer_dir, args.runs, args.peer_seconds)
+    run(args.peer_dir, args.runs, args.peer_seconds, args.posterior, args.sdm)
     return 0
 
 

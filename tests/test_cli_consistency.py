@@ -118,17 +118,29 @@ def main_err(argv, capsys) -> str:
     return capsys.readouterr().err
 
 
+class _Terminal(io.StringIO):
+    """A text stream that says it is a terminal (the heartbeat redraws its line only there)."""
+
+    def isatty(self):
+        return True
+
+
 def test_heartbeat_draws_only_for_long_jobs():
-    stream = io.StringIO()
+    stream = _Terminal()
     with Heartbeat("job", stream=stream, quiet_seconds=10.0):
         pass
     assert stream.getvalue() == ""  # a short job prints nothing
-    stream = io.StringIO()
+    stream = _Terminal()
     with Heartbeat("job", stream=stream, quiet_seconds=0.0, interval=0.01):
         time.sleep(0.1)
     text = stream.getvalue()
     assert text.startswith("\rjob ... ") and text.endswith(" done\n") and text.count("\r") >= 3
-    stream = io.StringIO()
+    log = io.StringIO()  # not a terminal (a redirected stderr): one plain line, no carriage return
+    with Heartbeat("job", stream=log, quiet_seconds=0.0, interval=0.01):
+        time.sleep(0.1)
+    assert log.getvalue().startswith("job ... ") and log.getvalue().endswith(" done\n")
+    assert "\r" not in log.getvalue() and log.getvalue().count("\n") == 1
+    stream = _Terminal()
     with Heartbeat("job", stream=stream, quiet_seconds=0.0, enabled=False):
         time.sleep(0.02)
     assert stream.getvalue() == ""

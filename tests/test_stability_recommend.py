@@ -206,17 +206,22 @@ def test_flute_length_of_the_example_tool_limits_posterior_mode():
     assert flute_length(tool) == pytest.approx(0.03)
 
 
-def test_progress_bar_draws_only_for_long_jobs_and_ends_its_line():
-    import io
+class _Terminal(__import__("io").StringIO):
+    """A text stream that says it is a terminal (the bar redraws its line only there)."""
 
+    def isatty(self):
+        return True
+
+
+def test_progress_bar_draws_only_for_long_jobs_and_ends_its_line():
     from bayes_rcsa.stability.progress import ProgressBar, format_seconds
 
-    quiet = io.StringIO()
+    quiet = _Terminal()
     bar = ProgressBar("job", stream=quiet, quiet_seconds=60.0)
     bar(0.5)
     bar.close()
     assert quiet.getvalue() == ""  # a short job prints nothing
-    out = io.StringIO()
+    out = _Terminal()
     bar = ProgressBar("job", stream=out, quiet_seconds=0.0, interval=0.0)
     bar(0.25)
     bar(0.5)
@@ -224,3 +229,22 @@ def test_progress_bar_draws_only_for_long_jobs_and_ends_its_line():
     text = out.getvalue()
     assert "job [" in text and " 50 %" in text and text.endswith("\n") and text.count("\n") == 1
     assert format_seconds(12) == "12 s" and format_seconds(600) == "10.0 min" and format_seconds(7200) == "2.0 h"
+
+
+def test_progress_bar_writes_one_plain_line_when_not_a_terminal():
+    import io
+
+    from bayes_rcsa.stability.progress import ProgressBar
+
+    log = io.StringIO()  # a redirected stderr: no carriage returns, one final line for a long job
+    bar = ProgressBar("job", stream=log, quiet_seconds=0.0, interval=0.0)
+    for f in (0.25, 0.5, 0.75):
+        bar(f)
+    bar.close()
+    text = log.getvalue()
+    assert "\r" not in text and text.count("\n") == 1 and text.startswith("job [") and " 100 %" in text
+    short = io.StringIO()
+    bar = ProgressBar("job", stream=short, quiet_seconds=60.0)
+    bar(0.5)
+    bar.close()
+    assert short.getvalue() == ""  # a short job prints nothing there either

@@ -5,7 +5,9 @@
 call works, without knowing its fraction done.  It stays silent for jobs that
 finish within ``quiet_seconds``, so short runs print nothing but their
 result.  Jobs that can report a fraction use
-:class:`bayes_rcsa.stability.progress.ProgressBar` instead.
+:class:`bayes_rcsa.stability.progress.ProgressBar` instead.  The line is
+redrawn with carriage returns on a terminal only; on any other stream (a log,
+a pipe) a job longer than ``quiet_seconds`` ends with one plain line.
 """
 
 from __future__ import annotations
@@ -44,10 +46,12 @@ class Heartbeat:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._start = 0.0
+        self.terminal = False
 
     def _draw(self, final: bool = False) -> None:
         elapsed = time.monotonic() - self._start
-        self.stream.write(f"\r{self.label} ... {_seconds(elapsed)}{' done' if final else ''}")
+        prefix = "\r" if self.terminal else ""  # a redrawn line on a terminal only
+        self.stream.write(f"{prefix}{self.label} ... {_seconds(elapsed)}{' done' if final else ''}")
         self.stream.flush()
         self.drawn = True
 
@@ -61,7 +65,11 @@ class Heartbeat:
 
     def __enter__(self) -> "Heartbeat":
         self._start = time.monotonic()
-        if self.enabled:
+        try:
+            self.terminal = bool(self.stream.isatty())
+        except (AttributeError, ValueError, OSError):
+            self.terminal = False
+        if self.enabled and self.terminal:
             # a daemon thread: an interrupted job never waits for its progress line
             self._thread = threading.Thread(target=self._loop, name="bayes-rcsa-heartbeat", daemon=True)
             self._thread.start()
@@ -75,3 +83,7 @@ class Heartbeat:
                 self._draw(final=exc[0] is None)
                 self.stream.write("\n")
                 self.stream.flush()
+        elif self.enabled and time.monotonic() - self._start >= self.quiet_seconds:
+            self._draw(final=exc[0] is None)  # not a terminal: one plain line for a long job
+            self.stream.write("\n")
+            self.stream.flush()

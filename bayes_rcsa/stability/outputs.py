@@ -17,6 +17,11 @@
   ``confidence_cost`` {``depth_m``, ``relative``}: the depth the confidence costs against it;
 - ``uncertainty`` (measured mode): the random-error model per direction, or why there is none;
   ``modal_fit_spread`` (SDM with several draws): median and 5-95 % of f_n, ζ, k per mode;
+- ``p_stable_map``: the resolution of the P(stable) map in ``p_stable.npz`` (``speeds`` x ``depths``, the
+  full grid) and of the map the figure shows (``display_columns`` columns, the block mean of
+  ``display_speed_block`` consecutive speeds; in the npz as ``display_speed_rpm``/``display_p_stable``).
+  The map is for display and for reading off P(stable); the recommendation and the envelope are computed
+  from the per-draw limits, so they do not depend on either resolution;
 - ``level``, ``method``, ``n_draws``, ``deterministic``, ``depth_grid_m`` {min, max, count},
   ``cutting`` (coefficients, geometry, tolerance), ``source``, ``warnings``, ``modal_fit`` (SDM) and,
   with cutting tests, ``tests`` and ``test_error``.
@@ -31,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from .compare import stable_at, test_error
-from .plots import plot_lobes
+from .plots import display_blocks, display_map, plot_lobes
 
 __all__ = ["lobes_document", "write_lobes_outputs"]
 
@@ -44,6 +49,15 @@ _NOTES = ("depth_limit_m quantiles are over draws: q05 is the depth 95 % of the 
 
 def _finite_list(a):
     return [float(v) if np.isfinite(v) else None for v in np.asarray(a, dtype=float)]
+
+
+def _map_resolution(res) -> dict:
+    """The ``p_stable_map`` entry: the full and the displayed resolution of the P(stable) map."""
+    n_speed, n_depth = int(np.size(res.speed_rpm)), int(np.size(res.depth_m))
+    block = display_blocks(n_speed)
+    return {"file": "p_stable.npz", "speeds": n_speed, "depths": n_depth,
+            "display_columns": -(-n_speed // block), "display_speed_block": block,
+            "note": "recommendation and envelope come from the per-draw limits, not from this map"}
 
 
 def lobes_document(res, cutting, source: dict, tests=None, warnings=(), max_depth=None, flute_length=None) -> dict:
@@ -64,6 +78,7 @@ def lobes_document(res, cutting, source: dict, tests=None, warnings=(), max_dept
         "n_draws": int(res.depth_limit_m.shape[0]),
         "deterministic": bool(res.depth_limit_m.shape[0] == 1),
         "depth_grid_m": {"min": float(res.depth_m[0]), "max": float(res.depth_m[-1]), "count": int(res.depth_m.size)},
+        "p_stable_map": _map_resolution(res),
         "depth_limits_m": {"max_depth": max_depth, "flute_length": flute_length},
         "cutting": {
             "kt_pa": cutting.kt,
@@ -141,6 +156,8 @@ def write_lobes_outputs(outdir, res, document: dict, tests=None, title: str = ""
     plot_lobes(outdir / "lobes.png", res, tests, title, max_depth=max_depth)
     with atomic_path(outdir / "p_stable.npz") as tmp:
         with open(tmp, "wb") as fh:
-            np.savez(fh, spindle_speed_rpm=res.speed_rpm, depth_m=res.depth_m, p_stable=res.p_stable)
+            shown_speed, shown_p, _ = display_map(res.speed_rpm, res.p_stable)
+            np.savez(fh, spindle_speed_rpm=res.speed_rpm, depth_m=res.depth_m, p_stable=res.p_stable,
+                     display_speed_rpm=shown_speed, display_p_stable=shown_p)
     atomic_write_text(outdir / "lobes.json", _dumps(document))
     return outdir / "lobes.json"

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["plot_lobes", "display_blocks", "MAX_COLUMNS"]
+__all__ = ["plot_lobes", "display_blocks", "display_map", "MAX_COLUMNS"]
 
 MAX_COLUMNS = 1200
 
@@ -20,6 +20,26 @@ MAX_COLUMNS = 1200
 def display_blocks(n_speed: int, max_columns: int = MAX_COLUMNS) -> int:
     """Speeds per displayed column: 1 up to ``max_columns`` speeds, else ceil(n_speed / max_columns)."""
     return max(1, -(-int(n_speed) // int(max_columns)))
+
+
+def display_map(speed_rpm, p_stable, max_columns: int = MAX_COLUMNS):
+    """The P(stable) map as the figure shows it: block means over consecutive speeds.
+
+    Parameters
+    ----------
+    speed_rpm : (n_speed,) rpm
+    p_stable : (n_speed, n_depth)
+    max_columns : int, most speed columns shown
+
+    Returns
+    -------
+    speed_rpm : (n_columns,) rpm, the mean speed of each block
+    p_stable : (n_columns, n_depth), the block mean of P(stable)
+    block : int, speeds per column (:func:`display_blocks`)
+    """
+    block = display_blocks(np.size(speed_rpm), max_columns)
+    return (_reduce(np.asarray(speed_rpm, dtype=float), block, "mean"), _reduce(np.asarray(p_stable, dtype=float),
+                                                                                 block, "mean"), block)
 
 
 def _reduce(a: np.ndarray, block: int, how: str) -> np.ndarray:
@@ -62,11 +82,9 @@ def lobes_figure(res, tests=None, title: str = "", max_depth: float | None = Non
     """
     from ..io.figures import new_figure
 
-    block = display_blocks(res.speed_rpm.size)
     n_full = res.speed_rpm
-    n = _reduce(n_full, block, "mean")
+    n, p_map, block = display_map(n_full, res.p_stable)
     a_mm = res.depth_m * 1e3
-    p_map = _reduce(res.p_stable, block, "mean")
     curve = {k: _reduce(np.where(np.isfinite(v), v * 1e3, np.nan), block, "min") for k, v in res.quantiles.items()}
     deterministic = res.depth_limit_m.shape[0] == 1
     fig = new_figure(9, 5.5)

@@ -41,6 +41,9 @@ __all__ = [
 ]
 
 QUANTILES = (0.05, 0.5, 0.95)
+# (draw, speed) cells above which the P(stable) map is counted by the compiled loop (numba is loaded by then for
+# the ZOA envelope; smaller maps, e.g. of the design and cuts modules, stay in numpy and import no compiler)
+_COMPILED_MAP_CELLS = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -86,17 +89,25 @@ class ProbabilisticLobes:
     median_recommended: Recommendation | None = None
 
 
-def probability_map(depth_limit_m, depth_m, chunk: int = 64) -> np.ndarray:
+def probability_map(depth_limit_m, depth_m, chunk: int | None = None) -> np.ndarray:
     """P(stable) = fraction of draws with a < a_lim.
 
     Parameters
     ----------
     depth_limit_m : (n_draws, n_speed) m (inf allowed)
-    depth_m : (n_depth,) m
+    depth_m : (n_depth,) m, increasing
+    chunk : ignored (kept for callers of the earlier, chunked version)
 
     Returns
     -------
     (n_speed, n_depth) in [0, 1], non-increasing along depth.
+
+    Notes
+    -----
+    a_j < a_lim,d exactly when j < #{depths below a_lim,d} (one ``searchsorted`` of every limit in the depth
+    grid), so the map is a per-speed histogram of those counts summed from the top: O(n_draws n_speed) instead
+    of comparing every draw with every depth (compiled for large maps).  The counts are exact, so the values
+    equal the direct mean.
     """
     lim = np.asarray(depth_limit_m, dtype=float)
     if lim.ndim == 1:
@@ -104,19 +115,33 @@ def probability_map(depth_limit_m, depth_m, chunk: int = 64) -> np.ndarray:
     if np.any(np.isnan(lim)):
         raise SetupError("depth limits contain NaN; cannot form a probability of stability")
     a = np.asarray(depth_m, dtype=float)
-    out = np.empty((lim.shape[1], a.size))
-    for s in range(0, lim.shape[1], chunk):  # bounds memory at n_draws * chunk * n_depth
-        out[s : s + chunk] = np.mean(a[None, None, :] < lim[:, s : s + chunk, None], axis=0)
-    return out
+    n_draw, n_speed = lim.shape
+    if a.size > 1 and np.any(np.diff(a) < 0):  # an unsorted grid (never ours): the direct comparison
+        return np.mean(a[None, None, :] < lim[:, :, None], axis=0)
+    if lim.size >= _COMPILED_MAP_CELLS:  # a fine grid: the compiled histogram, no (D, S) temporaries
+        from ._zoa_kernel import stable_fractions
+
+        out = np.empty((n_speed, a.size))
+        stable_fractions(np.ascontiguousarray(lim), np.ascontiguousarray(a), out)
+        return out
+    below = np.searchsorted(a, lim, side="left")  # (D, S): number of depths a_j < a_lim,d
+    cell = (np.arange(n_speed) * (a.size + 1))[None, :] + below
+    hist = np.bincount(cell.ravel(), minlength=n_speed * (a.size + 1)).reshape(n_speed, a.size + 1)
+    # #{d : a_j < a_lim,d} = #{d : below_d > j} = sum of hist[:, m] over m > j
+    stable = np.cumsum(hist[:, :0:-1], axis=1)[:, ::-1]
+    return stable / n_draw
 
 
-def depth_quantiles(depth_limit_m, quantiles=QUANTILES) -> dict:
+def depth_quantiles(depth_limit_m, quantiles=QUANTILES, presorted: bool = False) -> dict:
     """Empirical quantiles of the depth limit over draws, (n_speed,) each.
 
     Linear interpolation between order statistics; a quantile that touches an
-    infinite limit (no chatter in the FRF band) is +inf.
+    infinite limit (no chatter in the FRF band) is +inf.  ``presorted``: the limits
+    are already sorted over the draws (axis 0).
     """
-    lim = np.sort(np.atleast_2d(np.asarray(depth_limit_m, dtype=float)), axis=0)
+    lim = np.atleast_2d(np.asarray(depth_limit_m, dtype=float))
+    if not presorted:
+        lim = np.sort(lim, axis=0)
     n = lim.shape[0]
     out = {}
     for q in quantiles:
@@ -171,21 +196,21 @@ def recommend_operating_point(
 
 
 def depth_grid(depth_limit_m, level: float, points: int = 200, recommended: Recommendation | None = None,
-               max_depth: float | None = None) -> np.ndarray:
+               max_depth: float | None = None, presorted: bool = False) -> np.ndarray:
     """Depth grid of the P(stable) map, (points,) m, from top/points to top.
 
     ``top`` is 1.25 x the highest finite depth below which P(stable) >= level at some speed
     (the lobe tips the recommendation is chosen under), at least 1.25 x the checked
     neighbourhood of the recommended point, and at most 1.1 x ``max_depth``: the recommended
-    point and the tips lie strictly inside.
+    point and the tips lie strictly inside.  ``presorted``: the limits are sorted over the draws (axis 0).
 
     Raises
     ------
     SetupError
         When no finite limit exists (no chatter in the analysed range at any speed) and no max_depth is given.
     """
-    a_lvl = level_limit(depth_limit_m, level)
-    q50 = depth_quantiles(depth_limit_m, (0.5,))[0.5]
+    a_lvl = level_limit(depth_limit_m, level, presorted)
+    q50 = depth_quantiles(depth_limit_m, (0.5,), presorted)[0.5]
     finite = np.concatenate([a_lvl[np.isfinite(a_lvl)], q50[np.isfinite(q50)]])
     if finite.size == 0 and max_depth is None:
         raise SetupError("no chatter limit found at any speed inside the analysed range; give --max-depth")
@@ -280,22 +305,25 @@ def lobes_from_frf_draws(
     limits = np.atleast_2d(result.depth_limit_m)
     if np.any(np.isnan(limits)):
         raise SetupError("depth limits contain NaN; cannot form a probability of stability")
-    rec = recommend(speeds, limits, level, tolerances, max_depth=max_depth, flute_length=flute_length,
-                    limits_at=result.limits_at)
+    # the order statistics over the draws once: every later use counts draws below a depth or takes a
+    # quantile, which the order of the draws does not change
+    ordered = np.sort(limits, axis=0)
+    rec = recommend(speeds, ordered, level, tolerances, max_depth=max_depth, flute_length=flute_length,
+                    limits_at=result.limits_at, presorted=True)
     if depths_m is None:
-        depths = depth_grid(limits, level, depth_points, rec["recommended"], max_depth)
-    p = probability_map(limits, depths)
+        depths = depth_grid(ordered, level, depth_points, rec["recommended"], max_depth, presorted=True)
+    p = probability_map(ordered, depths)
     if limits.shape[0] == 1 or level == 0.5:
         median = rec["recommended"]
     else:
-        median = recommend(speeds, limits, 0.5, tolerances, max_depth=max_depth, flute_length=flute_length,
-                           limits_at=result.limits_at)["recommended"]
+        median = recommend(speeds, ordered, 0.5, tolerances, max_depth=max_depth, flute_length=flute_length,
+                           limits_at=result.limits_at, presorted=True)["recommended"]
     return ProbabilisticLobes(
         speed_rpm=speeds,
         depth_m=depths,
         p_stable=p,
         depth_limit_m=limits,
-        quantiles=depth_quantiles(limits),
+        quantiles=depth_quantiles(ordered, presorted=True),
         recommended=rec["recommended"],
         level=level,
         method=method,
@@ -304,6 +332,6 @@ def lobes_from_frf_draws(
         alternatives=rec["alternatives"],
         note=rec["note"],
         method_info=result.info,
-        envelope=level_limit(limits, level),
+        envelope=level_limit(ordered, level, presorted=True),
         median_recommended=median,
     )

@@ -11,7 +11,15 @@ from __future__ import annotations
 import sys
 import time
 
-__all__ = ["ProgressBar", "format_seconds"]
+__all__ = ["ProgressBar", "format_seconds", "is_terminal"]
+
+
+def is_terminal(stream) -> bool:
+    """Whether ``stream`` is a terminal (where a line may be redrawn with carriage returns)."""
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError, OSError):  # no isatty, or a closed stream
+        return False
 
 
 def format_seconds(seconds: float) -> str:
@@ -25,6 +33,9 @@ def format_seconds(seconds: float) -> str:
 
 class ProgressBar:
     """``bar(fraction)`` draws ``label [#####-----]  50 %  12 s`` on one line; ``bar.close()`` ends it.
+
+    On a stream that is not a terminal the bar is not drawn; ``close()`` then writes the final state as one
+    line, only for a job that took longer than ``quiet_seconds``.
 
     Parameters
     ----------
@@ -44,21 +55,37 @@ class ProgressBar:
         self.start = time.monotonic()
         self._last = -1e9
         self._drawn = False
+        self.terminal = is_terminal(self.stream)
+
+    def _line(self, fraction: float, elapsed: float) -> str:
+        fill = int(round(fraction * self.width))
+        return (f"{self.label} [{'#' * fill}{'-' * (self.width - fill)}] {100 * fraction:3.0f} % "
+                f"{format_seconds(elapsed)}")
 
     def __call__(self, fraction: float) -> None:
         now = time.monotonic()
         if now - self.start < self.quiet_seconds or now - self._last < self.interval:
             return
         self._last = now
-        f = min(max(float(fraction), 0.0), 1.0)
-        fill = int(round(f * self.width))
-        self.stream.write(f"\r{self.label} [{'#' * fill}{'-' * (self.width - fill)}] {100 * f:3.0f} % "
-                          f"{format_seconds(now - self.start)}")
-        self.stream.flush()
         self._drawn = True
+        if not self.terminal:
+            return  # no redrawn lines in a log: close() writes the one final line
+        f = min(max(float(fraction), 0.0), 1.0)
+        self.stream.write("\r" + self._line(f, now - self.start))
+        self.stream.flush()
 
     def close(self) -> None:
-        """Finish the line (only when something was drawn): the final state, then a newline."""
+        """Finish the line (only when something was drawn): the final state, then a newline.
+
+        Not on a terminal: one line with the final state when the job took longer than ``quiet_seconds``.
+        """
+        if not self.terminal:
+            elapsed = time.monotonic() - self.start
+            if self._drawn or elapsed >= self.quiet_seconds:
+                self.stream.write(self._line(1.0, elapsed) + "\n")
+                self.stream.flush()
+            self._drawn = False
+            return
         if self._drawn:
             self._last = -1e9
             self.quiet_seconds = 0.0

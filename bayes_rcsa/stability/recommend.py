@@ -126,17 +126,22 @@ class Recommendation:
         }
 
 
-def level_limit(depth_limit_m, level: float) -> np.ndarray:
+def level_limit(depth_limit_m, level: float, presorted: bool = False) -> np.ndarray:
     """a_level(n): the depth below which P(stable) >= level, (n_speed,) m.
 
     P(stable | a) = #{d : a < a_lim,d}/N >= level  <=>  a < the k-th largest a_lim,d, k = ceil(level N).
+    ``presorted``: the limits are already sorted over the draws (axis 0, increasing), as
+    :func:`~bayes_rcsa.stability.probabilistic.lobes_from_frf_draws` passes them (no partial sort then).
     """
     if not (0.0 < level <= 1.0):
         raise SetupError(f"level={level!r}: expected a probability in (0, 1]")
     lim = np.atleast_2d(np.asarray(depth_limit_m, dtype=float))
     n = lim.shape[0]
     k = int(math.ceil(level * n - 1e-9))
-    return -np.sort(-lim, axis=0)[k - 1]
+    if presorted:
+        return lim[n - k]
+    # the k-th largest = the (n - k)-th smallest (0-based): a partial sort, the same value as a full one
+    return np.partition(lim, n - k, axis=0)[n - k]
 
 
 def _p_stable(lim: np.ndarray, a: float) -> float:
@@ -144,12 +149,26 @@ def _p_stable(lim: np.ndarray, a: float) -> float:
 
 
 def _window_min(n: np.ndarray, a: np.ndarray, tol: float) -> np.ndarray:
-    """min of a over [n_i (1 - tol), n_i (1 + tol)] on the grid, (n_speed,)."""
+    """min of a over [n_i (1 - tol), n_i (1 + tol)] on the grid, (n_speed,).
+
+    A sparse table of minima over 2^j consecutive speeds answers every window with two lookups (the window
+    is the union of two overlapping power-of-two blocks): O(n log n), no loop over speeds.
+    """
     lo = np.searchsorted(n, n * (1 - tol) - 1e-9 * n, side="left")
     hi = np.searchsorted(n, n * (1 + tol) + 1e-9 * n, side="right")
+    length = hi - lo  # >= 1: every window holds its own speed
+    levels = [np.asarray(a, dtype=float)]
+    while (1 << len(levels)) <= int(length.max()):
+        prev, half = levels[-1], 1 << (len(levels) - 1)
+        levels.append(np.minimum(prev[:-half], prev[half:]))
+    j = np.floor(np.log2(length)).astype(int)
+    j = np.where((1 << (j + 1)) <= length, j + 1, j)  # guard log2 rounding at exact powers of two
+    j = np.where((1 << j) > length, j - 1, j)
     out = np.empty(n.size)
-    for i in range(n.size):  # windows of a few grid speeds; n_speed is hundreds
-        out[i] = a[lo[i] : hi[i]].min()
+    for level in np.unique(j):  # one pass per power of two (at most log2 of the widest window)
+        sel = j == level
+        table = levels[level]
+        out[sel] = np.minimum(table[lo[sel]], table[hi[sel] - (1 << level)])
     return out
 
 
@@ -184,6 +203,7 @@ def recommend(
     max_depth: float | None = None,
     flute_length: float | None = None,
     limits_at=None,
+    presorted: bool = False,
 ) -> dict:
     """Robust recommendation, point-wise optimum and alternatives.
 
@@ -196,6 +216,8 @@ def recommend(
     max_depth, flute_length : float m or None, user/tool depth limits
     limits_at : callable (speeds (k,) rpm) -> (n_draws, k) m, or None
         Evaluates the limits between grid speeds to verify the window minimum.
+    presorted : bool, ``depth_limit_m`` is sorted over the draws (axis 0); every use here counts draws or
+        takes an order statistic, so the result is the same, without re-sorting
 
     Returns
     -------
@@ -214,7 +236,7 @@ def recommend(
         if not (math.isfinite(v) and v > 0):
             raise SetupError(f"{name}={v!r}: expected a depth > 0 in m")
     cap = min([v for v, _ in caps], default=math.inf)
-    a_lvl = level_limit(lim, level)
+    a_lvl = level_limit(lim, level, presorted)
     kf = 1.0 + tol.force_rel
     inside = (n * (1 - tol.speed_rel) >= n[0] * (1 - 1e-12)) & (n * (1 + tol.speed_rel) <= n[-1] * (1 + 1e-12))
     a_rob = _window_min(n, a_lvl / kf, tol.speed_rel)

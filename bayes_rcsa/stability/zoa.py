@@ -152,8 +152,8 @@ def zoa_lobes(
     max_lobes : int or None
         Number of lobes; default :func:`lobe_count` for the lowest speed.
     chunk : int or None
-        Draws processed together; default keeps the (draws x lines x 2 x K)
-        work arrays near 2e6 elements (~16 MB each).
+        Draws processed together; default keeps the (draws x lines x 2)
+        work arrays near 4e6 elements (64 MB of complex eigenvalues).
 
     Returns
     -------
@@ -172,7 +172,7 @@ def zoa_lobes(
     h0 = mean_directional_matrix(cutting)
     n_draw = gx.shape[0]
     if chunk is None:
-        chunk = max(1, int(2e6 // (f.size * 2 * K)))
+        chunk = max(1, int(4e6 // (f.size * 2)))  # the (draws x lines x 2) eigenvalue arrays stay near 64 MB
     depth = np.full((n_draw, n.size), np.inf)
     chat = np.full((n_draw, n.size), np.nan)
     lobe = np.full((n_draw, n.size), -1, dtype=int)
@@ -213,55 +213,101 @@ def lobe_points(mu: np.ndarray, frequency_hz: np.ndarray, flutes: int, lobes: in
     return speed, depth
 
 
-def _envelope(h0, gx, gy, f, flutes, speeds, K):
-    """Lower envelope of all lobe segments for a chunk of draws: (n_draw, n_speed) x3."""
-    n_draw = gx.shape[0]
-    mu = oriented_eigenvalues(h0, gx, gy)  # (D, F, 2)
-    spd, a = lobe_points(mu, f, flutes, K)  # (D,F,2,K), (D,F,2)
+def _segment_ends(h0, gx, gy):
+    """Depth 1/(2 Re μ) (+inf where Re μ <= 0) and phase ε of every (draw, line, branch): (D, F, 2) x2.
+
+    The same arithmetic as :func:`lobe_points` (which also forms the speeds of every lobe; the compiled
+    envelope forms them per segment instead).
+    """
+    mu = oriented_eigenvalues(h0, gx, gy)
+    mu_r = mu.real
+    valid = mu_r > 0
+    safe = np.where(valid, mu_r, 1.0)
+    return np.where(valid, 0.5 / safe, np.inf), np.pi + 2.0 * np.arctan(mu.imag / safe)
+
+
+# work (draws x (speeds + segments per lobe count)) from which the compiled envelope pays for loading numba
+# (about 1 s of a process's CPU): a deterministic chart (one draw) stays in numpy, as fast as before and without
+# the compiler; many draws go compiled even at a few speeds (the numpy version's cost is per segment too)
+_COMPILED_ENVELOPE_CELLS = 200_000
+
+
+def _envelope_of_ends(depth_pts, eps, f, flutes, speeds, K, track=True):
+    """Lower envelope of all lobe segments from :func:`_segment_ends`: depth (D, S) m, and with ``track`` the
+    chatter frequency (D, S) Hz and the lobe number (D, S) of the limiting segment (else None, None).
+
+    Segments join consecutive lines of one eigenvalue branch and one lobe where both ends are physical
+    (Re μ > 0); each grid speed inside a segment's speed range gets the linearly interpolated depth, and the
+    lowest of them is the limit.  Large jobs run the compiled loop of :mod:`._zoa_kernel`, small ones
+    :func:`_envelope_numpy`; both give the same numbers bit for bit.
+    """
+    f = np.ascontiguousarray(f, dtype=float)
+    speeds = np.ascontiguousarray(speeds, dtype=float)
+    n_draw = depth_pts.shape[0]
+    if n_draw * (speeds.size + 2 * f.size * int(K)) < _COMPILED_ENVELOPE_CELLS:
+        depth, chat, lob = _envelope_numpy(depth_pts, eps, f, flutes, speeds, K)
+        return (depth, chat, lob) if track else (depth, None, None)
+    from ._zoa_kernel import lower_envelope
+
+    depth = np.full((n_draw, speeds.size), np.inf)
+    shape = (n_draw, speeds.size) if track else (1, 1)
+    chat = np.full(shape, np.nan)
+    lob = np.full(shape, -1, dtype=np.int64)
+    steps = np.diff(speeds)
+    uniform = bool(steps.size > 0 and np.all(np.abs(steps - steps.mean()) <= 1e-9 * steps.mean()))
+    lower_envelope(np.ascontiguousarray(depth_pts), np.ascontiguousarray(eps), 2 * np.pi * f, f, int(flutes),
+                   int(K), speeds, uniform, depth, chat, lob, bool(track))
+    return (depth, chat, lob) if track else (depth, None, None)
+
+
+def _envelope_numpy(depth_pts, eps, f, flutes, speeds, K):
+    """The lower envelope in numpy: every (segment, grid speed) pair materialised, sorted by (cell, depth), the
+    first of each cell kept (ties: the first segment in (line, branch, lobe) order).  Memory and time grow
+    with the number of pairs (about 4 x 10^5 per draw at 25001 speeds): for small jobs.  Returns depth,
+    chatter frequency and lobe number, (D, S) each."""
+    n_draw = depth_pts.shape[0]
+    k = np.arange(K)
+    spd = 60.0 * (2 * np.pi * f)[:, None, None] / (flutes * (eps[..., None] + 2 * np.pi * k))  # as lobe_points
+    a = depth_pts
     valid = np.isfinite(a)
-    # segments between consecutive lines, both ends physical
     s0, s1 = spd[:, :-1], spd[:, 1:]
     a0, a1 = a[:, :-1, :, None], a[:, 1:, :, None]
     ok = (valid[:, :-1] & valid[:, 1:])[..., None] & np.ones(K, dtype=bool)
-    lo = np.minimum(s0, s1)
-    hi = np.maximum(s0, s1)
-    # index range of the speed grid covered by each segment
-    i0 = np.searchsorted(speeds, lo, side="left")
-    i1 = np.searchsorted(speeds, hi, side="right")  # exclusive
+    i0 = np.searchsorted(speeds, np.minimum(s0, s1), side="left")
+    i1 = np.searchsorted(speeds, np.maximum(s0, s1), side="right")  # exclusive
     count = np.where(ok, i1 - i0, 0)
     sel = np.nonzero(count > 0)
     cnt = count[sel]
     total = int(cnt.sum())
     depth = np.full((n_draw, speeds.size), np.inf)
     chat = np.full((n_draw, speeds.size), np.nan)
-    lob = np.full((n_draw, speeds.size), -1, dtype=int)
+    lob = np.full((n_draw, speeds.size), -1, dtype=np.int64)
     if total == 0:
         return depth, chat, lob
     rep = np.repeat(np.arange(cnt.size), cnt)
-    offs = np.arange(total) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-    grid_idx = i0[sel][rep] + offs
+    grid_idx = i0[sel][rep] + np.arange(total) - np.repeat(np.cumsum(cnt) - cnt, cnt)
     d_idx, f_idx, b_idx, k_idx = (x[rep] for x in sel)
-    x0 = s0[d_idx, f_idx, b_idx, k_idx]
-    x1 = s1[d_idx, f_idx, b_idx, k_idx]
-    y0 = a0[d_idx, f_idx, b_idx, 0]
-    y1 = a1[d_idx, f_idx, b_idx, 0]
-    x = speeds[grid_idx]
+    x0, x1 = s0[d_idx, f_idx, b_idx, k_idx], s1[d_idx, f_idx, b_idx, k_idx]
+    y0, y1 = a0[d_idx, f_idx, b_idx, 0], a1[d_idx, f_idx, b_idx, 0]
     span = x1 - x0
     with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.where(span != 0, (x - x0) / np.where(span != 0, span, 1.0), 0.0)
+        t = np.where(span != 0, (speeds[grid_idx] - x0) / np.where(span != 0, span, 1.0), 0.0)
     val = y0 + t * (y1 - y0)
-    fc = f[f_idx] + t * (f[f_idx + 1] - f[f_idx])
-    # lower envelope: sort by (draw, speed, value) and keep the first of each cell
     cell = d_idx * speeds.size + grid_idx
     order = np.lexsort((val, cell))
-    cell_sorted = cell[order]
     first = np.ones(order.size, dtype=bool)
-    first[1:] = cell_sorted[1:] != cell_sorted[:-1]
+    first[1:] = cell[order][1:] != cell[order][:-1]
     pick = order[first]
     depth.reshape(-1)[cell[pick]] = val[pick]
-    chat.reshape(-1)[cell[pick]] = fc[pick]
+    chat.reshape(-1)[cell[pick]] = f[f_idx[pick]] + t[pick] * (f[f_idx[pick] + 1] - f[f_idx[pick]])
     lob.reshape(-1)[cell[pick]] = k_idx[pick]
     return depth, chat, lob
+
+
+def _envelope(h0, gx, gy, f, flutes, speeds, K):
+    """Lower envelope of all lobe segments for a chunk of draws: (n_draw, n_speed) x3."""
+    depth_pts, eps = _segment_ends(h0, gx, gy)
+    return _envelope_of_ends(depth_pts, eps, f, flutes, speeds, K)
 
 
 # ----------------------------------------------------------------------------------------
@@ -276,17 +322,34 @@ class ZOAMethod:
         return None
 
     def estimate_seconds(self, n_draws: int, n_speeds: int, n_freq: int) -> float:
-        # measured: 500 draws x 400 speeds x 1200 lines in about 2 s on the reference machine
-        return 0.3 + 2.0 * (n_draws * n_speeds * n_freq) / (500 * 400 * 1200)
+        # measured on the bundled 30 mm files (1501 lines), 500 draws x 25001 speeds, compiled envelope (issue 44):
+        # about 1.5 s fixed (imports, figure), 2.5 s per 500 x 25001 (draw, speed) cells (envelope, map, order
+        # statistics) and 0.5 s per 500 x 1500 (draw, line) eigenproblems
+        return 1.5 + 2.5 * (n_draws * n_speeds) / (500 * 25001) + 0.5 * (n_draws * n_freq) / (500 * 1500)
 
     def depth_limits(self, frf_x, frf_y, frequency_hz, cutting, speeds_rpm, options, progress=None):
         from .methods import MethodResult
 
-        lim = zoa_lobes(frf_x, frf_y, frequency_hz, cutting, speeds_rpm).depth_limit_m
+        if not cutting.equal_pitch:
+            raise SetupError("the zero-order approximation here assumes equal pitch; use method 'sdm' for variable "
+                             "pitch")
+        gx, gy, f = _check_frfs(frf_x, frf_y, frequency_hz)
+        gx, gy = gx.reshape(-1, f.size), gy.reshape(-1, f.size)
+        n = np.asarray(speeds_rpm, dtype=float)
+        if n.ndim != 1 or n.size < 1 or np.any(n <= 0) or np.any(np.diff(n) <= 0):
+            raise SetupError("speed_rpm must be a strictly increasing 1-D array of positive speeds")
+        # the eigenvalues once: the recommendation's checks between grid speeds (limits_at) reuse them
+        ends = _segment_ends(mean_directional_matrix(cutting), gx, gy)
+
+        def limits_at(speeds):
+            s = np.asarray(speeds, dtype=float)
+            return _envelope_of_ends(*ends, f, cutting.flutes, s, lobe_count(f, cutting.flutes, s[0]),
+                                     track=False)[0]
+
+        lim = limits_at(n)
         if progress is not None:
             progress(1.0)
-        return MethodResult(np.atleast_2d(lim), limits_at=lambda s: np.atleast_2d(
-            zoa_lobes(frf_x, frf_y, frequency_hz, cutting, s).depth_limit_m))
+        return MethodResult(lim, limits_at=limits_at)
 
 
 def _register() -> None:

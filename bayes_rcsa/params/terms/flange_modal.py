@@ -31,7 +31,6 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-from scipy.optimize import least_squares, nnls
 
 from ...errors import ModelError
 
@@ -68,6 +67,8 @@ def _solve(b: np.ndarray, y: np.ndarray, wt: np.ndarray, nonneg: bool):
     scale = np.linalg.norm(a, axis=0)
     scale[scale == 0] = 1.0
     if nonneg:
+        from scipy.optimize import nnls  # lazy: reading a setup (and the CLI's error paths) needs no scipy
+
         c, _ = nnls(a / scale, yy)
     else:
         c = np.linalg.lstsq(a / scale, yy, rcond=None)[0]
@@ -123,6 +124,8 @@ def fit_poles(omega: np.ndarray, comps: Sequence[tuple], starts_hz: Sequence[flo
         lb = np.concatenate([np.full(n, lo)] + [np.full(n, np.log(ZETA_BOUNDS[0]))] * (k - 1))
         ub = np.concatenate([np.full(n, hi)] + [np.full(n, np.log(ZETA_BOUNDS[1]))] * (k - 1))
         x0 = np.clip(x0, lb + 1e-9, ub - 1e-9)
+        from scipy.optimize import least_squares
+
         x = least_squares(lambda v: project(v, n, omega, comps, full)[0], x0, bounds=(lb, ub), x_scale=1.0,
                           **({"max_nfev": 60, "xtol": 1e-6} if full else {})).x
     else:

@@ -1,0 +1,126 @@
+"""The compiled loops of :mod:`bayes_rcsa.model._kernels` (numba; imported on their first call, not with the model).
+
+See :mod:`._kernels` for the formula.  Kept apart so that reading a setup, ``--help`` and the error paths
+do not import numba (and scipy through it): :mod:`._kernels` loads this module when a kernel first runs.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+__all__ = ["tool_point_kernel", "tool_point_kernel_batched", "tool_point_kernel_tip"]
+
+@njit(cache=True, fastmath=False, nogil=True, inline="always")
+def _fill_set(kx, kt, cx, ct, hx, ht, starts, omega, C, out, s):  # pragma: no cover - compiled
+    """Lines of parameter set ``s`` (the shared inner loop of both kernels)."""
+    n_cfg = kx.shape[1]
+    for c in range(n_cfg):
+        kxr = kx[s, c]
+        ktr = kt[s, c]
+        cxs = cx[s, c]
+        cts = ct[s, c]
+        hxs = hx[s, c]
+        hts = ht[s, c]
+        for j in range(starts[c], starts[c + 1]):
+            kxi = omega[j] * cxs + hxs
+            kti = omega[j] * cts + hts
+            axr = C[2, j] * kxr - C[3, j] * kxi + 1.0
+            axi = C[2, j] * kxi + C[3, j] * kxr
+            btr = C[4, j] * ktr - C[5, j] * kti + 1.0
+            bti = C[4, j] * kti + C[5, j] * ktr
+            kkr = kxr * ktr - kxi * kti
+            kki = kxr * kti + kxi * ktr
+            t1r = C[8, j] * btr - C[9, j] * bti
+            t1i = C[8, j] * bti + C[9, j] * btr
+            t2r = C[10, j] * axr - C[11, j] * axi
+            t2i = C[10, j] * axi + C[11, j] * axr
+            numr = (t1r * kxr - t1i * kxi) + (t2r * ktr - t2i * kti) - (C[12, j] * kkr - C[13, j] * kki)
+            numi = (t1r * kxi + t1i * kxr) + (t2r * kti + t2i * ktr) - (C[12, j] * kki + C[13, j] * kkr)
+            denr = axr * btr - axi * bti - (C[6, j] * kkr - C[7, j] * kki)
+            deni = axr * bti + axi * btr - (C[6, j] * kki + C[7, j] * kkr)
+            inv = 1.0 / (denr * denr + deni * deni)
+            out[s, j] = complex(
+                C[0, j] - (numr * denr + numi * deni) * inv,
+                C[1, j] - (numi * denr - numr * deni) * inv,
+            )
+
+
+@njit(cache=True, fastmath=False, nogil=True)
+def tool_point_kernel(kx, kt, cx, ct, hx, ht, starts, omega, C, out):  # pragma: no cover - compiled
+    """Fill ``out`` (n_sets, n_lines) complex with the tool-point receptance.
+
+    Parameters
+    ----------
+    kx, kt, cx, ct : (n_sets, n_configs) float64
+    hx, ht : (n_sets, n_configs) float64, hysteretic (rate-independent) loss stiffness, N/m and N m/rad
+    starts : (n_configs + 1,) int64, first line of each configuration
+    omega : (n_lines,) rad/s
+    C : (14, n_lines) packed coefficients from :func:`pack_coefficients`
+    out : (n_sets, n_lines) complex128
+    """
+    for s in range(kx.shape[0]):
+        _fill_set(kx, kt, cx, ct, hx, ht, starts, omega, C, out, s)
+
+
+@njit(cache=True, fastmath=False, nogil=True)
+def tool_point_kernel_batched(kx, kt, cx, ct, hx, ht, starts, omega, CB, out):  # pragma: no cover - compiled
+    """:func:`tool_point_kernel` with coefficients per parameter set.
+
+    ``CB`` is (B, 14, n_lines) with B = 1 (shared) or n_sets (a model term made
+    the substructures depend on the parameters); the same arithmetic per line.
+    """
+    nb = CB.shape[0]
+    for s in range(kx.shape[0]):
+        _fill_set(kx, kt, cx, ct, hx, ht, starts, omega, CB[s if nb > 1 else 0], out, s)
+
+
+@njit(cache=True, fastmath=False, nogil=True)
+def tool_point_kernel_tip(kx, kt, cx, ct, hx, ht, starts, omega, C, Z, out):  # pragma: no cover - compiled
+    """Tool-point receptance with a diagonal dynamic stiffness attached at the tool tip.
+
+    With ``D = E + diag(1/Kx, 1/Kt)`` the full tool-point block without the
+    attachment is ``H = T22 - T21 D^-1 T12`` and with the tip dynamic
+    stiffness ``Z = diag(z_u, z_psi)`` it is ``H' = (H^-1 + Z)^-1 =
+    H (I + Z H)^-1``.  Multiplying through by ``det(D) Kx Kt`` (as the
+    fast path does) leaves one division per line::
+
+        d = det(E) Kx Kt + E11 Kt + E00 Kx + 1
+        G_ij = T22_ij d - N_ij Kx Kt - U_ij Kx - V_ij Kt
+        h' = (G00 (d + z_psi G11) - z_psi G01 G10) / ((d + z_u G00)(d + z_psi G11) - z_u z_psi G01 G10)
+
+    with the per-line constants ``N = T21 adj(E) T12``,
+    ``U_ij = T21_i0 T12_0j``, ``V_ij = T21_i1 T12_1j``
+    (:func:`tip_coefficients`).
+
+    Parameters
+    ----------
+    kx, kt, cx, ct, hx, ht : (n_sets, n_configs) float64
+    starts : (n_configs + 1,) int64
+    omega : (n_lines,) rad/s
+    C : (n_lines, 19) complex, from :func:`tip_coefficients`
+    Z : (B, n_lines, 2) float or complex, B = 1 or n_sets
+    out : (n_sets, n_lines) complex128
+    """
+    n_sets, n_cfg = kx.shape
+    nb = Z.shape[0]
+    for s in range(n_sets):
+        b = s if nb > 1 else 0
+        for c in range(n_cfg):
+            for j in range(starts[c], starts[c + 1]):
+                Kx = complex(kx[s, c], omega[j] * cx[s, c] + hx[s, c])
+                Kt = complex(kt[s, c], omega[j] * ct[s, c] + ht[s, c])
+                KK = Kx * Kt
+                d = C[j, 0] * KK + C[j, 1] * Kt + C[j, 2] * Kx + 1.0
+                g00 = C[j, 3] * d - C[j, 7] * KK - C[j, 11] * Kx - C[j, 15] * Kt
+                g01 = C[j, 4] * d - C[j, 8] * KK - C[j, 12] * Kx - C[j, 16] * Kt
+                g10 = C[j, 5] * d - C[j, 9] * KK - C[j, 13] * Kx - C[j, 17] * Kt
+                g11 = C[j, 6] * d - C[j, 10] * KK - C[j, 14] * Kx - C[j, 18] * Kt
+                zu = Z[b, j, 0]
+                zp = Z[b, j, 1]
+                a11 = d + zp * g11
+                cross = g01 * g10
+                num = g00 * a11 - zp * cross
+                den = (d + zu * g00) * a11 - (zu * zp) * cross
+                inv = 1.0 / (den.real * den.real + den.imag * den.imag)
+                out[s, j] = complex((num.real * den.real + num.imag * den.imag) * inv,
+                                    (num.imag * den.real - num.real * den.imag) * inv)

@@ -1,0 +1,77 @@
+"""The command line answers at once (issue #44): ``--help`` of every command and the one-line errors for a
+missing or malformed input file import none of the heavy libraries (numba, scipy, matplotlib, arviz, h5py).
+
+Asserted as the set of imported modules in a fresh interpreter, not as a time (times depend on the machine's
+load; the import set is what makes them).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from bayes_rcsa.cli.main import COMMANDS
+
+ROOT = Path(__file__).resolve().parent.parent
+HEAVY = ("numba", "scipy", "matplotlib", "arviz", "h5py")
+
+_PROBE = """
+import contextlib, io, json, sys
+from bayes_rcsa.cli.main import main
+err = io.StringIO()
+with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+    try:
+        status = main(json.loads(sys.argv[1]))
+    except SystemExit as exc:
+        status = exc.code
+heavy = set(json.loads(sys.argv[2]))
+print(json.dumps({"status": status, "heavy": sorted({m.split('.')[0] for m in sys.modules} & heavy),
+                  "stderr": err.getvalue()}))
+"""
+
+
+def _probe(argv: list[str]) -> dict:
+    proc = subprocess.run([sys.executable, "-c", _PROBE, json.dumps(argv), json.dumps(HEAVY)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout)
+
+
+@pytest.mark.parametrize("command", [None, *COMMANDS])
+def test_help_imports_no_heavy_library(command):
+    out = _probe(["--help"] if command is None else [command, "--help"])
+    assert out["status"] == 0
+    assert out["heavy"] == []
+
+
+def _bad_inputs(tmp: Path) -> list[tuple[list[str], str]]:
+    bad_toml = tmp / "bad.toml"
+    bad_toml.write_text("[tool\nname = 'x'\n")
+    bad_csv = tmp / "bad.csv"
+    bad_csv.write_text("frequency_hz,real,imag\n100,1e-7\n")
+    missing = str(tmp / "missing.toml")
+    cut = ["--kt", "790e6", "--kr", "230e6", "--flutes", "4", "--immersion", "0.5", "--speeds", "5000:20000:50"]
+    out = str(tmp / "out")
+    return [
+        (["identify", missing, "--out", out], "setup file not found"),
+        (["identify", str(bad_toml), "--out", out], "malformed TOML"),
+        (["predict", missing, "--posterior", str(tmp / "posterior.nc"), "--out", out], "no such file"),
+        (["lobes", missing, "--posterior", str(tmp / "posterior.nc"), "--clamping-length", "0.03", *cut,
+          "--out", out], "no such file"),
+        (["lobes", "--measured-x", str(tmp / "missing.csv"), "--measured-y", str(tmp / "missing.csv"), *cut,
+          "--out", out], "FRF file not found"),
+        (["lobes", "--measured-x", str(bad_csv), "--measured-y", str(bad_csv), *cut, "--out", out], "bad.csv"),
+    ]
+
+
+@pytest.mark.parametrize("case", range(6))
+def test_bad_input_errors_import_no_heavy_library(case, tmp_path):
+    argv, needle = _bad_inputs(tmp_path)[case]
+    out = _probe(argv)
+    lines = out["stderr"].strip().splitlines()
+    assert out["status"] == 2 and len(lines) == 1 and "error:" in lines[0] and needle in lines[0], out["stderr"]
+    assert out["heavy"] == []
