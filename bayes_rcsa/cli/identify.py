@@ -91,10 +91,11 @@ def register(subparsers) -> None:
     p.add_argument("--allow-no-resonance", action="store_true",
                    help="proceed (with a warning) when a measurement holds no resonance in its band (default: "
                         "refuse; such a file cannot determine the contact)")
-    p.add_argument("--tail-check", action=argparse.BooleanOptionalAction, default=True,
+    p.add_argument("--tail-check", action=argparse.BooleanOptionalAction, default=None,
                    help="after sampling, compare every parameter's 90 %% interval ends with an importance-sampling "
                         "estimate of the same posterior (as many evaluations as the chain's, 2e4-1e5; "
-                        "docs/identification.md); a disagreement makes the run not converged (default: on)")
+                        "docs/identification.md); a disagreement makes the run not converged (default: on, except with --cuts, where "
+                        "every evaluation runs the cuts' stability limits)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress output on stderr")
     lib = p.add_argument_group("tool library (docs/library.md)")

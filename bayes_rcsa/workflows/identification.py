@@ -326,7 +326,7 @@ def _write_identification(ir, folder: Path, plots: bool, cut_draws, summary: dic
 def identify(setup, *, lengths: Sequence[float] | None = None, method: str = "multi", seed: int = 0,
              walkers: int | None = None, max_steps: int | None = None, check_every: int | None = None,
              ess_min: float = 400.0, checkpoint_interval: float = 2.0, band: tuple[float, float] | None = None,
-             spindle_samples=None, allow_no_resonance: bool = False, tail_check: bool = True, library=None,
+             spindle_samples=None, allow_no_resonance: bool = False, tail_check: bool | None = None, library=None,
              no_taps: bool = False, cuts: CutTestOptions | dict | None = None, out=None, resume: bool = False,
              force: bool = False, progress: bool = False, plots: bool = True, sampler: str = "mcmc") -> Posterior:
     """Identify the tool-holder contact (k_xf, k_thetaM, ...) from the setup's measured tool-point FRFs.
@@ -345,9 +345,12 @@ def identify(setup, *, lengths: Sequence[float] | None = None, method: str = "mu
     spindle_samples : path of spindle_samples.npz or SpindleSamples, optional (Bayesian methods): the predicted
         natural-frequency intervals mix the posterior draws with these flange-receptance samples
     allow_no_resonance : bool, proceed (with a warning) when a measurement holds no resonance in its band
-    tail_check : bool, compare every parameter's 90 % interval ends with an importance-sampling estimate (Bayesian
-        methods; on by default, part of the reported convergence: ``summary["convergence"]``, and a disagreement
-        makes ``converged`` false)
+    tail_check : bool or None, compare every parameter's 90 % interval ends with an importance-sampling estimate
+        (Bayesian methods; part of the reported convergence: ``summary["convergence"]``, and a disagreement makes
+        ``converged`` false).  None (default): on, except for a joint fit with cutting tests (``cuts``), whose every
+        evaluation runs the stability limits of all cuts, so that the check would cost several times the chain;
+        ``True`` runs it there too
+
     library : path of population.nc or a Population (``bayes-rcsa library``), optional (method "multi"): the
         contact prior is the population predictive of the setup's holder type and shank diameter
     no_taps : bool, with ``library``: use no measurement; the posterior is the population predictive
@@ -469,7 +472,8 @@ def _identify(setup, lengths, method, seed, walkers, max_steps, check_every, ess
                      f"--max-steps {settings.max_steps} x {n_walkers} walkers", "lower --max-steps or --walkers")
     spindle_samples = _spindle_samples(spindle_samples, setup)
     run = dict(problem=problem, setup=setup, seed=seed, settings=settings, resume=resume, sampler=sampler,
-               spindle_samples=spindle_samples, tail_check=tail_check and bayesian, cut_term=cut_term,
+               spindle_samples=spindle_samples,
+               tail_check=bayesian and (tail_check if tail_check is not None else cut_term is None), cut_term=cut_term,
                population=population, library=library)
     if out is None:
         return _in_memory(_fit(**run, checkpoint=None))
