@@ -54,7 +54,6 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.special import gammaln
 
 from ..stats.weights import (MIN_ESS_COVARIANCE, MIN_ESS_INTERVAL_END, MIN_ESS_PER_DIMENSION, PARETO_K_MAX,
                              effective_sample_size, importance_reliable, normalise_log_weights,
@@ -147,7 +146,9 @@ class _T:
         self.chol = np.linalg.cholesky(shape)
         self.log_det = 2.0 * float(np.sum(np.log(np.diag(self.chol))))
         d, v = self.d, self.df
-        self.const = gammaln((v + d) / 2) - gammaln(v / 2) - 0.5 * d * math.log(v * math.pi) - 0.5 * self.log_det
+        # math.lgamma, not scipy: importing this module (identify checks its options before loading the setup)
+        # must not load scipy on the command line's error paths
+        self.const = math.lgamma((v + d) / 2) - math.lgamma(v / 2) - 0.5 * d * math.log(v * math.pi) - 0.5 * self.log_det
 
     def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
         z = rng.standard_normal((n, self.d)) @ self.chol.T
