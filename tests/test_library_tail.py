@@ -30,7 +30,7 @@ def test_importance_resample_recovers_a_tail_the_draws_missed():
 def test_the_tail_check_resamples_its_own_importance_draws_without_a_second_run():
     # the stage-1 tail correction needs the check and, where it disagrees, resampled draws: one importance run
     # (n log-posterior evaluations, not 2n) gives both, with the tail back in place as above
-    from bayes_rcsa.inference.tail_check import importance_tail_check
+    from bayes_rcsa.inference.tail_check import N_FIRST, importance_tail_check
 
     target = stats.multivariate_normal([3.0, -1.0], [[1.0, 0.6], [0.6, 2.0]])
     rng = np.random.default_rng(32)
@@ -44,12 +44,35 @@ def test_the_tail_check_resamples_its_own_importance_draws_without_a_second_run(
 
     check = importance_tail_check(lp, draws, ["a", "b"], rng, n=40_000, resample=4000)
     assert check["verdict"] == "disagrees" and check["draws"].shape == (4000, 2)
-    assert sum(evaluated) == 40_000 // 4 + 40_000  # the pilot and the refitted proposal, once
+    assert sum(evaluated) == 40_000 // 4 + 40_000 and check["n"] == 40_000  # the pilot and the refitted proposal, once
     assert np.quantile(check["draws"][:, 0], 0.95) == pytest.approx(3.0 + 1.6448536, abs=0.05)
     # a consistent chain is not resampled
     ok = importance_tail_check(target.logpdf, target.rvs(8000, random_state=rng), ["a", "b"], rng, n=40_000,
                                resample=4000)
     assert ok["verdict"] == "consistent" and "draws" not in ok
+    # without resampling, the first round's weights (a 2-d normal: ESS well above 4000) settle the check
+    del evaluated[:]
+    quick = importance_tail_check(lp, draws, ["a", "b"], rng, n=40_000)
+    assert quick["verdict"] == "disagrees" and quick["ess"] >= 4000
+    assert sum(evaluated) == N_FIRST // 4 + N_FIRST and quick["n"] == N_FIRST
+
+
+def test_the_full_number_of_draws_follows_when_the_first_round_is_not_decisive():
+    # a narrow second mode the chain never visited, 12 sd away: the t fitted to the draws covers it poorly, so the first
+    # round's smoothed weights are not decisive (ESS < 4000 or k > 0.7) and the rest of n is drawn
+    from bayes_rcsa.inference.tail_check import N_FIRST, importance_tail_check
+
+    rng = np.random.default_rng(33)
+    a, b = stats.norm(0.0, 1.0), stats.norm(12.0, 0.1)
+
+    def lp(x):
+        evaluated.append(x.shape[0])
+        return np.logaddexp(np.log(0.7) + a.logpdf(x[:, 0]), np.log(0.3) + b.logpdf(x[:, 0]))
+
+    evaluated = []
+    check = importance_tail_check(lp, a.rvs(4000, random_state=rng)[:, None], ["a"], rng, n=60_000)
+    assert sum(evaluated) == N_FIRST // 4 + 60_000 and check["n"] == 60_000
+    assert check["verdict"] != "consistent"  # 30 % of the mass the chain never saw: disagrees, or no verdict
 
 
 @pytest.fixture(scope="module")

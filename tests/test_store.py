@@ -113,6 +113,37 @@ def test_write_read_round_trip_keeps_values_groups_attributes_and_records_the_sc
     assert d.fit_lengths == (0.025, 0.03, 0.035, 0.04)
 
 
+def test_the_array_reader_gives_the_values_and_attributes_arviz_reads(written):
+    """``read_posterior(..., arrays=True)`` (h5py only: what posterior-mode lobes and predict use to skip the ArviZ
+    import) returns every group's variables, coordinates and attributes exactly as ``arviz.from_netcdf`` does."""
+    idata, path = written
+    full, light = store.read_posterior(path), store.read_posterior(path, arrays=True)
+    assert light.groups() == full.groups()
+    assert dict(light.attrs) == {k: v for k, v in full.attrs.items()}
+    for group in full.groups():
+        a, b = getattr(full, group), getattr(light, group)
+        assert set(b.data_vars) == set(a.data_vars), group
+        assert set(b.coords) == set(a.coords), group
+        assert b.attrs == dict(a.attrs), group
+        for name in [*a.data_vars, *a.coords]:
+            assert b[name].values.dtype == a[name].values.dtype, (group, name)
+            np.testing.assert_array_equal(b[name].values, a[name].values, err_msg=f"{group}/{name}")
+    assert light.no_such_group is None
+    assert store.posterior_attributes(light) == store.posterior_attributes(full)
+    from bayes_rcsa.posterior import load_posterior
+
+    a, b = load_posterior(path), load_posterior(path, inference_data=light)
+    assert a.fit_lengths == b.fit_lengths and a.method == b.method and a.parameters.to_dict() == b.parameters.to_dict()
+    for name in a.values:
+        np.testing.assert_array_equal(a.values[name], b.values[name])
+
+
+def test_the_array_reader_refuses_a_newer_schema_in_the_same_line(written, tmp_path):
+    bad = _with_root_attrs(written[1], tmp_path / "new.nc", **{store.SCHEMA_ATTRIBUTE: np.int64(7)})
+    with pytest.raises(DataError, match="schema version 7 is newer than this bayes_rcsa reads"):
+        store.read_posterior(bad, option=None, arrays=True)
+
+
 def test_a_version_1_file_without_the_attribute_is_read_as_before(written, tmp_path):
     from bayes_rcsa.posterior import load_posterior
 
@@ -230,7 +261,7 @@ def test_every_posterior_read_goes_through_the_one_opener(written, monkeypatch):
     path = written[1]
     opened = []
     real = posterior_file._open_posterior
-    monkeypatch.setattr(posterior_file, "_open_posterior", lambda p: opened.append(Path(p)) or real(p))
+    monkeypatch.setattr(posterior_file, "_open_posterior", lambda p, *a: opened.append(Path(p)) or real(p, *a))
     for read in (store.read_posterior, load_posterior, read_coefficient_draws, design_attributes):
         del opened[:]
         read(path)
@@ -265,7 +296,7 @@ def test_predict_reads_the_posterior_through_the_store(written, tmp_path, monkey
     path = Path(shutil.copy(written[1], tmp_path / "posterior.nc"))
     opened = []
     real = posterior_file._open_posterior
-    monkeypatch.setattr(posterior_file, "_open_posterior", lambda p: opened.append(Path(p)) or real(p))
+    monkeypatch.setattr(posterior_file, "_open_posterior", lambda p, *a: opened.append(Path(p)) or real(p, *a))
     assert main(["predict", str(tmp_path / "data" / "setup.toml"), "--posterior", str(path), "--lengths", "0.03",
                  "--max-draws", "10", "--no-plots", "--quiet", "--out", str(tmp_path / "out")]) == 0
     assert opened and set(opened) == {path}

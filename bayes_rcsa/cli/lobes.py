@@ -77,6 +77,9 @@ def register(subparsers) -> None:
     grid.add_argument("--intervals", type=positive_int, metavar="M",
                       help="SDM intervals per tooth period (default: 30 per cycle of the highest mode, >= 30)")
     grid.add_argument("--max-modes", type=int, default=4, metavar="N", help="largest mode count of the SDM modal fit (default 4)")
+    grid.add_argument("--sdm-exact", action="store_true",
+                      help="--method sdm on every draw (default: above 48 draws, 12 exact draws and the others' zero-order "
+                           "limits times their SDM/ZOA ratio, checked leave-one-out; minutes instead of seconds)")
     grid.add_argument("--level", metavar="P", help="P(stable) required over the neighbourhood (default 0.95)")
     grid.add_argument("--confidence", metavar="C",
                       help="confidence of the robust envelope (the depth below which P(stable) >= C at each speed, "
@@ -108,6 +111,7 @@ def run(args: argparse.Namespace) -> Summary:
         speed_tolerance=parse_fraction(args.speed_tolerance, "--speed-tolerance", 0.0, 0.2),
         depth_margin=parse_fraction(args.depth_margin, "--depth-margin", 1e-3, 1.0),
         depth_points=args.depth_points, method=args.method, intervals=args.intervals, max_modes=args.max_modes,
+        sdm_exact=args.sdm_exact,
         level=optional_float(args.level, "--level"), confidence=optional_float(args.confidence, "--confidence"),
         tests=args.tests, spindle_samples=args.spindle_uncertainty, progress=not args.quiet,
         budget_s=parse_float(args.budget, "--budget", positive=True))

@@ -232,7 +232,7 @@ def run_prediction(setup, posterior_path, lengths: Sequence[float], directions: 
     draws_all = posterior_draws
     if draws_all is None:
         if inference_data is None:
-            inference_data = read_posterior(posterior_path, option=None)  # the one read of the file
+            inference_data = read_posterior(posterior_path, option=None, arrays=True)  # the one read of the file
         draws_all = load_posterior(posterior_path, setup, inference_data=inference_data)
     lengths = [float(v) for v in lengths]
     check_prediction_lengths(draws_all, setup, lengths)

@@ -37,10 +37,13 @@ class MethodOptions:
     ----------
     intervals : int or None, SDM intervals per tooth period (None: the method's rule)
     max_modes : int, largest mode count of modal fits (SDM)
+    exact : bool, compute every draw with the method itself, never a surrogate (SDM: see
+        :mod:`bayes_rcsa.stability.sdm_draws`)
     """
 
     intervals: int | None = None
     max_modes: int = 4
+    exact: bool = False
 
 
 @dataclass(frozen=True)

@@ -209,7 +209,7 @@ def posterior_frf_draws(setup_path, posterior_path, clamping_length: float, n_dr
     full = posterior_draws
     if full is None:
         if inference_data is None:
-            inference_data = read_posterior(posterior_path, option=None)  # the one read of the file
+            inference_data = read_posterior(posterior_path, option=None, arrays=True)  # the one read of the file
         full = load_posterior(posterior_path, setup, inference_data=inference_data)
     # the subset of PosteriorDraws.subset, keeping the index for the draws' cutting coefficients (after an update)
     index = (np.arange(full.n_draws) if n_draws is None or full.n_draws <= n_draws

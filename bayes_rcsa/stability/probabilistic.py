@@ -253,6 +253,7 @@ def lobes_from_frf_draws(
     flute_length: float | None = None,
     progress=None,
     coefficients=None,
+    exact: bool = False,
 ) -> ProbabilisticLobes:
     """Probabilistic stability lobes and a robust recommendation from draws of the tool-point FRFs in X and Y.
 
@@ -276,6 +277,9 @@ def lobes_from_frf_draws(
     coefficients : (kt (n_draws,), kr (n_draws,)) Pa or None
         Per-draw cutting coefficients (an updated posterior); ``cutting`` then gives the geometry and
         the reference level (:func:`~bayes_rcsa.stability.coefficients.limits_with_coefficients`, exact).
+    exact : bool
+        Compute every draw with the method itself (SDM: no surrogate from a subset of exact draws; see
+        :mod:`bayes_rcsa.stability.sdm_draws`).
 
     Returns
     -------
@@ -285,7 +289,7 @@ def lobes_from_frf_draws(
     if method not in names:
         raise SetupError(f"method={method!r}: expected one of {', '.join(names)}")
     impl = STABILITY_METHODS.get(method)
-    options = MethodOptions(intervals=intervals, max_modes=max_modes)
+    options = MethodOptions(intervals=intervals, max_modes=max_modes, exact=exact)
     impl.check(options)
     gx, gy, f = _check_draws(frf_x_draws, frf_y_draws, frequency_hz)
     speeds = np.asarray(speeds_rpm, dtype=float)

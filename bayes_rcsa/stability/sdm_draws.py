@@ -15,6 +15,22 @@ still open, started from the zero-order limit of the same draw (the two
 methods agree within a few per cent where the ZOA is accurate, so the
 bracket is usually found in one or two steps).  No depth grid is scanned.
 
+Many draws (the measured FRFs' 500 realisations): a surrogate from exact draws.
+At 2.5 ms of CPU per (draw, speed) pair, 500 realisations at 400 speeds took
+minutes.  The realisations of a measured FRF differ by its random error, far
+less than the modes' spacing, and so do their SDM limits; what SDM adds to the
+zero-order limit (the intermittent cutting force's effect, flip lobes) is a
+property of the cut and the modes, which the realisations share.  So with
+more than :data:`SURROGATE_MIN_DRAWS` draws of an equal-pitch cutter,
+:data:`EXACT_DRAWS` draws spread evenly over the set (realisations are
+exchangeable) get the full SDM, and every other draw's limit is its own
+zero-order limit times the exact draws' median ratio SDM / ZOA at that speed.
+The surrogate is checked where it is used: each exact draw is predicted from
+the others (leave one out) and the relative error's 95 % point is reported in
+``info["surrogate"]``; above :data:`SURROGATE_TOLERANCE` every draw is computed
+exactly instead (with a warning of the time).  ``MethodOptions(exact=True)``
+(``lobes --sdm-exact``) always computes every draw.
+
 When is SDM needed?  The zero-order approximation averages the directional
 matrix over a revolution; at low radial immersion (roughly below 0.2-0.3)
 the cutting force is strongly intermittent and SDM finds additional
@@ -35,6 +51,16 @@ from .zoa import zoa_lobes
 # must not cost a ZOA run their import time
 
 __all__ = ["SDMMethod"]
+
+#: Draws above which an equal-pitch cutter's SDM limits come from the surrogate (module docstring).
+SURROGATE_MIN_DRAWS = 48
+#: Draws computed exactly for the surrogate: 12 x 400 speeds x 2.5 ms is 12 s of CPU (500 exact draws: 500 s);
+#: a median of 11 ratios per speed (leave one out) is stable to a few tenths of a per cent where the draws agree.
+EXACT_DRAWS = 12
+#: Largest 95 % point of the surrogate's leave-one-out relative error (over exact draws and speeds with finite
+#: limits) at which it is used: 3 %, about the difference between SDM and ZOA themselves at moderate immersion
+#: and a fifth of the typical spread of the measured realisations' limits near a lobe minimum.
+SURROGATE_TOLERANCE = 0.03
 
 # run-time model of estimate_seconds (s; see there)
 _FIXED_S = 1.5
@@ -65,7 +91,9 @@ class SDMMethod:
         # of the measured FRFs), 0.02 s per draw for the batched refits of both directions, 0.01 s per draw for the
         # limits next to the recommendation and 2.5 ms per (draw, speed) pair (5 speeds: 20 s CPU, 23 s wall,
         # estimate 23 s; 50 speeds: 48 s CPU, 72 s wall, estimate 79 s)
-        return _FIXED_S + n_draws * (_fit_seconds(n_freq) + _NEIGHBOUR_S + _PAIR_S * n_speeds)
+        # (with the surrogate: EXACT_DRAWS exact draws; the zero-order limits of the others cost milliseconds)
+        return _exact_seconds(min(n_draws, EXACT_DRAWS) if n_draws > SURROGATE_MIN_DRAWS else n_draws, n_speeds,
+                              n_freq)
 
     def depth_limits(self, frf_x, frf_y, frequency_hz, cutting, speeds_rpm, options, progress=None):
         self.check(options)
@@ -74,6 +102,10 @@ class SDMMethod:
         f = np.asarray(frequency_hz, dtype=float)
         speeds = np.asarray(speeds_rpm, dtype=float)
         n_draws = gx.shape[0]
+        if n_draws > SURROGATE_MIN_DRAWS and cutting.equal_pitch and not options.exact:
+            result = _surrogate(self, gx, gy, f, cutting, speeds, options, progress)
+            if result is not None:
+                return result
         fit_share = _fit_seconds(f.size) / (_fit_seconds(f.size) + _PAIR_S * speeds.size)
 
         def report(x):
@@ -99,6 +131,79 @@ class SDMMethod:
         info = {"modal_fit_rms_relative_max": float(max(max(a.rms_relative, b.rms_relative) for a, b in fits)),
                 "modal_refits": notes}
         return MethodResult(lim, fits, info, limits_at)
+
+
+def _exact_seconds(n_draws: int, n_speeds: int, n_freq: int) -> float:
+    """Run time of SDM on ``n_draws`` draws computed exactly (s; model of :meth:`SDMMethod.estimate_seconds`)."""
+    return _FIXED_S + n_draws * (_fit_seconds(n_freq) + _NEIGHBOUR_S + _PAIR_S * n_speeds)
+
+
+def _ratio_median(exact_lim, zoa_lim):
+    """Median over the exact draws of SDM / ZOA per speed, (n_speed,); NaN where no draw has both finite."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.where(np.isfinite(exact_lim) & np.isfinite(zoa_lim) & (zoa_lim > 0), exact_lim / zoa_lim, np.nan)
+    out = np.full(ratio.shape[1], np.nan)
+    some = np.any(np.isfinite(ratio), axis=0)
+    out[some] = np.nanmedian(ratio[:, some], axis=0)
+    return out
+
+
+def _from_ratio(zoa_lim, ratio, exact_lim):
+    """Surrogate limits (n, n_speed): ZOA x ratio; where the ratio or the ZOA limit is not finite, the exact draws'
+    median limit at that speed (+inf where they found none)."""
+    fallback = np.median(exact_lim, axis=0)  # inf-aware: a median of +inf values is +inf
+    approx = zoa_lim * ratio[None, :]
+    return np.where(np.isfinite(approx), approx, fallback[None, :])
+
+
+def _surrogate(method, gx, gy, f, cutting, speeds, options, progress):
+    """SDM limits of many draws from :data:`EXACT_DRAWS` exact ones (module docstring); None when the leave-one-out
+    check fails (the caller then computes every draw)."""
+    import warnings
+    from dataclasses import replace
+
+    n_draws = gx.shape[0]
+    sub = np.unique(np.round(np.linspace(0, n_draws - 1, EXACT_DRAWS)).astype(int))
+    zoa_all = np.atleast_2d(zoa_lobes(gx, gy, f, cutting, speeds).depth_limit_m)
+    exact = method.depth_limits(gx[sub], gy[sub], f, cutting, speeds, replace(options, exact=True), progress)
+    ex_lim = np.atleast_2d(exact.depth_limit_m)
+    # leave one out: each exact draw predicted from the others' median ratio and its own ZOA limit
+    errors = []
+    for k in range(sub.size):  # EXACT_DRAWS (12) small median computations, not a loop over the draws
+        others = np.delete(np.arange(sub.size), k)
+        pred = _from_ratio(zoa_all[sub[k]][None, :], _ratio_median(ex_lim[others], zoa_all[sub[others]]),
+                           ex_lim[others])[0]
+        ok = np.isfinite(pred) & np.isfinite(ex_lim[k]) & (ex_lim[k] > 0)
+        errors.append(np.abs(pred[ok] - ex_lim[k][ok]) / ex_lim[k][ok])
+    err = np.concatenate(errors) if errors else np.zeros(0)
+    q95 = float(np.quantile(err, 0.95)) if err.size else 0.0
+    check = {"exact_draws": int(sub.size), "draws": int(n_draws), "tolerance": SURROGATE_TOLERANCE,
+             "loo_relative_error": {"median": float(np.median(err)) if err.size else 0.0, "q95": q95,
+                                    "max": float(err.max()) if err.size else 0.0},
+             "rule": (f"{sub.size} draws spread evenly over the {n_draws} computed with SDM; every other draw's "
+                      "limit is its zero-order limit times their median ratio SDM / ZOA at that speed; used when "
+                      f"the leave-one-out relative error's 95 % point is <= {SURROGATE_TOLERANCE:g}")}
+    if q95 > SURROGATE_TOLERANCE:
+        warnings.warn(f"SDM surrogate not accurate enough for these FRFs (leave-one-out error 95 % point "
+                      f"{100 * q95:.1f} % > {100 * SURROGATE_TOLERANCE:g} %): every one of the {n_draws} draws is "
+                      f"computed with SDM (about {_exact_seconds(n_draws, speeds.size, f.size):.0f} s)",
+                      stacklevel=3)
+        return None
+    ratio = _ratio_median(ex_lim, zoa_all[sub])
+    lim = _from_ratio(zoa_all, ratio, ex_lim)
+    lim[sub] = ex_lim
+
+    def limits_at(s):
+        s = np.asarray(s, dtype=float)
+        z = np.atleast_2d(zoa_lobes(gx, gy, f, cutting, s).depth_limit_m)
+        e = np.atleast_2d(exact.limits_at(s))
+        out = _from_ratio(z, _ratio_median(e, z[sub]), e)
+        out[sub] = e
+        return out
+
+    info = dict(exact.info)
+    info["surrogate"] = check
+    return MethodResult(lim, exact.modal_fits, info, limits_at)
 
 
 def _fit_draws(f, g, max_modes, label):

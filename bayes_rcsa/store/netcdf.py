@@ -19,7 +19,8 @@ from typing import Mapping
 
 from ..io.atomic import atomic_path
 
-__all__ = ["COMPRESSION", "LOG_LIKELIHOOD_DTYPE", "write_netcdf", "read_netcdf"]
+__all__ = ["COMPRESSION", "LOG_LIKELIHOOD_DTYPE", "write_netcdf", "read_netcdf", "read_netcdf_arrays", "ArrayData",
+           "ArrayGroup"]
 
 #: Compression of every numeric variable: zlib (lossless) after the byte shuffle, which groups the slowly
 #: varying exponent bytes of neighbouring floats and gains ~16 % over zlib alone on the draws.
@@ -104,6 +105,115 @@ def read_netcdf(path):
     arviz.InferenceData
     """
     return _az().from_netcdf(str(path))
+
+
+#: HDF5 attributes that carry netCDF's own bookkeeping (dimension scales, ids), not the file's attributes.
+_NETCDF_INTERNAL = ("CLASS", "NAME", "DIMENSION_LIST", "REFERENCE_LIST", "_Netcdf4Coordinates", "_Netcdf4Dimid",
+                    "_NCProperties", "_FillValue")
+
+
+def _attribute(value):
+    """An HDF5 attribute as xarray presents it: one-element arrays as scalars, bytes as str."""
+    import numpy as np
+
+    if isinstance(value, (bytes, np.bytes_)):
+        return value.decode("utf-8")
+    if isinstance(value, np.ndarray) and value.ndim == 1 and value.size == 1:
+        return value[0]
+    return value
+
+
+def _attributes(node) -> dict:
+    return {k: _attribute(v) for k, v in node.attrs.items() if k not in _NETCDF_INTERNAL}
+
+
+class ArrayVariable:
+    """One variable of an :class:`ArrayGroup`: ``values`` (numpy array) and ``attrs``."""
+
+    __slots__ = ("values", "attrs")
+
+    def __init__(self, values, attrs):
+        self.values = values
+        self.attrs = attrs
+
+
+class ArrayGroup:
+    """One group of a netCDF file as numpy arrays: what the readers of a ``posterior.nc`` use of an
+    ``xarray.Dataset`` (``data_vars``, ``ds[name].values``, ``attrs``), without importing xarray.
+
+    Attributes
+    ----------
+    data_vars : dict of str to ArrayVariable, the group's variables other than its coordinates
+    coords : dict of str to ArrayVariable, the coordinate (dimension-scale) variables
+    attrs : dict, the group's attributes
+    """
+
+    def __init__(self, data_vars: dict, coords: dict, attrs: dict):
+        self.data_vars = data_vars
+        self.coords = coords
+        self.attrs = attrs
+
+    def __getitem__(self, name: str) -> ArrayVariable:
+        return self.data_vars[name] if name in self.data_vars else self.coords[name]
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.data_vars or name in self.coords
+
+
+class ArrayData:
+    """A netCDF InferenceData file read as numpy arrays: ``attrs``, ``groups()`` and one :class:`ArrayGroup`
+    attribute per group (``None`` for a group the file lacks), duck-typed to the parts of an
+    ``arviz.InferenceData`` that reading draws needs."""
+
+    def __init__(self, groups: dict, attrs: dict):
+        self._groups = groups
+        self.attrs = attrs
+
+    def groups(self) -> list[str]:
+        return list(self._groups)
+
+    def __getattr__(self, name: str):
+        if name.startswith("_"):
+            raise AttributeError(name)
+        return self._groups.get(name)
+
+
+def read_netcdf_arrays(path, groups=None) -> ArrayData:
+    """Read the numeric content of an InferenceData file written by :func:`write_netcdf` with h5py only.
+
+    ``arviz.from_netcdf`` imports ArviZ, xarray, pandas and scipy.stats (seconds of start-up on the development
+    machine); a command that only needs the draws (posterior-mode lobes, predict) reads them here instead.  The
+    values are the same: the files hold plain (compressed) arrays with no scale, offset or time encoding.
+
+    Parameters
+    ----------
+    path : path-like
+    groups : sequence of str, optional, the groups to read (default: all)
+
+    Returns
+    -------
+    ArrayData
+    """
+    import h5py
+    import numpy as np
+
+    out = {}
+    with h5py.File(str(path), "r") as f:
+        for name, group in f.items():
+            if not isinstance(group, h5py.Group) or (groups is not None and name not in groups):
+                continue
+            data_vars, coords = {}, {}
+            for var, ds in group.items():
+                if not isinstance(ds, h5py.Dataset):
+                    continue
+                values = ds[()]
+                if values.dtype.kind in "OS":  # netCDF strings: xarray gives fixed-width unicode
+                    values = np.asarray(ds.asstr()[()], dtype=str)
+                is_scale = _attribute(ds.attrs.get("CLASS", b"")) == "DIMENSION_SCALE"
+                (coords if is_scale else data_vars)[var] = ArrayVariable(values, _attributes(ds))
+            out[name] = ArrayGroup(data_vars, coords, _attributes(group))
+        attrs = _attributes(f)
+    return ArrayData(out, attrs)
 
 
 def _inference_data(groups: Mapping[str, object], attrs: Mapping[str, object]):

@@ -32,7 +32,7 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import DataError, SetupError
-from .netcdf import _groups, _inference_data, _write_groups, read_netcdf
+from .netcdf import _groups, _inference_data, _write_groups, read_netcdf, read_netcdf_arrays
 
 __all__ = ["SCHEMA_VERSION", "SCHEMA_ATTRIBUTE", "write_posterior", "read_posterior", "append_to_posterior",
            "posterior_attributes"]
@@ -67,9 +67,10 @@ def posterior_attributes(idata) -> dict:
     return out
 
 
-def _open_posterior(path: Path):
-    """Open ``path`` as an InferenceData: the one place a posterior.nc is read (tests count calls of it)."""
-    return read_netcdf(path)
+def _open_posterior(path: Path, arrays: bool = False):
+    """Open ``path`` as an InferenceData (or, with ``arrays``, an :class:`~.netcdf.ArrayData`): the one place a
+    posterior.nc is read (tests count calls of it)."""
+    return read_netcdf_arrays(path) if arrays else read_netcdf(path)
 
 
 def _schema_version(idata, path: Path) -> int:
@@ -91,7 +92,7 @@ def _schema_version(idata, path: Path) -> int:
     return v
 
 
-def read_posterior(path, option: str | None = "--posterior"):
+def read_posterior(path, option: str | None = "--posterior", arrays: bool = False):
     """The InferenceData of a ``posterior.nc``, checked.
 
     Parameters
@@ -103,10 +104,13 @@ def read_posterior(path, option: str | None = "--posterior"):
         (posterior.nc written by 'bayes-rcsa identify')"``; with ``None`` it
         is the library's ``DataError`` ``"{path}: posterior file not found
         (...)"``.
+    arrays : bool
+        Read the numbers only, with h5py (:func:`~.netcdf.read_netcdf_arrays`: no ArviZ, xarray or scipy
+        import), for a reader that needs the draws and attributes and not an ``arviz.InferenceData``.
 
     Returns
     -------
-    arviz.InferenceData
+    arviz.InferenceData, or :class:`~.netcdf.ArrayData` with ``arrays``
 
     Raises
     ------
@@ -123,7 +127,7 @@ def read_posterior(path, option: str | None = "--posterior"):
             raise SetupError(f"{option} {path}: no such file (posterior.nc written by 'bayes-rcsa identify')")
         raise DataError(f"{path}: posterior file not found (expected DIR/posterior.nc written by 'bayes-rcsa identify')")
     try:
-        idata = _open_posterior(path)
+        idata = _open_posterior(path, arrays)
     except Exception as exc:  # netCDF/HDF5 readers raise many unrelated types
         raise DataError(f"{path}: cannot read as an ArviZ InferenceData netCDF file ({exc})") from None
     _schema_version(idata, path)

@@ -220,7 +220,7 @@ def lobes(*, posterior=None, setup=None, clamping_length: float | None = None, t
           exit_angle: float | None = None, milling: str = "down", feed: str = "x", pitch_angles=None,
           allow_unusual: bool = False, speeds_rpm, max_depth: float | None = None, flute_length: float | None = None,
           speed_tolerance: float = 0.02, depth_margin: float = 0.10, depth_points: int = 200, method: str = "zoa",
-          intervals: int | None = None, max_modes: int = 4, level: float | None = None,
+          intervals: int | None = None, max_modes: int = 4, sdm_exact: bool = False, level: float | None = None,
           confidence: float | None = None, tests=None, spindle_samples=None, progress: bool = False,
           budget_s: float = DEFAULT_BUDGET_S) -> Lobes:
     """Milling stability lobes and a robust operating point.
@@ -255,6 +255,8 @@ def lobes(*, posterior=None, setup=None, clamping_length: float | None = None, t
     method : str, stability method (``"zoa"``, ``"sdm"``; :mod:`bayes_rcsa.stability.methods`)
     intervals : int or None, SDM intervals per tooth period
     max_modes : int >= 1, largest mode count of the SDM modal fit
+    sdm_exact : bool, SDM on every draw (no surrogate from a subset of exact draws; minutes for 500 draws:
+        :mod:`bayes_rcsa.stability.sdm_draws`)
     level : float in (0, 1] or None, P(stable) required over the neighbourhood (default 0.95)
     confidence : float in [0.5, 1) or None, confidence of the robust envelope; sets ``level``
     tests : path of a cutting-test CSV (spindle_speed_rpm,depth_m,outcome) or None
@@ -300,7 +302,7 @@ def lobes(*, posterior=None, setup=None, clamping_length: float | None = None, t
         if max_modes < 1:
             raise SetupError(f"--max-modes {max_modes}: expected >= 1 (the modal fit needs at least one mode)")
         impl = STABILITY_METHODS.get(method, "--method")
-        impl.check(MethodOptions(intervals=intervals, max_modes=max_modes))
+        impl.check(MethodOptions(intervals=intervals, max_modes=max_modes, exact=sdm_exact))
         test_cuts = read_cutting_tests(tests) if tests is not None else None
         n_cells = speeds.size * depth_points
         check_memory(8.0 * (8 * draws * speeds.size + 4 * n_cells), f"--draws {draws} x --speeds "
@@ -329,7 +331,8 @@ def lobes(*, posterior=None, setup=None, clamping_length: float | None = None, t
             res = lobes_from_frf_draws(
                 frf.frf_x, frf.frf_y, frf.frequency_hz, cutting, speeds, method=method, level=level,
                 max_depth=max_depth, depth_points=depth_points, intervals=intervals, max_modes=max_modes,
-                tolerances=tol, flute_length=flute, progress=bar, coefficients=frf.coefficients if per_draw else None)
+                tolerances=tol, flute_length=flute, progress=bar, coefficients=frf.coefficients if per_draw else None,
+                exact=sdm_exact)
         finally:
             if bar is not None:
                 bar.close()
@@ -368,7 +371,7 @@ def _coefficients(parts, kt, kr):
     if inference_data is None:
         from ..store import read_posterior
 
-        inference_data = read_posterior(parts.path, option=None)  # the one read of posterior.nc, passed on to the FRF draws
+        inference_data = read_posterior(parts.path, option=None, arrays=True)  # the one read of posterior.nc, passed on to the FRF draws
     coef = read_coefficient_draws(parts.path, inference_data=inference_data)
     if coef is None:
         raise SetupError(f"--kt and --kr are required: {parts.path} carries no cutting-coefficient draws (only "
