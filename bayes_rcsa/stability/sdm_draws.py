@@ -24,7 +24,9 @@ property of the cut and the modes, which the realisations share.  So with
 more than :data:`SURROGATE_MIN_DRAWS` draws of an equal-pitch cutter,
 :data:`EXACT_DRAWS` draws spread evenly over the set (realisations are
 exchangeable) get the full SDM, and every other draw's limit is its own
-zero-order limit times the exact draws' median ratio SDM / ZOA at that speed.
+zero-order limit times the exact draws' median ratio SDM / ZOA at that speed,
+the zero-order limits taken of each draw's FRF smoothed onto the modes of the
+draws' mean (:func:`_smoothed`), as SDM sees it through its modal fit.
 The surrogate is checked where it is used: each exact draw is predicted from
 the others (leave one out) and the relative error's 95 % point is reported in
 ``info["surrogate"]``; above :data:`SURROGATE_TOLERANCE` every draw is computed
@@ -156,6 +158,26 @@ def _from_ratio(zoa_lim, ratio, exact_lim):
     return np.where(np.isfinite(approx), approx, fallback[None, :])
 
 
+def _smoothed(f, g, max_modes, label):
+    """The draws' FRFs (n, n_freq) on the modes of their mean's modal fit: residues (and a residual compliance)
+    refitted per draw by one linear least-squares solve over all draws, poles fixed.
+
+    SDM sees each draw through its modal fit, which averages out the measured FRF's line-to-line random error; the
+    zero-order limit of the raw lines does not (it reads the lines near the chatter frequency one by one), so
+    the ratio SDM / ZOA of raw draws carries that noise.  The zero-order limit of these smooth FRFs follows what a
+    modal fit keeps of each draw (mostly the modes' amplitudes) and its ratio to SDM stays steady between draws.
+    """
+    from .modal_fit import fit_modal_model
+
+    nominal = fit_modal_model(f, g.mean(axis=0), max_modes=max_modes, source=f"mean of the FRF draws {label}").model
+    r = f[:, None] / nominal.natural_frequency_hz
+    basis = np.concatenate([1.0 / (1.0 - r**2 + 2j * nominal.damping_ratio * r), np.ones((f.size, 1))], axis=1)
+    a = np.concatenate([basis.real, basis.imag])  # (2 n_freq, n_modes + 1), real coefficients
+    b = np.concatenate([g.real.T, g.imag.T])  # (2 n_freq, n_draws)
+    coef = np.linalg.lstsq(a, b, rcond=None)[0]
+    return (basis @ coef).T
+
+
 def _surrogate(method, gx, gy, f, cutting, speeds, options, progress):
     """SDM limits of many draws from :data:`EXACT_DRAWS` exact ones (module docstring); None when the leave-one-out
     check fails (the caller then computes every draw)."""
@@ -164,7 +186,8 @@ def _surrogate(method, gx, gy, f, cutting, speeds, options, progress):
 
     n_draws = gx.shape[0]
     sub = np.unique(np.round(np.linspace(0, n_draws - 1, EXACT_DRAWS)).astype(int))
-    zoa_all = np.atleast_2d(zoa_lobes(gx, gy, f, cutting, speeds).depth_limit_m)
+    sx, sy = _smoothed(f, gx, options.max_modes, "X"), _smoothed(f, gy, options.max_modes, "Y")
+    zoa_all = np.atleast_2d(zoa_lobes(sx, sy, f, cutting, speeds).depth_limit_m)
     exact = method.depth_limits(gx[sub], gy[sub], f, cutting, speeds, replace(options, exact=True), progress)
     ex_lim = np.atleast_2d(exact.depth_limit_m)
     # leave one out: each exact draw predicted from the others' median ratio and its own ZOA limit
@@ -181,7 +204,8 @@ def _surrogate(method, gx, gy, f, cutting, speeds, options, progress):
              "loo_relative_error": {"median": float(np.median(err)) if err.size else 0.0, "q95": q95,
                                     "max": float(err.max()) if err.size else 0.0},
              "rule": (f"{sub.size} draws spread evenly over the {n_draws} computed with SDM; every other draw's "
-                      "limit is its zero-order limit times their median ratio SDM / ZOA at that speed; used when "
+                      "limit is its zero-order limit (of its FRF smoothed onto the mean's modes) times their median ratio "
+                      "SDM / ZOA at that speed; used when "
                       f"the leave-one-out relative error's 95 % point is <= {SURROGATE_TOLERANCE:g}")}
     if q95 > SURROGATE_TOLERANCE:
         warnings.warn(f"SDM surrogate not accurate enough for these FRFs (leave-one-out error 95 % point "
@@ -195,7 +219,7 @@ def _surrogate(method, gx, gy, f, cutting, speeds, options, progress):
 
     def limits_at(s):
         s = np.asarray(s, dtype=float)
-        z = np.atleast_2d(zoa_lobes(gx, gy, f, cutting, s).depth_limit_m)
+        z = np.atleast_2d(zoa_lobes(sx, sy, f, cutting, s).depth_limit_m)
         e = np.atleast_2d(exact.limits_at(s))
         out = _from_ratio(z, _ratio_median(e, z[sub]), e)
         out[sub] = e
