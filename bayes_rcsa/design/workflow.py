@@ -147,7 +147,7 @@ def posterior_attributes(path) -> dict:
     """Attributes of a ``posterior.nc`` (method, tempering, growth law, ...), merged over its groups."""
     from ..store import read_posterior
 
-    idata = read_posterior(path, option=None)
+    idata = read_posterior(path, option=None, arrays=True)
     return {k: v for group in idata.groups() for k, v in getattr(idata, group).attrs.items()}
 
 

@@ -223,7 +223,7 @@ def _tail_corrected(job, folder: Path, draws, rng: np.random.Generator):
     if missing:
         return draws, f"setup {job.name}: tail correction skipped: the stage-1 draws lack {missing}"
     theta = np.column_stack([np.asarray(problem.priors.priors[n].to_sampling(draws.values[n]), float) for n in names])
-    stored = np.asarray(read_posterior(folder / "posterior.nc", option=None).sample_stats["lp"].values,
+    stored = np.asarray(read_posterior(folder / "posterior.nc", option=None, arrays=True).sample_stats["lp"].values,
                         float).ravel()
     if stored.size != theta.shape[0] or not np.allclose(lp(theta), stored, rtol=0.0, atol=1e-6):
         return draws, (f"setup {job.name}: tail correction skipped: the log posterior rebuilt from {job.setup_file} "

@@ -239,7 +239,7 @@ def load_posterior(path, setup=None, inference_data=None) -> PosteriorDraws:
         or a sampled parameter.
     """
     path = Path(path)
-    idata = read_posterior(path, option=None) if inference_data is None else inference_data
+    idata = read_posterior(path, option=None, arrays=True) if inference_data is None else inference_data
     post = getattr(idata, "posterior", None)
     if post is None:
         raise DataError(f"{path}: no 'posterior' group")

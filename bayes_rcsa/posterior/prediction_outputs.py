@@ -128,7 +128,7 @@ def posterior_status(posterior_path, inference_data=None, summary=None) -> dict:
     else:
         from ..store import posterior_attributes, read_posterior
 
-        attrs = posterior_attributes(read_posterior(path, option=None) if inference_data is None else inference_data)
+        attrs = posterior_attributes(read_posterior(path, option=None, arrays=True) if inference_data is None else inference_data)
         if "converged" in attrs:
             out["converged"] = bool(int(attrs["converged"])) if not isinstance(attrs["converged"], str) \
                 else attrs["converged"].lower() in ("true", "1")

@@ -122,7 +122,7 @@ def read_coefficient_draws(posterior_path, index=None, inference_data=None):
     from ..errors import DataError
     from ..store import read_posterior
 
-    post = (read_posterior(posterior_path, option=None) if inference_data is None else inference_data).posterior
+    post = (read_posterior(posterior_path, option=None, arrays=True) if inference_data is None else inference_data).posterior
     if not all(v in post.data_vars for v in COEFFICIENT_VARIABLES):
         return None
     kt, kr = (np.asarray(post[v].values, dtype=float).reshape(-1) for v in COEFFICIENT_VARIABLES)

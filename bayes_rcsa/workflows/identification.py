@@ -480,11 +480,14 @@ def _identify(setup, lengths, method, seed, walkers, max_steps, check_every, ess
     with _run_folder(out, force, resume, bayesian):
         posterior = _fit(**run, checkpoint=ckpt if bayesian else None)
         posterior._write(out, plots)
-    posterior.inference_data = None if posterior.path is None else _read_idata(posterior.path)
     if posterior.path is not None:
         from ..posterior.draws import load_posterior
 
+        # the draws as predict/lobes read them (h5py, no ArviZ); the InferenceData only when a script asks for it
+        posterior.inference_data = _InferenceDataOnFirstUse(posterior.path)
         posterior.draws = load_posterior(posterior.path, setup)
+    else:
+        posterior.inference_data = None
     return posterior
 
 
@@ -509,6 +512,47 @@ def _run_folder(out: Path, force: bool, resume: bool, bayesian: bool):
                 yield out
 
     return block()
+
+
+class _InferenceDataOnFirstUse:
+    """The ``arviz.InferenceData`` of a written posterior.nc, read on first use and kept.
+
+    identify returned the file read back with ArviZ (importing ArviZ and xarray and decoding every group: seconds
+    per run, paid by every command-line run, which never looks at it); a script that uses
+    ``posterior.inference_data`` pays once, on its first attribute, item or group access.  The file must then
+    still be where identify wrote it (``posterior.path``).
+    """
+
+    __slots__ = ("_path", "_idata")
+
+    def __init__(self, path: Path):
+        self._path = Path(path)
+        self._idata = None
+
+    def _data(self):
+        if self._idata is None:
+            self._idata = _read_idata(self._path)
+        return self._idata
+
+    def __getattr__(self, name: str):
+        if name.startswith("__"):
+            raise AttributeError(name)
+        return getattr(self._data(), name)
+
+    def __getitem__(self, key):
+        return self._data()[key]
+
+    def __contains__(self, key) -> bool:
+        return key in self._data()
+
+    def __iter__(self):
+        return iter(self._data())
+
+    def __repr__(self) -> str:
+        return repr(self._data())
+
+    def _repr_html_(self) -> str:
+        return self._data()._repr_html_()
 
 
 def _read_idata(path: Path):
