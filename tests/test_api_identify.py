@@ -50,7 +50,7 @@ def test_identify_returns_what_the_command_line_writes(posterior, cli_run):
     written = json.loads((cli_run / "summary.json").read_text())
     assert json.loads(json.dumps(_without_timing(posterior.to_dict()))) == _without_timing(written)
     assert posterior.path is None and posterior.setup is not None
-    assert posterior.summary_line() == "multi: NOT converged; results in memory"
+    assert posterior.summary_line() == "Bayesian fit over the clamping lengths: NOT converged; results in memory"
     # in memory: the draws and the InferenceData posterior.nc holds
     assert posterior.draws.n_draws == written["n_draws"]
     ref = bayes_rcsa.Posterior.load(cli_run)
@@ -92,7 +92,7 @@ def test_figures_and_notebook_view(posterior):
     assert f"{k50:.4g} N/m" in table and "translational contact stiffness at 25 mm" in table
     assert "k_xf" not in table and "thetaM" not in table
     assert "not converged" in page  # the warnings are shown too
-    assert posterior.summary_line() == f"multi: NOT converged; results in {posterior.folder or 'memory'}"
+    assert posterior.summary_line() == f"Bayesian fit over the clamping lengths: NOT converged; results in {posterior.folder or 'memory'}"
 
 
 def test_identify_with_out_checkpoints_and_saves_there(setup_file, tmp_path, cli_run):
@@ -101,7 +101,7 @@ def test_identify_with_out_checkpoints_and_saves_there(setup_file, tmp_path, cli
     assert post.path == out / "posterior.nc" and (out / "chain.h5").is_file()
     assert _without_timing(json.loads((out / "summary.json").read_text())) == \
         _without_timing(json.loads((cli_run / "summary.json").read_text()))
-    assert post.summary_line() == f"multi: NOT converged; results in {out}"
+    assert post.summary_line() == f"Bayesian fit over the clamping lengths: NOT converged; results in {out}"
     with pytest.raises(bayes_rcsa.errors.SetupError, match="use --force"):
         bayes_rcsa.identify(setup_file, **SMALL, out=out)
 
