@@ -15,6 +15,7 @@ import pytest
 import bayes_rcsa
 from bayes_rcsa.cli.main import main
 from bayes_rcsa.synthetic import default_bench_config, generate_campaign, write_campaign
+from bayes_rcsa.units import hz, sci
 from test_cuts_cli import world  # noqa: F401  (the module-scoped fixture of the update tests)
 
 #: few steps: cheap, and the run is reported as not converged (a warning that must reach result and JSON)
@@ -86,10 +87,12 @@ def test_figures_and_notebook_view(posterior):
     assert set(figs) == {"trace", "corner", "frf"} and all(isinstance(f, Figure) for f in figs.values())
     page = posterior._repr_html_()
     table = page.split("Warnings:")[0]  # the warnings below the table quote the sampler's own parameter names
-    q50 = posterior.summary["natural_frequencies"][0]["q50_hz"]
-    k50 = posterior.summary["stiffness"][0]["k_xf"]["q50"]
-    assert f"{q50:.1f} Hz" in table and "natural frequency at 25 mm" in table
-    assert f"{k50:.4g} N/m" in table and "translational contact stiffness at 25 mm" in table
+    f = posterior.summary["natural_frequencies"][0]
+    k = posterior.summary["stiffness"][0]["k_xf"]
+    # the unit policy's forms (bayes_rcsa.units), the same as on stderr and in the reports
+    assert hz(f["q50_hz"], f["q05_hz"], f["q95_hz"]) in table and "natural frequency at 25 mm" in table
+    assert sci(k["q50"], 3, k["q05"], k["q95"], "N/m") in table
+    assert "contact stiffness, translational (kxf) at 25 mm" in table
     assert "k_xf" not in table and "thetaM" not in table
     assert "not converged" in page  # the warnings are shown too
     assert posterior.summary_line() == f"Bayesian fit over the clamping lengths: NOT converged; results in {posterior.folder or 'memory'}"
@@ -161,7 +164,7 @@ def test_update_save_load_and_posterior(world, updated, tmp_path):  # noqa: F811
     assert post.draws.n_draws == 60 and post.path == out / "posterior.nc"
     assert "cutting_kt_pa" in post.inference_data.posterior
     page = updated._repr_html_()
-    assert "MPa" in page and "K_t" in page and "kt_pa" not in page
+    assert "MPa" in page and "Kt" in page and "kt_pa" not in page
 
 
 def test_update_plausibility_warning_reaches_result_and_json(world, tmp_path):  # noqa: F811

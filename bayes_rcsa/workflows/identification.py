@@ -160,7 +160,7 @@ class Posterior(Result):
             if q[1] is None:
                 continue
             label = f"natural frequency at {length_mm(e['clamping_length'])} ({e.get('direction', 'x')}), 90 % interval"
-            rows.append((label, hz(*q)))
+            rows.append((label, hz(q[1], q[0], q[2])))
         for e in self.summary.get("stiffness", []) or []:
             for key, unit in (("k_xf", "N/m"), ("k_thetaM", "N m/rad")):
                 k = e.get(key) or {}

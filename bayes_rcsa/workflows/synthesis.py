@@ -334,8 +334,8 @@ def _library(base, spec, seed, log) -> Campaign:
 
 
 def _effects(hidden: dict) -> str:
-    """The bench's hidden effects in words (``tip_mass_kg=0.005`` -> ``tip mass kg = 0.005``)."""
+    """The bench's hidden effects in words (``tip_mass=0.005`` -> ``mass at the tool tip = 0.005``)."""
     from ..units import num
-    from ..vocabulary import parameter_name
+    from ..vocabulary import EFFECTS, effect_name, parameter_name
 
-    return ", ".join(f"{parameter_name(k)} = {num(v)}" for k, v in hidden.items())
+    return ", ".join(f"{effect_name(k) if k in EFFECTS else parameter_name(k)} = {num(v)}" for k, v in hidden.items())
