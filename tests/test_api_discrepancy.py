@@ -126,7 +126,7 @@ def test_save_load_round_trip_and_figures(check, campaign, tmp_path):
 def test_notebook_view_speaks_a_machinist_s_words(check):
     text = check._repr_html_()
     rows = dict(check.headline())
-    assert rows["Missing effect"] == "tip mass" and rows["Usable for prediction"] == "yes"
+    assert rows["Missing effect"] == "mass at the tool tip" and rows["Usable for prediction"] == "yes"
     assert f"{100 * check.gap_before:.2g} %" in text and "at the noise floor (below" in text
     assert "tip mass (kg)" in text  # the parameter's printed label, with its unit
     for internal in ("tip_mass", "systematic_relative_residual", "gap_before", "k_xf", "statistical_discrepancy"):

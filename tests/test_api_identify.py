@@ -15,6 +15,7 @@ import pytest
 import bayes_rcsa
 from bayes_rcsa.cli.main import main
 from bayes_rcsa.synthetic import default_bench_config, generate_campaign, write_campaign
+from bayes_rcsa.units import hz, sci
 from test_cuts_cli import world  # noqa: F401  (the module-scoped fixture of the update tests)
 
 #: few steps: cheap, and the run is reported as not converged (a warning that must reach result and JSON)
@@ -50,7 +51,7 @@ def test_identify_returns_what_the_command_line_writes(posterior, cli_run):
     written = json.loads((cli_run / "summary.json").read_text())
     assert json.loads(json.dumps(_without_timing(posterior.to_dict()))) == _without_timing(written)
     assert posterior.path is None and posterior.setup is not None
-    assert posterior.summary_line() == "multi: NOT converged; results in memory"
+    assert posterior.summary_line() == "Bayesian fit over the clamping lengths: NOT converged; results in memory"
     # in memory: the draws and the InferenceData posterior.nc holds
     assert posterior.draws.n_draws == written["n_draws"]
     ref = bayes_rcsa.Posterior.load(cli_run)
@@ -86,13 +87,15 @@ def test_figures_and_notebook_view(posterior):
     assert set(figs) == {"trace", "corner", "frf"} and all(isinstance(f, Figure) for f in figs.values())
     page = posterior._repr_html_()
     table = page.split("Warnings:")[0]  # the warnings below the table quote the sampler's own parameter names
-    q50 = posterior.summary["natural_frequencies"][0]["q50_hz"]
-    k50 = posterior.summary["stiffness"][0]["k_xf"]["q50"]
-    assert f"{q50:.1f} Hz" in table and "natural frequency at 25 mm" in table
-    assert f"{k50:.4g} N/m" in table and "translational contact stiffness at 25 mm" in table
+    f = posterior.summary["natural_frequencies"][0]
+    k = posterior.summary["stiffness"][0]["k_xf"]
+    # the unit policy's forms (bayes_rcsa.units), the same as on stderr and in the reports
+    assert hz(f["q50_hz"], f["q05_hz"], f["q95_hz"]) in table and "natural frequency at 25 mm" in table
+    assert sci(k["q50"], 3, k["q05"], k["q95"], "N/m") in table
+    assert "contact stiffness, translational (kxf) at 25 mm" in table
     assert "k_xf" not in table and "thetaM" not in table
     assert "not converged" in page  # the warnings are shown too
-    assert posterior.summary_line() == f"multi: NOT converged; results in {posterior.folder or 'memory'}"
+    assert posterior.summary_line() == f"Bayesian fit over the clamping lengths: NOT converged; results in {posterior.folder or 'memory'}"
 
 
 def test_identify_with_out_checkpoints_and_saves_there(setup_file, tmp_path, cli_run):
@@ -101,7 +104,7 @@ def test_identify_with_out_checkpoints_and_saves_there(setup_file, tmp_path, cli
     assert post.path == out / "posterior.nc" and (out / "chain.h5").is_file()
     assert _without_timing(json.loads((out / "summary.json").read_text())) == \
         _without_timing(json.loads((cli_run / "summary.json").read_text()))
-    assert post.summary_line() == f"multi: NOT converged; results in {out}"
+    assert post.summary_line() == f"Bayesian fit over the clamping lengths: NOT converged; results in {out}"
     with pytest.raises(bayes_rcsa.errors.SetupError, match="use --force"):
         bayes_rcsa.identify(setup_file, **SMALL, out=out)
 
@@ -161,7 +164,7 @@ def test_update_save_load_and_posterior(world, updated, tmp_path):  # noqa: F811
     assert post.draws.n_draws == 60 and post.path == out / "posterior.nc"
     assert "cutting_kt_pa" in post.inference_data.posterior
     page = updated._repr_html_()
-    assert "MPa" in page and "K_t" in page and "kt_pa" not in page
+    assert "MPa" in page and "Kt" in page and "kt_pa" not in page
 
 
 def test_update_plausibility_warning_reaches_result_and_json(world, tmp_path):  # noqa: F811

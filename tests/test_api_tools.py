@@ -68,7 +68,7 @@ def test_simulate_is_the_command_and_round_trips(example, tmp_path, capsys):
         result.save(path)
     assert set(result.figures()) == {"frf"} and result.figures()["frf"].axes
     html = result._repr_html_()
-    assert "30 mm" in html and "2e+06 N/m" in html and "m/N" in html
+    assert "30 mm" in html and "2.00×10⁶ N/m" in html and "m/N" in html
     _no_internal_names(html)
 
 
@@ -124,7 +124,7 @@ def test_synthesize_is_the_command_and_round_trips(bench, tmp_path, capsys):
     fig = result.figures()["frfs"]
     assert len(fig.axes[0].lines) == 2
     html = result._repr_html_()
-    assert "25, 35 mm" in html and "tip_mass = 0.002" in html
+    assert "25, 35 mm" in html and "mass at the tool tip = 0.002" in html
     _no_internal_names(html)
 
 

@@ -7,6 +7,8 @@ contact, so the demo's numbers can be scored, not just produced.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import re
 
@@ -18,10 +20,18 @@ from bayes_rcsa.data import example_dir
 
 
 @pytest.fixture(scope="module")
-def demo_out(tmp_path_factory):
+def demo_run(tmp_path_factory):
+    """The demo's folder and everything it printed on stderr (for tests/test_human_outputs.py's scan)."""
     out = tmp_path_factory.mktemp("demo")
-    assert main(["demo", "--out", str(out)]) == 0
-    return out
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        assert main(["demo", "--out", str(out)]) == 0
+    return out, err.getvalue()
+
+
+@pytest.fixture(scope="module")
+def demo_out(demo_run):
+    return demo_run[0]
 
 
 def test_demo_writes_every_report(demo_out):
@@ -81,3 +91,33 @@ def test_demo_checks_the_model_and_links_the_finding(demo_out):
     assert 'href="discrepancy/summary.md"' in html and "Model check" in html
     assert (demo_out / "discrepancy" / "summary.md").stat().st_size > 0
     assert "discrepancy" in (demo_out / "report.html").read_text().lower()
+
+
+def test_demo_speaks_a_machinist_s_words_in_every_human_output(demo_run):
+    """No internal identifier, metre, exponent, Python list or placeholder in what the demo prints and writes
+    for people, and the same number reads the same on stderr, in summary.md and in the HTML (docs/data-formats.md,
+    "Numbers and names for people"; the scanner: tests/human_text.py)."""
+    from human_text import identifiers, markdown_text, offences, visible_text
+
+    from bayes_rcsa.units import mm, percent, rpm
+
+    out, err = demo_run
+    summary = json.loads((out / "identify" / "summary.json").read_text())
+    names = identifiers(summary["parameter_names"])
+    # the echoed command lines are what the user typed (option values such as --method zoa), not output
+    printed = "\n".join(line for line in err.splitlines() if not line.startswith("$ "))
+    assert "bayes-rcsa lobes: wrote" in printed and "bayes-rcsa identify: " in printed
+    pages = {"stderr": printed}
+    pages.update({str(p.relative_to(out)): markdown_text(p.read_text()) for p in out.rglob("*.md")})
+    pages.update({str(p.relative_to(out)): visible_text(p.read_text()) for p in out.rglob("*.html")})
+    assert {"summary.md", "discrepancy/summary.md", "predict/report.md", "index.html", "report.html",
+            "predict/report.html"} <= set(pages)
+    found = {name: offences(text, names) for name, text in pages.items()}
+    assert not any(found.values()), {k: v[:5] for k, v in found.items() if v}
+    # one number, one reading: the recommended point and the cost of the confidence everywhere they appear
+    lobes = json.loads((out / "lobes" / "lobes.json").read_text())
+    rec, cost = lobes["recommended"], lobes["confidence_cost"]
+    for where in ("stderr", "summary.md", "index.html", "report.html"):
+        assert rpm(rec["spindle_speed_rpm"], unit=False) in pages[where] and mm(rec["depth_m"])[:-3] in pages[where]
+    for where in ("stderr", "summary.md", "report.html"):
+        assert mm(cost["depth_m"]) in pages[where] and percent(cost["relative"]) in pages[where], where

@@ -23,6 +23,7 @@ from bayes_rcsa.discrepancy.render import summary_markdown
 from bayes_rcsa.io.setup import load_setup
 from bayes_rcsa.model.modes import find_modes, match_modes
 from bayes_rcsa.synthetic import rotor
+from bayes_rcsa.vocabulary import effect_name
 
 FIT = (0.025, 0.040)
 
@@ -171,12 +172,13 @@ def test_a_fit_on_the_limit_of_its_range_that_outranks_is_a_warning_and_a_summar
     assert len(hint) == 1 and hint[0].startswith(over.effect) and "flute_area_ratio, flute_inertia_ratio" in hint[0]
     assert f"(criterion {over.criterion:+.1f})" in hint[0] and "check the values the setup declares" in hint[0]
     text = summary_markdown(report)
-    assert f"`{other.effect}` improves the fit decisively, but `{over.effect}` explains the data far better" in text
+    assert (f"{effect_name(other.effect)} improves the fit decisively, but {effect_name(over.effect)} explains the "
+            "data far better") in text
     assert f"criterion {over.criterion:+.1f} against {other.criterion:+.1f}" in text
     assert "limit of the physical range its prior allows" in text
     cand = next(c for c in report["candidates"] if c["effect"] == over.effect)
     assert cand["parameters_on_range_limit"] == ["flute_area_ratio", "flute_inertia_ratio"]
-    assert "only with flute_area_ratio, flute_inertia_ratio on the limit" in text
+    assert "only with flute area ratio, flute inertia ratio on the limit" in text
     # the pair rule's case: a pair not clearly better than the edge-bound single fit, whose criterion is then not
     # far above the partial candidate's own: "far better" would be false
     close = dict(fake.decision["partial"][0], criterion=over.criterion - 1.0)

@@ -94,7 +94,7 @@ def test_tip_mass_named_by_the_cli_with_amended_setup(tmp_path_factory, tmp_path
                           "--candidates", "tip_mass,fluted_section,contact_damping"])
     assert code == 0
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("bayes-rcsa discrepancy: named tip_mass")  # the one closing line
+    assert len(err) == 1 and err[0].startswith("bayes-rcsa discrepancy: named mass at the tool tip")  # the one closing line
     r = json.loads((out / "discrepancy.json").read_text())
     assert REQUIRED_KEYS <= set(r)
     assert r["named_effect"] == "tip_mass" and r["gap_after"] <= 0.5 * r["gap_before"]
@@ -291,7 +291,8 @@ def test_a_final_fit_pressed_against_a_prior_bound_is_reported(tmp_path_factory)
     assert r["adequate"] is False
     assert "g_xf" in r["final_prior_bound_pile_up"]
     assert any(w.startswith("g_xf:") and "upper bound 0.2" in w for w in r["final_prior_bound_warnings"])
-    assert "`g_xf` piles up on its prior bound" in summary_markdown(r)
+    assert "the stiffness growth with clamping length, translational (gxf) piles up on its prior bound" \
+        in summary_markdown(r)
 
 
 def test_systematic_gap_excludes_white_noise_and_tracks_the_noise_free_gap():

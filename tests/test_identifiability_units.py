@@ -92,8 +92,10 @@ def test_ridge_verdict_is_identified_only_in_combination():
     # prior sd of log10 k over 4 decades is 4/sqrt(12) = 1.155; posterior sd 0.01
     assert out["k_xf"]["prior_to_posterior_width"] == pytest.approx(115.5, rel=0.02)
     text = combination_statement("k_xf", out["k_xf"], "N/m")
-    assert text.startswith("k_xf is identified only in combination with k_thetaM: its 90 % posterior range [")
-    assert f"is {out['k_xf']['width_ratio']:.2g} times wider than its range at a fixed k_thetaM" in text
+    assert text.startswith("The contact stiffness, translational (kxf) is identified only in combination with the "
+                           "contact stiffness, rotational (kθM): its 90 % posterior range ")
+    assert (f"is {out['k_xf']['width_ratio']:.2g} times wider than its range at a fixed contact stiffness, "
+            "rotational (kθM)") in text
     assert "not each alone" in text and "contraction" not in text
     out = parameter_identifiability(rng.multivariate_normal([6.25, 5.65], np.diag([1e-4, 1e-4]), 20_000), priors)
     assert out["k_xf"]["verdict"] == out["k_thetaM"]["verdict"] == "identified"
@@ -122,7 +124,7 @@ def test_stiffness_ridge_names_the_tradeoff_in_physical_terms():
 def test_contractions_are_printed_as_percentages_or_width_ratios():
     assert fmt_contraction(0.78593) == "78.6 %"
     # 1 - 3.9e-8: posterior sd = prior sd * sqrt(3.9e-8) -> width ratio 1/sqrt(3.9e-8) = 5064
-    assert fmt_contraction(1 - 3.9e-8) == "prior width / posterior width = 5.1e3"
+    assert fmt_contraction(1 - 3.9e-8) == "prior width / posterior width = 5100"
     assert "1 - " not in fmt_contraction(1 - 3.9e-8)
     assert fmt_contraction(float("nan")) == "—"
 

@@ -236,6 +236,6 @@ def test_library_outputs_and_the_report_section(tmp_path):
     assert doc["pooling"]["stage2_ess"] is None and doc["pooling"]["stage2_steps"] == 300
     assert any("stage 2 stopped at max_steps = 300 unconverged" in w for w in doc["warnings"])
     html = write_report_html([tmp_path / "lib"], tmp_path / "report.html").read_text()
-    assert "Tool library: the contact population" in html and html.count("<td>ER32</td><td>k_xf</td>") == 1
+    assert "Tool library: the contact population" in html and html.count("<td>ER32</td><td>contact stiffness, translational (kxf)</td>") == 1
     assert "shrinkage: own vs pooled estimates" in html
     assert "<th>R-hat (max)</th>" in html and f'<td class="num">{num(np.max(q.rhat), 4)}</td>' in html

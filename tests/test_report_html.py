@@ -30,7 +30,10 @@ from bayes_rcsa.inference.problem import IdentificationOptions, build_problem_fr
 from bayes_rcsa.inference.sampler import SamplerSettings
 from bayes_rcsa.io.setup import load_setup
 from bayes_rcsa.posterior.prediction_outputs import run_prediction, write_prediction_outputs
+from bayes_rcsa.report.html_report import printed_names
 from bayes_rcsa.synthetic import default_bench_config, generate_campaign, write_campaign
+from bayes_rcsa.units import parse
+from bayes_rcsa.vocabulary import effect_name, in_words, parameter_name
 
 LENGTHS = (0.025, 0.030, 0.040)
 # the 200-step chain has fewer draws per walker than walkers; ArviZ says so, and it is intended here
@@ -130,30 +133,44 @@ def _parse(text: str) -> _Tables:
 
 
 def _close(cell: str, value, digits: int) -> bool:
-    """A cell printed with ``digits`` significant digits equals ``value`` to half a unit of its last digit."""
+    """A cell (the unit policy's form, ``2.34×10⁶`` included) equals ``value`` to half a unit of its last printed
+    digit, and prints at least ``digits`` significant digits."""
     if value is None:
         return cell == "—"
-    x = float(cell)
-    return abs(x - value) <= 0.51 * 10 ** (np.floor(np.log10(abs(value))) - digits + 1) if value else x == 0
+    x = parse(cell)
+    mantissa, _, power = cell.partition("×10")
+    decimals = len(mantissa.split(".")[1]) if "." in mantissa else 0
+    exponent = int(power.translate(str.maketrans("⁰¹²³⁴⁵⁶⁷⁸⁹⁻", "0123456789-"))) if power else 0
+    significant = len(mantissa.replace("-", "").replace(".", "").lstrip("0"))
+    if not value:
+        return x == 0
+    printed = abs(x - value) <= 0.51 * 10.0 ** (exponent - decimals)
+    # fewer digits than asked only where trailing zeros were dropped (87.00 -> 87): then it is exact to them
+    return printed and (significant >= digits
+                        or abs(x - value) <= 0.51 * 10 ** (np.floor(np.log10(abs(value))) - digits + 1))
 
 
 def _check_tables(p: _Tables, runs) -> None:
     s, fr = runs["summary"], runs["freqs"]
+    printed = printed_names(s)  # the tables name parameters as people read them ("noise scale, 25 mm x")
     conv = {r[0]: r for r in p.tables["convergence-table-1"][1:]}
-    assert set(conv) == set(s["parameters"])
+    assert set(conv) == {printed[n] for n in s["parameters"]}
     for name, e in s["parameters"].items():
-        assert _close(conv[name][1], e["rhat"], 4) and _close(conv[name][2], e["ess_bulk"], 4), name
-        assert _close(conv[name][4], s["tau"][name], 4), name
+        row = conv[printed[name]]
+        assert _close(row[1], e["rhat"], 4) and _close(row[2], e["ess_bulk"], 4), name
+        assert _close(row[4], s["tau"][name], 4), name
     par = {r[0]: r for r in p.tables["parameter-table-1"][1:]}
     for name, e in s["parameters"].items():
         for col, key in ((2, "q05"), (3, "q50"), (4, "q95")):
-            assert _close(par[name][col], e[key], 5), (name, key, par[name][col], e[key])
+            cell = par[printed[name]][col]
+            assert _close(cell, e[key], 3), (name, key, cell, e[key])
     facts = dict((r[0], r[1]) for r in p.tables["run-facts-1"])
     assert facts["converged"] == ("yes" if s["converged"] else "no")
     assert _close(facts["steps"], s["n_steps"], 6)
     model = {r[0]: r for r in p.tables["parameter-model"][1:]}
-    assert model["c_xf"][2] == "fixed" and _close(model["c_xf"][3], s["fixed_parameters"]["c_xf"], 5)
-    assert model["k_xf"][2] == "sampled" and model["k_xf"][3].startswith("log-uniform")
+    c_xf, k_xf = model[printed["c_xf"]], model[printed["k_xf"]]
+    assert c_xf[2] == "fixed" and _close(c_xf[3], s["fixed_parameters"]["c_xf"], 1)
+    assert k_xf[2] == "sampled" and k_xf[3].startswith("log-uniform from ")
     rows = p.tables["natural-frequencies-1"][1:]
     assert len(rows) == len(fr["predictions"])
     for row, e in zip(rows, fr["predictions"]):
@@ -161,15 +178,16 @@ def _check_tables(p: _Tables, runs) -> None:
         assert row[3] == ("yes" if e["dominant"] else "no")
         for col, key in ((5, "measured_hz"), (6, "q05_hz"), (7, "q50_hz"), (8, "q95_hz"),
                          (9, "predictive_peak_q05_hz"), (10, "predictive_peak_q95_hz")):
-            assert _close(row[col], e.get(key), 6), (key, row[col], e.get(key))
+            assert _close(row[col], e.get(key), 4), (key, row[col], e.get(key))
         assert row[12] == {True: "yes", False: "no"}[e["measured_in_predictive_90"]]
     rec = dict((r[0], r[1]) for r in p.tables["recommended-1"][1:])
     assert _close(rec["spindle speed (rpm)"], runs["rec"]["spindle_speed_rpm"], 5)
-    assert _close(rec["axial depth (mm)"], 1e3 * runs["rec"]["depth_m"], 4)
+    assert _close(rec["axial depth (mm)"], 1e3 * runs["rec"]["depth_m"], 3)
     assert _close(rec["P(stable)"], runs["rec"]["p_stable"], 3)
     disc = dict((r[0], r[1]) for r in p.tables["discrepancy-facts-1"])
     d = runs["disc"]
-    assert disc["model adequate"] == "no" and disc["named missing effect"] == d["named_effect"]
+    assert disc["model adequate"] == "no" and disc["named missing effect"] == effect_name(d["named_effect"])
+    assert disc["equally good explanations"] == disc["next best explanation"] == effect_name("fluted_section")
     assert _close(disc["systematic mismatch before (%, noise excluded)"], 100 * d["gap_before"], 3)
     assert _close(disc["systematic mismatch after (%, noise excluded)"], 100 * d["gap_after"], 3)
     err = p.tables["discrepancy-errors-1"][1]
@@ -178,12 +196,12 @@ def _check_tables(p: _Tables, runs) -> None:
     des = dict((r[0], r[1]) for r in p.tables["design-table-1"])
     g = runs["design"]
     assert des["best next test"] == g["best"]["test"] and des["worth it"] == "yes"
-    assert _close(des["current 90 % width (Hz)"], g["current_width"], 4)
-    assert _close(des["expected 90 % width after it (Hz)"], g["best"]["expected_width"], 4)
+    assert _close(des["current 90 % width (Hz)"], g["current_width"], 3)
+    assert _close(des["expected 90 % width after it (Hz)"], g["best"]["expected_width"], 3)
     ident = {r[0]: r for r in p.tables["identifiability-table-1"][1:]}
     for name, e in runs["freqs"]["identifiability"].items():
-        assert ident[name][1] == e["verdict"]
-        assert _close(ident[name][2], e.get("prior_to_posterior_width"), 3)
+        assert ident[parameter_name(name)][1] == in_words(e["verdict"])
+        assert _close(ident[parameter_name(name)][2], e.get("prior_to_posterior_width"), 3)
 
 
 def test_tables_hold_the_numbers_of_the_json_files(runs):
@@ -203,8 +221,8 @@ def test_page_is_self_contained_and_speaks_plainly(runs):
     # the 200-step chain did not converge: said prominently, with the identification's warnings
     assert runs["summary"]["converged"] is False
     assert "NOT CONVERGED" in visible and "did NOT converge" in visible
-    for w in runs["summary"]["warnings"]:
-        assert " ".join(w.split()) in " ".join(visible.split())
+    for w in runs["summary"]["warnings"]:  # in words: parameters by their printed names
+        assert " ".join(in_words(w).split()) in " ".join(visible.split())
     assert "predictive 90 % interval of a new measured peak" in visible and "model 90 % credible interval" in visible
 
 
@@ -512,7 +530,8 @@ def test_the_same_summary_heads_report_index_and_summary_md(runs, tmp_path):
             row = re.search(rf"^\| {1e3 * e['clamping_length']:g} \| x \| .*$", md, re.M).group(0)
             cells = [c.strip() for c in row.strip("|").split("|")]
             assert cells[3] in visible and cells[4] in visible, cells  # the same intervals as the page
-    assert "Model check:** The model misses “tip_mass”" in md and "“tip_mass”" in visible
+    assert f"Model check:** The model misses “{effect_name('tip_mass')}”" in md
+    assert f"“{effect_name('tip_mass')}”" in visible
     assert "**Convergence:** unconverged ([details](report.html#convergence-1))" in md
     assert "The sampler did NOT converge" in md and "The sampler did NOT converge" in visible
 
@@ -562,14 +581,14 @@ def test_summary_reads_the_robust_envelope_and_says_when_there_is_no_confidence(
               "confidence_cost": {"depth_m": 2e-4, "relative": 1 / 3, "median_speed_rpm": 9100.0}}
     (point,) = build_answer([("lobes", "a/lobes.json", robust)]).points
     facts = dict(point["facts"])
-    assert point["speed"] == "9000" and point["depth"] == "0.4" and "300 measured-FRF draws" in point["source"]
+    assert point["speed"] == "9000" and point["depth"] == "0.400" and "300 measured-FRF draws" in point["source"]
     assert facts["speed margin"].startswith("120 rpm below and nothing above")
-    assert "8820 – 9180 rpm" in facts["speed margin"] and facts["depth margin"].startswith("0.05 mm below")
+    assert "8820 – 9180 rpm" in facts["speed margin"] and facts["depth margin"].startswith("0.050 mm below")
     assert "lowest 0.96; 0.99 at the point" in facts["confidence"] and "95 % confidence" in facts["confidence"]
-    assert facts["cost of the confidence"].startswith("0.2 mm (33 %) of depth against the median point (0.6 mm")
+    assert facts["cost of the confidence"].startswith("0.200 mm (33 %) of depth against the median point (0.600 mm")
     tiny = dict(robust, confidence_cost={"depth_m": 3.88e-7, "relative": 0.0024})
     assert dict(build_answer([("lobes", "t/lobes.json", tiny)]).points[0]["facts"])[
-        "cost of the confidence"].startswith("0.39 µm (0.24 %)")  # no exponent for a machinist
+        "cost of the confidence"].startswith("0.00039 mm (0.24 %)")  # mm as everywhere, no exponent
     det = dict(robust, deterministic=True, n_draws=1)
     del det["confidence_cost"]
     md = answer_markdown(build_answer([("lobes", "b/lobes.json", det)]))
@@ -580,3 +599,17 @@ def test_summary_reads_the_robust_envelope_and_says_when_there_is_no_confidence(
         build_answer([("lobes", "c/lobes.json", none)]))
     with pytest.raises(DataError, match=r"d/lobes.json recommended: key 'depth_m' is 'deep'"):
         build_answer([("lobes", "d/lobes.json", dict(robust, recommended=dict(rec, depth_m="deep")))])
+
+
+def test_report_speaks_a_machinist_s_words_and_is_titled_by_the_setup(runs):
+    """The report of a named effect, a design and a lobes run: no identifier, metre, exponent or list in what a
+    person reads (the scanner: tests/human_text.py), and the page is titled by the setup's name."""
+    from human_text import identifiers, offences, visible_text
+
+    text = runs["html"].read_text(encoding="utf-8")
+    found = offences(visible_text(text), identifiers(runs["summary"]["parameter_names"]))
+    assert found == [], found[:5]
+    name = load_setup(runs["freqs"]["setup"], load_data=False, load_spindle=False).name
+    assert f"<title>{name}: bayes_rcsa report</title>" in text
+    # the named effect in words, its sentence-level name, not the identifier
+    assert f"<td>{effect_name('tip_mass')}</td>" in text and "Method: zero-order approximation" in text

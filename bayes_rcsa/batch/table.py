@@ -10,6 +10,8 @@ from pathlib import Path
 from typing import Sequence
 
 from ..io.atomic import atomic_write_text
+from ..units import hz, mm, num, rpm, sci
+from ..vocabulary import depth_limit_name, identification_name, parameter_name
 
 __all__ = ["summary_columns", "write_summary"]
 
@@ -31,19 +33,32 @@ td.text { text-align: left; }
 tr.failed td, tr.lost td { background: #fdd; }
 td.bad { background: #fdb; font-weight: bold; }
 td.list { white-space: normal; min-width: 30em; }
+td.lines { text-align: left; white-space: normal; }
+table.core td { white-space: normal; }
 </style></head><body>
 <h1>Tool library: {{ title }}</h1>
-<p>{{ counts }}. Stiffness in N/m and N m/rad, natural frequencies in Hz (dominant mode; q05..q95 is the 90 %
-credible interval of the model's natural frequency), depth in m, speed in rpm. A setup that did not converge is
-marked; its numbers are not reliable. Per-setup outputs: setups/NAME/.</p>
+<p>{{ counts }}. Medians with their 90 % credible interval in brackets; natural frequencies of the dominant mode at
+each predicted clamping length and direction. A setup that did not converge is marked; its numbers are not
+reliable. Per-setup outputs: setups/NAME/.</p>
 {% if warnings %}<ul class="warnings">{% for w in warnings %}<li>warning: {{ w }}</li>{% endfor %}</ul>{% endif %}
-<table>
+<table class="core">
+<thead><tr>{% for c in core_columns %}<th>{{ c }}</th>{% endfor %}</tr></thead>
+<tbody>
+{% for r in core_rows %}<tr class="{{ r.status }}">{% for v in r.cells %}<td class="{{ v.cls }}">{% for line in v.lines %}{{ line }}{% if not loop.last %}<br>{% endif %}{% endfor %}</td>{% endfor %}</tr>
+{% endfor %}</tbody></table>
+<details><summary>Every column of summary.csv (SI units: stiffness N/m and N m/rad, depth m, frequencies Hz; q05..q95
+is the 90 % credible interval)</summary>
+<table class="all">
 <thead><tr>{% for c in columns %}<th>{{ c }}</th>{% endfor %}</tr></thead>
 <tbody>
-{% for r in rows %}<tr class="{{ r.status }}">{% for c in columns %}{% set v = r.cells[c] %}<td class="{{ v.cls }}">{{ v.text }}</td>{% endfor %}</tr>
+{% for r in rows %}<tr class="{{ r.status }} all">{% for c in columns %}{% set v = r.cells[c] %}<td class="{{ v.cls }}">{{ v.text }}</td>{% endfor %}</tr>
 {% endfor %}</tbody></table>
+</details>
 </body></html>
 """
+
+#: The contact parameters of the readable table (its other columns are fixed: see ``_core``).
+_CORE_PARAMETERS = (("k_xf", "N/m"), ("k_thetaM", "N m/rad"))
 
 
 def summary_columns(rows: Sequence[dict]) -> list[str]:
@@ -53,13 +68,52 @@ def summary_columns(rows: Sequence[dict]) -> list[str]:
         + [c for c in _LIST_COLUMNS if c in keys]
 
 
+def _core(rows: Sequence[dict]) -> tuple[list[str], list[dict]]:
+    """The readable table: printed headers with units, numbers in the unit policy's form (docs/data-formats.md)."""
+    params = [(n, u) for n, u in _CORE_PARAMETERS if any(r.get(f"{n}_q50") is not None for r in rows)]
+    freqs = sorted({k[:-len("_q50_hz")] for r in rows for k in r if k.startswith("fn_") and k.endswith("_q50_hz")},
+                   key=lambda k: (float(k[3:].split("mm")[0]), k))
+    lobes = any(r.get("lobes_speed_rpm") is not None for r in rows)
+    head = ["setup", "status", "converged", "warnings"] + [f"{parameter_name(n)} ({u})" for n, u in params]
+    if freqs:
+        head.append("dominant natural frequency (Hz)")
+    if lobes:
+        head += ["recommended speed (rpm)", "recommended depth (mm)", "P(stable)"]
+    out = []
+    for r in rows:
+        bad_conv = r.get("converged") is False
+        cells = [{"lines": [str(r.get("name", ""))], "cls": "text"},
+                 {"lines": [str(r["status"]) + (f" ({r['failed_step']}: {r.get('error', '')})"
+                                                if r.get("failed_step") else "")],
+                  "cls": "text" + (" bad" if r["status"] != "done" else "")},
+                 {"lines": ["—" if r.get("converged") is None else ("yes" if r["converged"] else "NOT converged")]
+                  + ([identification_name(str(r["method"]))] if r.get("method") else []),
+                  "cls": "text" + (" bad" if bad_conv else "")},
+                 {"lines": [num(r.get("n_warnings") or 0)], "cls": "bad" if r.get("n_warnings") else ""}]
+        for n, _ in params:
+            cells.append({"lines": [sci(r.get(f"{n}_q50"), 3, r.get(f"{n}_q05"), r.get(f"{n}_q95"))], "cls": ""})
+        if freqs:
+            cells.append({"lines": [f"{k[3:].replace('mm_', ' mm ')}: "
+                                    f"{hz(r[k + '_q50_hz'], r.get(k + '_q05_hz'), r.get(k + '_q95_hz'), unit=False)}"
+                                    for k in freqs if r.get(k + "_q50_hz") is not None] or ["—"], "cls": "lines"})
+        if lobes:
+            limit = r.get("lobes_limit")
+            depth = mm(r.get("lobes_depth_m")).removesuffix(" mm") if r.get("lobes_depth_m") is not None else "—"
+            cells += [{"lines": [rpm(r.get("lobes_speed_rpm"), unit=False)], "cls": ""},
+                      {"lines": [depth] + ([f"set by {depth_limit_name(limit)}"] if limit and limit != "stability"
+                                           else []), "cls": ""},
+                      {"lines": [num(r.get("lobes_p_stable"), 3)], "cls": ""}]
+        out.append({"status": r["status"], "cells": cells})
+    return head, out
+
+
 def _text(v) -> str:
     if v is None:
         return ""
     if isinstance(v, bool):
         return "yes" if v else "no"
     if isinstance(v, float):
-        return "nan" if not math.isfinite(v) else f"{v:.6g}"
+        return "nan" if not math.isfinite(v) else num(v, 6)
     if isinstance(v, (list, tuple)):
         return "; ".join(str(x) for x in v)
     return str(v)
@@ -106,8 +160,10 @@ def write_summary(rows: Sequence[dict], out_dir, title: str, warnings: Sequence[
     if warned:
         counts += f"; {warned} with warnings (column warnings)"
     env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
+    core_columns, core_rows = _core(rows)
     html = env.from_string(_HTML).render(
-        title=title, counts=counts, columns=cols, warnings=list(warnings),
+        title=title, counts=counts, columns=cols, warnings=list(warnings), core_columns=core_columns,
+        core_rows=core_rows,
         rows=[{"status": r["status"], "cells": {c: cell(r, c) for c in cols}} for r in rows])
     atomic_write_text(paths["html"], html)
     return paths

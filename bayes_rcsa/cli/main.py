@@ -27,6 +27,7 @@ import textwrap
 from .. import __version__
 from ..errors import BayesRCSAError, OutputError
 from ..messages import warning_log
+from ..vocabulary import in_words
 from ._common import Summary, check_arguments, command_warnings, merge_warnings
 
 __all__ = ["main", "build_parser", "COMMANDS", "HelpFormatter", "HELP_WIDTH"]
@@ -198,7 +199,7 @@ def _run(args) -> int:
         if isinstance(result, Summary):
             return _report(args, result)
         for w in command_warnings():
-            print(f"bayes-rcsa {args.command}: warning: {w}", file=sys.stderr)
+            print(f"bayes-rcsa {args.command}: warning: {in_words(w)}", file=sys.stderr)
         return int(result or 0)  # a command that prints its own closing lines
     except BayesRCSAError as exc:
         if isinstance(exc, OutputError):
@@ -234,7 +235,7 @@ def _report(args, summary: Summary) -> int:
     # the data-plausibility (and any other) warnings issued on the way, then the command's own
     warns = merge_warnings(command_warnings(), summary.warnings)
     for w in warns:
-        print(f"bayes-rcsa {args.command}: warning: {w}", file=sys.stderr)
+        print(f"bayes-rcsa {args.command}: warning: {in_words(w)}", file=sys.stderr)
     print(f"bayes-rcsa {args.command}: {' '.join(summary.human.split())}", file=sys.stderr)
     if _wants_json(args):
         data = {"command": args.command, **summary.data, "warnings": warns}

@@ -49,6 +49,7 @@ import numpy as np
 from ..design.estimators import weighted_widths
 from ..errors import DataError, SetupError
 from ..stats.weights import MIN_ESS, effective_sample_size, normalise_log_weights
+from ..units import mm, rpm
 from .likelihood import DEFAULT_BOUNDARY_WIDTH, DEFAULT_LABEL_ERROR, chatter_probability
 
 __all__ = ["NextCutTarget", "parse_next_cut_target", "CandidateCut", "NextCutResult", "p_stable_matrix",
@@ -285,7 +286,7 @@ def rank_next_cuts(target: NextCutTarget, cand_speed_rpm, cand_depth_m, cand_lim
         if not np.all(np.isfinite(t)):
             top = float(md[-1])
             warnings.append(f"warning: {int(np.sum(~np.isfinite(t)))} draw(s) find no chatter at "
-                            f"{target.speed_rpm:g} rpm; their limit is counted as the map's top depth {top:.4g} m "
+                            f"{rpm(target.speed_rpm)}; their limit is counted as the map's top depth {mm(top)} "
                             f"(the width is a lower bound)")
             t = np.where(np.isfinite(t), t, top)
         current = float(weighted_widths(t, w[None])[0])

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import math
 
-from ..params.terms import get_term
+from ..units import hz, hz_range, length_mm, num, percent, sci
+from ..vocabulary import effect_name, effect_sentence, parameter_name
 from .document import MIN_LENGTHS_FOR_BEND
 from .select import LN_BF_NAME
 
@@ -31,24 +32,23 @@ def summary_markdown(report: dict) -> str:
                      "there, so no effect was added.")
         if poor_transfer:
             lines.append(f"**At the clamping lengths it was not fitted to, the systematic mismatch is "
-                         f"{100 * held:.3g} %:** the fit does not carry there (with one fitted length the growth of "
+                         f"{percent(held, 3)}:** the fit does not carry there (with one fitted length the growth of "
                          "the contact stiffness is not identified); fit two or more lengths before predicting them.")
     elif named:
-        desc = next((c["description"] for c in report["candidates"] if c["effect"] == named), "")
-        lines.append(f"**Missing effect found: `{named}`** — {desc}.")
+        lines.append(f"**Missing effect found: {effect_name(named)}** — {effect_sentence(named)}")
         params = next((c["parameters"] for c in report["candidates"] if c["effect"] == named), {})
         for n, q in params.items():
-            lines.append(f"- {n}: {q['q50']:.4g} (90 % interval {q['q05']:.4g} to {q['q95']:.4g})")
+            lines.append(f"- {parameter_name(n)}: {num(q['q50'])} (90 % interval {num(q['q05'])} to {num(q['q95'])})")
         if report["confounded_with"]:
             lines.append("")
-            lines.append(f"The data explain this equally well by: {', '.join(report['confounded_with'])}. "
+            lines.append(f"The data explain this equally well by: {_effects(report['confounded_with'])}. "
                          "To tell them apart: " + "; ".join(report["separating_test"].values()) + ".")
         elif report["runner_up"]:
-            lines.append(f"Next best explanation: `{report['runner_up']}` (behind by {report['margin']:.1f} log units).")
+            lines.append(f"Next best explanation: {effect_name(report['runner_up'])} (behind by "
+                         f"{report['margin']:.1f} log units).")
         for also in report.get("also_named", []):
-            desc2 = get_term(also).description
-            lines += ["", f"**A second effect was found with it: `{also}`** — {desc2} (second round, with "
-                      f"`{named}` in the model)."]
+            lines += ["", f"**A second effect was found with it: {effect_name(also)}** — {effect_sentence(also)} "
+                      f"(second round, with {effect_name(named)} in the model)."]
         lines.append("")
         lines.append("`setup.amended.toml` adds " + ("them" if report.get("also_named") else "it")
                      + " to the model; use it for the next `bayes-rcsa identify`.")
@@ -60,11 +60,11 @@ def summary_markdown(report: dict) -> str:
         for part in report.get("partially_explained_by", []):
             ratio = part["systematic_gap_ratio"]
             if part.get("held_out_gap_grew"):
-                lines.append(f"- `{part['effect']}` fits the fitted lengths decisively better but makes the "
+                lines.append(f"- {effect_name(part['effect'])} fits the fitted lengths decisively better but makes the "
                              "clamping lengths it was not fitted to worse: it does not carry, so it is not named")
             elif part.get("contact_held_on_upper_bound"):
-                lines.append(f"- `{part['effect']}` improves the fit decisively but keeps "
-                             f"{', '.join(part['contact_held_on_upper_bound'])} on the stiffest value its prior "
+                lines.append(f"- {effect_name(part['effect'])} improves the fit decisively but keeps "
+                             f"{_parameters(part['contact_held_on_upper_bound'])} on the stiffest value its prior "
                              "allows, as the original model did, and leaves a systematic mismatch: the measured "
                              "structure is stiffer than the declared one (tool modulus, diameter?), which this term "
                              "does not explain")
@@ -73,7 +73,7 @@ def summary_markdown(report: dict) -> str:
                 cand = next((c for c in report.get("candidates", []) if c["effect"] == by), {})
                 if part.get("outranked_by_edge"):
                     lim = cand.get("parameters_on_range_limit") or cand.get("parameters_on_prior_edge") or []
-                    why = (f"only with {', '.join(lim) or 'a parameter'} on "
+                    why = (f"only with {_parameters(lim) or 'a parameter'} on "
                            "the limit of the physical range its prior allows: the effect is larger than that term "
                            "allows (check the declared values it acts on) or lies outside the library")
                 else:
@@ -81,13 +81,14 @@ def summary_markdown(report: dict) -> str:
                            "): it stands in for an effect outside the library")
                 crit = cand.get("criterion")
                 far = crit is not None and crit - part["criterion"] > LN_BF_NAME
-                lines.append(f"- `{part['effect']}` improves the fit decisively, but `{by}` explains the data "
+                lines.append(f"- {effect_name(part['effect'])} improves the fit decisively, but {effect_name(by)} "
+                             "explains the data "
                              + ("far better" if far else "as well as it does together with a second known effect")
                              + (f" (criterion {crit:+.1f} against {part['criterion']:+.1f}"
                                 + ("" if far else " alone") + ")" if crit is not None else "")
                              + f", {why}; neither is named")
             elif ratio is not None:
-                lines.append(f"- `{part['effect']}` improves the fit decisively but removes only "
+                lines.append(f"- {effect_name(part['effect'])} improves the fit decisively but removes only "
                              f"{100 * (1 - ratio):.0f} % of the systematic mismatch: at most part of the explanation")
         if report.get("mode_bias", {}).get("applied"):
             n_fit = len({round(m["clamping_length"], 9) for m in report.get("measurements_after", []) if m["fitted"]})
@@ -112,8 +113,8 @@ def summary_markdown(report: dict) -> str:
                       "measured clamping lengths; between them that bias is interpolated with its uncertainty, "
                       "so predictions at other clamping lengths are wider than the model alone would say. " + how]
     if report.get("gap_grew"):
-        lines += ["", f"**The systematic mismatch grew** in the final model ({100 * report['gap_before']:.2g} % -> "
-                  f"{100 * report['gap_after']:.2g} %): the added term makes the fit worse, not more honest."]
+        lines += ["", f"**The systematic mismatch grew** in the final model ({percent(report['gap_before'])} -> "
+                  f"{percent(report['gap_after'])}): the added term makes the fit worse, not more honest."]
     if not report.get("usable_for_prediction", True):
         lines += ["", "**Not usable for prediction.** The final model's intervals are too narrow for the "
                   "disagreement, so no frequency interval below may be used to choose a spindle speed:"]
@@ -121,25 +122,25 @@ def summary_markdown(report: dict) -> str:
     where = []
     for m in report["detection"]["measurements"]:
         notes = list(m["resonance"]["findings"])
-        notes += [f"misfit {b['lo_hz']:.0f}-{b['hi_hz']:.0f} Hz" for b in m["bands"][:3]]
+        notes += [f"misfit {b['lo_hz']:.0f}–{b['hi_hz']:.0f} Hz" for b in m["bands"][:3]]
         if notes:
-            where.append(f"- {m['direction']} {m['clamping_length'] * 1e3:g} mm: " + "; ".join(notes))
+            where.append(f"- {m['direction']} {length_mm(m['clamping_length'])}: " + "; ".join(notes))
     if where:
         lines += ["", "Where the original model disagreed with the measurements:"] + where
     trend = report["detection"]["trend_with_clamping_length"]
     if trend is not None and not report["adequate"]:
         lines.append(f"- frequency error trend with clamping length: {trend['slope_pct_per_mm']:+.3f} % per mm")
     for name in report.get("final_prior_bound_pile_up", []):
-        lines += ["", f"**Warning:** in the final model `{name}` piles up on its prior bound: its interval, and "
+        lines += ["", f"**Warning:** in the final model the {parameter_name(name)} piles up on its prior bound: its interval, and "
                   "every prediction that depends on it, holds only if the bound is right."]
     def gap_text(key: str) -> str:
         if report.get(f"{key}_at_noise_floor"):
-            return f"at the noise floor (below {100 * report['gap_resolution']:.2g} %)"
-        return f"{100 * report[key]:.2g} %"
+            return f"at the noise floor (below {percent(report['gap_resolution'])})"
+        return percent(report[key])
 
     lines += ["", f"Systematic mismatch (gap, measurement noise excluded) before: {gap_text('gap_before')}, "
-              f"after: {gap_text('gap_after')}; with the noise: {100 * report['gap_raw_before']:.2g} % "
-              f"-> {100 * report['gap_raw_after']:.2g} %", "",
+              f"after: {gap_text('gap_after')}; with the noise: {percent(report['gap_raw_before'])} "
+              f"-> {percent(report['gap_raw_after'])}", "",
               "| clamping length (mm) | frequency error before (%) | after (%) |", "|---|---|---|"]
     for k in report["frequency_error_pct_before"]:
         lines.append(f"| {k} | {report['frequency_error_pct_before'][k]:+.2f} | {report['frequency_error_pct_after'].get(k, math.nan):+.2f} |")
@@ -160,20 +161,36 @@ def summary_markdown(report: dict) -> str:
                 star = " (straight-line bias assumed)"
             lines.append(f"| {ma['direction']} {ma['clamping_length'] * 1e3:g} mm | {'yes' if ma['fitted'] else 'no'} "
                          f"| {md['measured_hz']:.1f}{' (most prominent)' if md['most_prominent_measured'] else ''} "
-                         + (f"| {qb['q50']:.1f} [{qb['q05']:.1f}, {qb['q95']:.1f}] " if qb else "| no matching mode ")
-                         + f"| {qa['q50']:.1f} [{qa['q05']:.1f}, {qa['q95']:.1f}]{star} "
-                         f"| [{qp['q05']:.1f}, {qp['q95']:.1f}]{star} |")
+                         + (f"| {_hz(qb)} " if qb else "| no matching mode ")
+                         + f"| {_hz(qa)}{star} "
+                         f"| {_hz(qp, median=False)}{star} |")
         for fu in ma["unmatched_measured_hz"]:
             lines.append(f"| {ma['direction']} {ma['clamping_length'] * 1e3:g} mm | {'yes' if ma['fitted'] else 'no'} "
                          f"| {fu:.1f} | | no matching model mode | |")
         if ma["prominent_mode_differs"]:
             lines.append(f"| {ma['direction']} {ma['clamping_length'] * 1e3:g} mm | | the most prominent mode "
                          "differs between model and measurement | | | |")
-    lines += ["", "| clamping length (mm) | k_xf before (N/m), median [90 % interval] | k_xf after (N/m) |", "|---|---|---|"]
+    k_name = parameter_name("k_xf")
+    lines += ["", f"| clamping length (mm) | {k_name} before, median (90 % interval) | {k_name} after |",
+              "|---|---|---|"]
     for k, q in report["stiffness_before"]["k_xf"].items():
         qa = report["stiffness_after"]["k_xf"][k]
-        lines.append(f"| {k} | {q['q50']:.4g} [{q['q05']:.4g}, {q['q95']:.4g}] | {qa['q50']:.4g} [{qa['q05']:.4g}, {qa['q95']:.4g}] |")
+        lines.append(f"| {k} | {sci(q['q50'], 3, q['q05'], q['q95'], 'N/m')} | "
+                     f"{sci(qa['q50'], 3, qa['q05'], qa['q95'], 'N/m')} |")
     return "\n".join(lines) + "\n"
+
+
+def _hz(q: dict, median: bool = True) -> str:
+    """A mode's interval ``{q05, q50, q95}`` in Hz, in the digits the interval justifies (no unit: the column has it)."""
+    return hz(q["q50"], q["q05"], q["q95"], unit=False) if median else hz_range(q["q05"], q["q95"])
+
+
+def _effects(names) -> str:
+    return ", ".join(effect_name(n) for n in names)
+
+
+def _parameters(names) -> str:
+    return ", ".join(parameter_name(n) for n in names)
 
 
 def summary_line(report: dict, out=None) -> str:
@@ -185,19 +202,19 @@ def summary_line(report: dict, out=None) -> str:
     out : path-like or None, the folder the files were written to (None: the line says nothing about files)
     """
     def pct(key):
-        return "at the noise floor" if report[f"{key}_at_noise_floor"] else f"{100 * report[key]:.2g} %"
+        return "at the noise floor" if report[f"{key}_at_noise_floor"] else percent(report[key])
 
     gap = f"systematic gap {pct('gap_before')} -> {pct('gap_after')}"
     wrote = f"; wrote {out}/discrepancy.json" if out is not None else ""
     if report["named_effect"]:
-        extra = f" (confounded with {', '.join(report['confounded_with'])})" if report["confounded_with"] else ""
-        both = " + ".join([report["named_effect"], *report["also_named"]])
+        extra = f" (confounded with {_effects(report['confounded_with'])})" if report["confounded_with"] else ""
+        both = " + ".join(effect_name(e) for e in [report["named_effect"], *report["also_named"]])
         return f"named {both}{extra}: {gap}" + (f"{wrote} and setup.amended.toml" if wrote else "")
     if report["adequate"]:
         held = report.get("gap_held_out_after")
         if held is not None and held > HELD_OUT_GAP_NOTE:
-            gaps = (f"systematic gap {100 * report['gap_fitted_after']:.3g} % at the fitted lengths, {100 * held:.3g} "
-                    "% at the others, where the fit does not carry")
+            gaps = (f"systematic gap {percent(report['gap_fitted_after'], 3)} at the fitted lengths, "
+                    f"{percent(held, 3)} at the others, where the fit does not carry")
         else:
             gaps = f"systematic gap {pct('gap_before')}"
         return f"model adequate, nothing named ({gaps}){wrote}"

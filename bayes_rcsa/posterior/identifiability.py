@@ -222,7 +222,7 @@ def conditional_width(a, b) -> dict:
 
 
 def fmt_contraction(c) -> str:
-    """A contraction for text: ``78.6 %`` or, above 99.9 %, ``prior width / posterior width = 3.2e3``.
+    """A contraction for text: ``78.6 %`` or, above 99.9 %, ``prior width / posterior width = 3200``.
 
     Parameters
     ----------
@@ -235,9 +235,10 @@ def fmt_contraction(c) -> str:
         return f"{100.0 * c:.1f} %"
     if c >= 1.0:
         return "prior width / posterior width = inf"
-    text = f"{1.0 / math.sqrt(1.0 - c):.2g}"
-    mant, _, exp = text.partition("e")
-    return f"prior width / posterior width = {mant + 'e' + str(int(exp)) if exp else mant}"  # 5.1e3, not 5.1e+03
+    from ..units import num
+
+    # two significant digits, written out (5100, not 5.1e3: no exponent in human text)
+    return f"prior width / posterior width = {num(float(f'{1.0 / math.sqrt(1.0 - c):.2g}'))}"
 
 
 def combination_statement(name: str, ident: Mapping, unit: str = "", ridge: Mapping | None = None) -> str:
@@ -254,15 +255,19 @@ def combination_statement(name: str, ident: Mapping, unit: str = "", ridge: Mapp
     ridge : mapping, optional
         :func:`stiffness_ridge` of the pair: names the combination the data fix.
     """
+    from ..units import sci_parts
+    from ..vocabulary import parameter_name
     from .report import fmt
 
-    text = (f"{name} is identified only in combination with {ident['partner']}: its 90 % posterior range "
-            f"[{fmt(ident['q05'])}, {fmt(ident['q95'])}]{' ' + unit if unit else ''} is {ident['width_ratio']:.2g} "
-            f"times wider than its range at a fixed {ident['partner']} (posterior correlation "
+    _, lo, hi = sci_parts(None, ident["q05"], ident["q95"], 3)
+    me, partner = parameter_name(name), parameter_name(ident["partner"])
+    text = (f"The {me} is identified only in combination with the {partner}: its 90 % posterior range "
+            f"{lo}–{hi}{' ' + unit if unit else ''} is {fmt(ident['width_ratio'], 2)} "
+            f"times wider than its range at a fixed {partner} (posterior correlation "
             f"{ident['correlation']:+.2f})")
     if ridge is not None:
         return text + f"; what the data fix is {ridge['stiff']['combination']} (±{ridge['stiff']['sd_pct']:.2g} %, 1 sd)."
-    return text + f"; the data fix a combination of {name} and {ident['partner']}, not each alone."
+    return text + f"; the data fix a combination of the {me} and the {partner}, not each alone."
 
 
 def _bound(samples: np.ndarray, prior) -> str | None:

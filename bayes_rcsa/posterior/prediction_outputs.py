@@ -43,6 +43,8 @@ from .predict import (
     prediction_targets,
     quantile_dict,
 )
+from ..units import hz, hz_range, lengths_mm, sci_parts
+from ..vocabulary import effect_name, identification_name, in_words, parameter_name
 from .report import fmt, fmt_interval, write_report
 
 __all__ = [
@@ -361,14 +363,15 @@ def undetermined_statement(name: str, ident: dict, infl: dict | None) -> str | N
         why = {"upper": "the data bound it only from below; the prior's upper bound ends the posterior",
                "lower": "the data bound it only from above; the prior's lower bound ends the posterior",
                }.get(ident.get("bound"), "its posterior is wide compared with its prior")
-    text = (f"{name} is {ident['verdict']} (contraction {fmt_contraction(ident['contraction'])}; {why}); no value is quoted for it, "
-            f"its 90 % posterior range is [{fmt(ident['q05'])}, {fmt(ident['q95'])}]{' ' + unit if unit else ''}.")
+    _, lo, hi = sci_parts(None, ident["q05"], ident["q95"], 3)
+    text = (f"The {parameter_name(name)} is {in_words(ident['verdict'])} (contraction {fmt_contraction(ident['contraction'])}; "
+            f"{why}); no value is quoted for it, its 90 % posterior range is {lo}–{hi}{' ' + unit if unit else ''}.")
     if infl and infl.get("max_delta_hz") is not None:
         frac = infl.get("max_fraction_of_interval")
         text += (f" Wherever it lies in that range, the median predicted dominant natural frequencies change by at most "
-                 f"{infl['max_delta_hz']:.3g} Hz ({infl['max_delta_pct']:.3g} %")
+                 f"{fmt(infl['max_delta_hz'], 3)} Hz ({fmt(infl['max_delta_pct'], 3)} %")
         if frac is not None:
-            text += f", {frac:.2g} of the width of their 90 % intervals"
+            text += f", {fmt(frac, 2)} of the width of their 90 % intervals"
         text += ")"
         text += (": the predictions are insensitive to it." if infl["max_delta_pct"] < INSENSITIVE_PCT else
                  ": the predictions depend on it, and their intervals carry this uncertainty.")
@@ -379,7 +382,7 @@ def _predictive_interval(m) -> str:
     pp = m.predictive_peak_hz
     if pp is None or pp["q05"] is None:
         return "—"
-    return f"[{fmt(pp['q05'], 6)}, {fmt(pp['q95'], 6)}]"
+    return hz_range(pp["q05"], pp["q95"])
 
 
 def status_blocks(status: dict) -> list[tuple]:
@@ -392,7 +395,7 @@ def status_blocks(status: dict) -> list[tuple]:
     blocks: list[tuple] = [("p", text)]
     if status.get("warnings"):
         blocks.append(("h", 2, "Warnings from the identification" + (" — NOT CONVERGED" if conv is False else "")))
-        blocks.append(("ul", list(status["warnings"])))
+        blocks.append(("ul", [in_words(w) for w in status["warnings"]]))
     return blocks
 
 
@@ -402,8 +405,8 @@ def _table4(prediction: Prediction) -> tuple[list[str], list[list[str]]]:
     lengths = sorted({m.configuration.clamping_length for m in dominant})
     head = ["clamping length (mm)"]
     for d in dirs:
-        head += [f"ω_n,{d} measured (Hz)", f"ω_n,{d} model median [90 % credible] (Hz)",
-                 f"new measured peak {d} [90 % predictive] (Hz)", f"error {d} (%)"]
+        head += [f"ω_n,{d} measured (Hz)", f"ω_n,{d} model median (90 % credible) (Hz)",
+                 f"new measured peak {d}, 90 % predictive (Hz)", f"error {d} (%)"]
     rows = []
     for length in lengths:
         row = [f"{length * 1e3:g}" + (" (fitted)" if any(m.fitted for m in dominant
@@ -418,7 +421,7 @@ def _table4(prediction: Prediction) -> tuple[list[str], list[list[str]]]:
             err = None
             if m.measured_hz is not None and q["q50"] is not None:
                 err = 100.0 * (q["q50"] - m.measured_hz) / m.measured_hz
-            row += [fmt(m.measured_hz, 6) if m.has_measurement else "not measured", fmt_interval(q, digits=6),
+            row += [hz(m.measured_hz, unit=False) if m.has_measurement else "not measured", fmt_interval(q, unit="Hz"),
                     _predictive_interval(m), fmt(err, 3)]
         rows.append(row)
     return head, rows
@@ -438,12 +441,14 @@ def _blocks(run: PredictionRun, images: Sequence[str]) -> list[tuple]:
     meta = run.meta
     blocks: list[tuple] = [
         ("h", 1, "Posterior predictions of the tool-point FRF"),
-        ("p", f"Setup {meta['setup']}; posterior {meta['posterior']} (method {meta['method']}, fitted at "
-              f"{', '.join(f'{l * 1e3:g}' for l in meta['fit_lengths']) or '?'} mm); {meta['n_draws']} of "
+        ("p", f"Setup {meta['setup']}; posterior {meta['posterior']} ({identification_name(str(meta['method']))}, "
+              f"fitted at {lengths_mm(meta['fit_lengths']) if meta['fit_lengths'] else '?'}); {meta['n_draws']} of "
               f"{meta['n_draws_available']} draws (subset seed {meta['subset_seed']})."),
         ("p", "Parameter model taken from the " + str(meta.get("parameter_model_source", "posterior"))
-              + (f" (model terms: {', '.join(meta['model_terms'])})" if meta.get("model_terms") else "") + ". "
-              + " ".join(n if n.endswith(".") else n + "." for n in meta.get("parameter_model_notes", []))),
+              + (f" (model terms: {', '.join(map(effect_name, meta['model_terms']))})" if meta.get("model_terms")
+                 else "") + ". "
+              + " ".join(in_words(n if n.endswith(".") else n + ".", keys=False)
+                         for n in meta.get("parameter_model_notes", []))),
         *status_blocks(meta.get("posterior_status", {})),
         *_spindle_blocks(meta.get("spindle_uncertainty")),
         ("h", 2, "Dominant natural frequency: measured vs predicted (cf. the reference paper's Table 4)"),
@@ -452,19 +457,20 @@ def _blocks(run: PredictionRun, images: Sequence[str]) -> list[tuple]:
               "natural frequency of the identified model lies. The 90 % predictive interval says where the peak of "
               "a NEW hammer test would fall: each draw's FRF with simulated measurement noise of the fit's noise "
               "model, the same rule applied; a measured value is to be compared with this one. "
-              "Natural-frequency rule: " + NATURAL_FREQUENCY_RULE + "."),
+              "Natural-frequency rule: " + NATURAL_FREQUENCY_RULE.replace("NaN", "no value") + "."),
         ("h", 2, "All modes"),
     ]
-    head = ["length (mm)", "dir", "mode", "band (Hz)", "model natural frequency median [90 % credible] (Hz)",
-            "new measured peak [90 % predictive] (Hz)", "measured (Hz)",
-            "peak |H| median [90 %] (m/N)", "dynamic stiffness median [90 %] (N/m)", "draws without peak"]
+    head = ["length (mm)", "dir", "mode", "band (Hz)", "model natural frequency median (90 % credible) (Hz)",
+            "new measured peak, 90 % predictive (Hz)", "measured (Hz)",
+            "peak |H| median (90 %) (m/N)", "dynamic stiffness median (90 %) (N/m)", "draws without peak"]
     rows = []
     for m in p.modes:
         c = m.configuration
         rows.append([f"{c.clamping_length * 1e3:g}", c.direction, f"{m.mode}{' (dominant)' if m.dominant else ''}",
-                     f"{m.band_hz[0]:.0f}–{m.band_hz[1]:.0f}", fmt_interval(m.natural_frequency_hz, digits=6),
+                     f"{m.band_hz[0]:.0f}–{m.band_hz[1]:.0f}", fmt_interval(m.natural_frequency_hz, unit="Hz"),
                      _predictive_interval(m),
-                     fmt(m.measured_hz, 6) if m.has_measurement else "—", fmt_interval(m.peak_magnitude, digits=3),
+                     hz(m.measured_hz, unit=False) if m.has_measurement else "—",
+                     fmt_interval(m.peak_magnitude, digits=3),
                      fmt_interval(m.dynamic_stiffness, digits=3), f"{100 * m.nan_fraction:.1f} %"])
     blocks.append(("table", head, rows))
     blocks.append(("p", "Modes: " + MODE_RULE + "."))
@@ -476,8 +482,9 @@ def _blocks(run: PredictionRun, images: Sequence[str]) -> list[tuple]:
         rows = []
         for name, s in summary.items():
             ident = (run.identifiability or {}).get(name)
-            rows.append([name, f"[{fmt(s['posterior_q05'])}, {fmt(s['posterior_q95'])}] {_unit(name)}".rstrip(),
-                         ident["verdict"] if ident else "—", fmt(s["max_delta_hz"], 3), fmt(s["max_delta_pct"], 3),
+            _, lo, hi = sci_parts(None, s["posterior_q05"], s["posterior_q95"], 3)
+            rows.append([parameter_name(name), f"{lo}–{hi} {_unit(name)}".rstrip(),
+                         in_words(ident["verdict"]) if ident else "—", fmt(s["max_delta_hz"], 3), fmt(s["max_delta_pct"], 3),
                          fmt(s["max_fraction_of_interval"], 3)])
         blocks.append(("table", head, rows))
         blocks.append(("p", "Influence of a parameter: the draws are split into equally populated bins of its value "

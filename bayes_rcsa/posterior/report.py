@@ -18,25 +18,25 @@ from typing import Sequence
 
 from ..io.atomic import atomic_write_text
 
+from ..units import hz, num, sci_parts
+
 __all__ = ["render_markdown", "render_html", "write_report", "fmt", "fmt_interval"]
 
 
 def fmt(x, digits: int = 4, unit: str = "") -> str:
-    """A number for a table cell (``—`` for missing)."""
-    if x is None:
-        return "—"
-    x = float(x)
-    if x != x:  # NaN
-        return "—"
-    text = f"{x:.{digits}g}"
-    return f"{text} {unit}".rstrip()
+    """A number for a table cell in the unit policy's form (:func:`bayes_rcsa.units.num`; ``—`` for missing)."""
+    return f"{num(x, digits)} {unit}".rstrip()
 
 
-def fmt_interval(q: dict, lo: str = "q05", hi: str = "q95", digits: int = 5) -> str:
-    """``median [lo, hi]`` from a quantile dict."""
+def fmt_interval(q: dict, lo: str = "q05", hi: str = "q95", digits: int = 3, unit: str = "") -> str:
+    """``median (lo–hi)`` from a quantile dict: frequencies (``unit="Hz"``) in the digits their interval justifies,
+    others in engineering form (:mod:`bayes_rcsa.units`); no unit is written (the column names it)."""
     if q.get("q50") is None:
         return "—"
-    return f"{fmt(q['q50'], digits)} [{fmt(q[lo], digits)}, {fmt(q[hi], digits)}]"
+    if unit == "Hz":
+        return hz(q["q50"], q.get(lo), q.get(hi), unit=False)
+    mid, a, b = sci_parts(q["q50"], q.get(lo), q.get(hi), digits)
+    return f"{mid} ({a}–{b})"
 
 
 def _md_cell(text) -> str:

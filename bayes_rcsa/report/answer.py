@@ -33,34 +33,13 @@ import math
 from dataclasses import dataclass, field
 from typing import Iterable
 
-import numpy as np
 
 from ..errors import DataError
+from ..units import hz, hz_range, mm, num
+from ..vocabulary import depth_limit_name, effect_name, in_words, method_name
 
 __all__ = ["Answer", "build_answer", "answer_html", "answer_markdown", "answer_css", "template_environment",
            "num", "yes_no"]
-
-
-def num(x, digits: int = 4) -> str:
-    """A number for people: ``digits`` significant digits, trailing zeros dropped, no exponent between
-    1e-3 and 1e6, integers as integers; ``—`` if missing."""
-    if x is None or isinstance(x, bool):
-        return "—" if x is None else yes_no(x)
-    if isinstance(x, (int, np.integer)):
-        return str(int(x))
-    x = float(x)
-    if not math.isfinite(x):
-        return "—"
-    if x == 0:
-        return "0"
-    if 1e-3 <= abs(x) < 1e6:
-        decimals = max(digits - 1 - int(math.floor(math.log10(abs(x)))), 0)
-        text = f"{x:.{decimals}f}"
-        return text.rstrip("0").rstrip(".") if "." in text else text
-    mantissa, exponent = f"{x:.{digits - 1}e}".split("e")
-    if "." in mantissa:
-        mantissa = mantissa.rstrip("0").rstrip(".")
-    return f"{mantissa}e{int(exponent):+03d}"
 
 
 def yes_no(b) -> str:
@@ -151,27 +130,16 @@ def _rpm(x) -> str:
 
 
 def _small_depth(x_m: float) -> str:
-    """A depth margin or difference for people: mm, or µm below 0.01 mm (no exponents)."""
-    return f"{num(1e3 * x_m, 3)} mm" if abs(x_m) >= 1e-5 or x_m == 0 else f"{num(1e6 * x_m, 2)} µm"
+    """A depth margin or difference for people: mm, as every human output writes it (units.mm)."""
+    return mm(x_m)
 
 
 def _p(x) -> str:
     return "—" if x is None else f"{x:.2f}"
 
 
-def _interval_decimals(lo: float, hi: float) -> int:
-    """Decimals that show an interval's width with about two significant digits (0 to 2)."""
-    width = abs(hi - lo)
-    if width <= 0:
-        return 1
-    return int(min(max(1 - math.floor(math.log10(width)), 0), 2))
-
-
 def _interval(lo, hi) -> str:
-    if lo is None or hi is None:
-        return "—"
-    d = _interval_decimals(lo, hi)
-    return f"{lo:.{d}f} – {hi:.{d}f}"
+    return hz_range(lo, hi)
 
 
 def _point(doc: dict, label: str, index: int) -> dict:
@@ -181,7 +149,7 @@ def _point(doc: dict, label: str, index: int) -> dict:
     clamp = _value(doc, label, "source", "clamping_length_m")
     n_draws = doc.get("n_draws")
     deterministic = bool(doc.get("deterministic")) or n_draws == 1
-    method = str(doc.get("method") or "?").upper()
+    method = method_name(str(doc.get("method") or "?")).capitalize()
     source = (f"{method}, one FRF without its uncertainty (deterministic: P(stable) is 0 or 1)" if deterministic else
               f"{method}, {n_draws} {'posterior' if src.get('mode', 'posterior') == 'posterior' else 'measured-FRF'} "
               "draws")
@@ -197,7 +165,7 @@ def _point(doc: dict, label: str, index: int) -> dict:
     speed = _value(rec, label + " recommended", "spindle_speed_rpm")
     depth = _value(rec, label + " recommended", "depth_m")
     out["speed"] = _rpm(speed)
-    out["depth"] = num(1e3 * depth, 3) if depth is not None else "—"
+    out["depth"] = mm(depth).removesuffix(" mm") if depth is not None else "—"
     speed_m, depth_m = [], []
     if isinstance(rec.get("margin_speed_rpm"), dict):  # a null side: no chatter on that side in the analysed range
         below = _value(rec, label, "margin_speed_rpm", "below")
@@ -222,7 +190,7 @@ def _point(doc: dict, label: str, index: int) -> dict:
     out["facts"] = [(k, "; ".join(v)) for k, v in (("speed margin", speed_m), ("depth margin", depth_m)) if v]
     binding = str(rec.get("binding_limit") or "stability")
     if binding != "stability":
-        out["facts"].append(("depth set by", binding.replace("_", " ").replace("+", " and ")))
+        out["facts"].append(("depth set by", depth_limit_name(binding)))
     p_pt = _value(rec, label, "p_stable")
     p_nb = _value(rec, label, "p_stable_neighbourhood")
     if deterministic:
@@ -244,7 +212,7 @@ def _point(doc: dict, label: str, index: int) -> dict:
         if d is not None and md is not None:
             out["facts"].append(("cost of the confidence", _small_depth(d)
                                  + (f" ({num(100 * rel, 2)} %)" if rel is not None else "")
-                                 + f" of depth against the median point ({num(1e3 * md, 3)} mm at {_rpm(ms)} rpm, "
+                                 + f" of depth against the median point ({mm(md)} at {_rpm(ms)} rpm, "
                                    "P(stable) ≥ 0.5)"))
     return out
 
@@ -265,10 +233,10 @@ def _frequencies(doc: dict, label: str, index: int) -> list[dict]:
         q05, q50, q95 = (_value(p, where, k) for k in ("q05_hz", "q50_hz", "q95_hz"))
         pq05, pq95 = _value(p, where, "predictive_peak_q05_hz"), _value(p, where, "predictive_peak_q95_hz")
         measured = _value(p, where, "measured_hz")
-        d = _interval_decimals(q05, q95) if q05 is not None and q95 is not None else 1
         rows.append({"index": index, "length": num(1e3 * length, 4) if length is not None else "—",
                      "direction": str(p.get("direction", "")), "tool": str(p.get("tool", "")),
-                     "median": "—" if q50 is None else f"{q50:.{d}f}", "interval": _interval(q05, q95),
+                     "median": "—" if q50 is None else hz(q50, q05, q95, unit=False).split(" ")[0],
+                     "interval": _interval(q05, q95),
                      "predictive": _interval(pq05, pq95),
                      "measured": "—" if measured is None else f"{measured:.1f}",
                      "held_out": measured is not None and p.get("fitted") is False})
@@ -282,13 +250,13 @@ def _model_check(doc: dict, label: str, index: int) -> dict:
     if doc.get("adequate") is True:
         s = "adequate: the model explains the measurements, nothing was added"
     elif named:
-        effects = " and ".join(f"“{e}”" for e in [str(named), *also])
+        effects = " and ".join(f"“{effect_name(e)}”" for e in [str(named), *also])
         s = f"the model misses {effects}; the amended setup adds {'them' if also else 'it'}"
     else:
         s = ("the model disagrees with the measurements and no known effect explains it; a statistical "
              "discrepancy term carries the remainder (wider intervals)")
     if final and final not in ("baseline", named, "statistical_discrepancy"):
-        s += f" (final model: {final})"
+        s += f" (final model: {effect_name(final)})"
     usable = doc.get("usable_for_prediction")
     if usable is False:
         s += "; NOT usable for prediction"
@@ -398,6 +366,8 @@ def build_answer(documents: Iterable[tuple[str, str, dict]]) -> Answer:
             if piled:
                 a.warnings.append({"text": f"Prior pile-up: {_names(piled)} limited by the prior bound, not by the "
                                            "data.", "anchor": f"predictions-{i}"})
+    for w in a.warnings:  # the documents quote parameter and effect identifiers; people read their names
+        w["text"] = in_words(w["text"])
     return a
 
 

@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import figures as F
-from .answer import num
+from ..units import mm, num, rpm
+from ..vocabulary import in_words
 
 __all__ = ["cuts_section"]
 
@@ -22,12 +23,17 @@ def _mm(v) -> str:
     return "—" if v is None else num(1e3 * float(v), 4)
 
 
+def _depth(v) -> str:
+    """A depth in mm as every human output writes it (units.mm), without the unit (the column has it)."""
+    return "—" if v is None else mm(v).removesuffix(" mm")
+
+
 def _pct(v) -> str:
     return "—" if v is None else f"{100 * float(v):+.1f} %"
 
 
 def _rec(r) -> str:
-    return "none" if not r else f"{num(r['spindle_speed_rpm'], 5)} rpm, {_mm(r['depth_m'])} mm"
+    return "no recommendation" if not r else f"{rpm(r['spindle_speed_rpm'])}, {mm(r['depth_m'])}"
 
 
 def _figure(lobes: dict, cuts: list) -> str:
@@ -60,19 +66,19 @@ def cuts_section(run) -> dict:
     """Template context of one update run (``run.document`` = update.json)."""
     d = run.document
     kt, kr, ess = d["kt_pa"], d["kr_pa"], d["ess"]
-    q = lambda v: " / ".join(num(x / 1e6, 4) for x in v)  # noqa: E731  (MPa)
+    q = lambda v: f"{num(v[1] / 1e6)} ({num(v[0] / 1e6)}–{num(v[2] / 1e6)})"  # noqa: E731  (MPa, as update prints)
     facts = [("cuts (chatter)", f"{d['inputs']['n_cuts']} ({d['inputs']['n_chatter']})"),
              ("effective hammer draws", f"{num(ess['draws'], 4)} of {ess['n_draws']}"),
              ("effective particles", f"{num(ess['particles'], 5)} of {ess['n_particles']}"),
-             ("K_t 5/50/95 % before (MPa)", q(kt["before"])), ("K_t 5/50/95 % after (MPa)", q(kt["after"])),
-             ("K_r 5/50/95 % before (MPa)", q(kr["before"])), ("K_r 5/50/95 % after (MPa)", q(kr["after"]))]
+             ("Kt before, median (90 %) (MPa)", q(kt["before"])), ("Kt after, median (90 %) (MPa)", q(kt["after"])),
+             ("Kr before, median (90 %) (MPa)", q(kr["before"])), ("Kr after, median (90 %) (MPa)", q(kr["after"]))]
     rows = []
     for c in d["cuts"]:
         mv = c.get("recommendation_moved") or {}
-        rows.append({"line": c["line"], "speed": num(c["spindle_speed_rpm"], 5), "depth": _mm(c["depth_m"]),
+        rows.append({"line": c["line"], "speed": rpm(c["spindle_speed_rpm"], unit=False), "depth": _depth(c["depth_m"]),
                      "outcome": c["outcome"], "length": _mm(c["clamping_length_m"]),
                      "p_before": num(c["p_chatter_before"], 2), "p_after": num(c["p_chatter_after"], 2),
-                     "lim_before": _mm(c["median_limit_before_m"]), "lim_after": _mm(c["median_limit_after_m"]),
+                     "lim_before": _depth(c["median_limit_before_m"]), "lim_after": _depth(c["median_limit_after_m"]),
                      "moved": _pct(c.get("moved")),
                      "rec_speed": "—" if mv.get("speed_moved_rpm") is None else f"{mv['speed_moved_rpm']:+.0f}",
                      "rec_depth": "—" if mv.get("depth_moved_m") is None else f"{1e3 * mv['depth_moved_m']:+.4f}"})
@@ -84,4 +90,4 @@ def cuts_section(run) -> dict:
                 "level": num(lobes.get("level"), 3), "clamping": _mm(lobes["clamping_length_m"])}
         images.append(_figure(lobes, d["cuts"]))
     return {"path": str(run.path), "facts": facts, "rows": rows, "side": side, "images": images,
-            "warnings": [str(w) for w in d.get("warnings", [])]}
+            "warnings": [in_words(str(w)) for w in d.get("warnings", [])]}

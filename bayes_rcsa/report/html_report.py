@@ -19,15 +19,19 @@ from typing import Sequence
 
 import numpy as np
 
-from ..errors import DataError
+from ..errors import BayesRCSAError, DataError
 from ..io.atomic import atomic_write_text
+from ..units import hz, mm, num, rpm, sci_parts
+from ..units import width as units_width
+from ..vocabulary import depth_limit_name, effect_name, in_words, method_name, parameter_name
 from . import figures as F
-from .answer import answer_markdown, build_answer, num, template_environment, yes_no
+from .answer import answer_markdown, build_answer, template_environment, yes_no
 from .cuts_section import cuts_section
 from .library_section import library_section
 from .runs import KINDS, RunDir, collect_runs
 
-__all__ = ["build_report", "write_report_html", "write_summary_markdown", "answer_of_runs", "num", "yes_no", "FRF_DRAWS"]
+__all__ = ["build_report", "write_report_html", "write_summary_markdown", "answer_of_runs", "num", "yes_no", "FRF_DRAWS",
+           "printed_names"]
 
 FRF_DRAWS = 200  # posterior draws behind the zoomed FRF bands (5-95 % quantiles stable to ~1/sqrt(200 * 0.05))
 ZOOM_LINES = 161  # lines of a mode's zoom window
@@ -37,6 +41,27 @@ def _mm(length_m) -> str:
     return num(1e3 * float(length_m), 4)
 
 
+def printed_names(summary: dict, parameter_model=None) -> dict:
+    """``{parameter identifier: printed name}`` of an identification (``summary.json``): contact parameters by
+    the vocabulary, noise scales by their measurement (``noise scale, 25 mm x``), term parameters by their label."""
+    names = list((summary.get("parameters") or {}) if summary else [])
+    if summary:
+        names += [n for n in (*(summary.get("parameter_names") or []), *(summary.get("fixed_parameters") or {}))
+                  if n not in names]
+    if parameter_model is not None:
+        names += [n for n in parameter_model.all_names if n not in names]
+    where = {}
+    for m in (summary.get("measurements_used") or []) if summary else []:
+        if m.get("noise_parameter"):
+            where[m["noise_parameter"]] = f"{num(1e3 * m['clamping_length'])} mm {m.get('direction', '')}".strip()
+    if parameter_model is not None:
+        labels = {n: parameter_model[n].label for n in parameter_model.all_names}
+    else:
+        declared = (summary.get("parameter_model") or {}).get("parameters") if summary else None
+        labels = {p["name"]: p.get("label") or "" for p in declared or [] if isinstance(p, dict) and "name" in p}
+    return {n: (f"noise scale, {where[n]}" if n in where else parameter_name(n, labels.get(n, ""))) for n in names}
+
+
 # -- sections ------------------------------------------------------------------
 
 
@@ -44,17 +69,22 @@ def _identify_section(run: RunDir) -> dict:
     s = run.document
     params = s.get("parameters", {}) or {}
     tau = s.get("tau", {}) or {}
-    conv_rows = [{"name": n, "rhat": num(p.get("rhat"), 4), "ess_bulk": num(p.get("ess_bulk"), 4),
+    printed = printed_names(s)
+    conv_rows = [{"name": printed.get(n, n), "rhat": num(p.get("rhat"), 4), "ess_bulk": num(p.get("ess_bulk"), 4),
                   "ess_tail": num(p.get("ess_tail"), 4), "tau": num(tau.get(n), 4),
                   "rhat_bad": p.get("rhat") is not None and p["rhat"] >= 1.01} for n, p in params.items()]
-    par_rows = [{"name": n, "unit": p.get("unit", ""), "q05": num(p.get("q05"), 5), "q50": num(p.get("q50"), 5),
-                 "q95": num(p.get("q95"), 5), "mean": num(p.get("mean"), 5), "sd": num(p.get("sd"), 3)}
-                for n, p in params.items()]
+    par_rows = []
+    for n, p in params.items():
+        q50, q05, q95 = sci_parts(p.get("q50"), p.get("q05"), p.get("q95"), 3)
+        par_rows.append({"name": printed.get(n, n), "unit": p.get("unit", ""), "q05": q05, "q50": q50, "q95": q95,
+                         "mean": sci_parts(p.get("mean"), p.get("q05"), p.get("q95"), 3)[0],
+                         "sd": num(p.get("sd"), 3)})
     corner = run.file("corner.png")
     trace = run.file("trace.png")
     return {
         "path": str(run.path),
         "method": s.get("method"),
+        "method_name": _identification_name(s),
         "converged": s.get("converged"),
         "converged_word": yes_no(s.get("converged")),
         "stop_reason": s.get("stop_reason"),
@@ -65,7 +95,7 @@ def _identify_section(run: RunDir) -> dict:
                   ("likelihood tempering β", num((s.get("likelihood") or {}).get("tempering"), 3))],
         "conv_rows": conv_rows,
         "par_rows": par_rows,
-        "warnings": [str(w) for w in s.get("warnings", [])],
+        "warnings": [in_words(str(w)) for w in s.get("warnings", [])],
         "corner": F.png_data_uri(corner) if corner else None,
         "trace": F.png_data_uri(trace) if trace else None,
     }
@@ -76,16 +106,23 @@ def _describe_prior(d: dict) -> str:
         return "—"
     dist = d.get("distribution", "?")
     if "lo" in d and "hi" in d:
-        return f"{dist} on [{num(d['lo'], 4)}, {num(d['hi'], 4)}]"
+        return f"{dist} from {num(d['lo'], 4)} to {num(d['hi'], 4)}"
     return dist + " " + ", ".join(f"{k} = {num(v) if isinstance(v, (int, float)) else v}"
                                    for k, v in d.items() if k != "distribution")
 
 
-def _parameter_model_rows(pm) -> list[dict]:
+def _identification_name(summary: dict) -> str:
+    from ..vocabulary import identification_name
+
+    return identification_name(str(summary.get("method")), library=bool(summary.get("library")))
+
+
+def _parameter_model_rows(pm, summary: dict | None = None) -> list[dict]:
     rows = []
+    printed = printed_names(summary or {}, pm)
     for n in pm.all_names:
         p = pm[n]
-        rows.append({"name": n, "role": p.role, "status": "sampled" if p.sampled else "fixed",
+        rows.append({"name": printed.get(n, n), "role": p.role, "status": "sampled" if p.sampled else "fixed",
                      "value": _describe_prior(p.prior.describe()) if p.sampled else num(p.value, 5),
                      "unit": pm.unit(n)})
     return rows
@@ -113,14 +150,15 @@ def _setup_section(predict_run: RunDir | None, identify_run: RunDir | None, post
         posterior = identify_run.path / "posterior.nc"
     if posterior is not None and posterior.is_file():
         pm = posteriors.get_draws(posterior).parameters
-        out["parameter_rows"] = _parameter_model_rows(pm)
+        out["parameter_rows"] = _parameter_model_rows(pm, identify_run.document if identify_run is not None else None)
         out["posterior"] = str(posterior)
     elif identify_run is not None:  # summary.json only: the same facts without the model object
         s = identify_run.document
-        out["parameter_rows"] = ([{"name": n, "role": "", "status": "sampled", "value": _describe_prior(d),
+        printed = printed_names(s)
+        out["parameter_rows"] = ([{"name": printed.get(n, parameter_name(n)), "role": "", "status": "sampled", "value": _describe_prior(d),
                                    "unit": (s.get("parameters", {}).get(n) or {}).get("unit", "")}
                                   for n, d in (s.get("priors") or {}).items()]
-                                 + [{"name": n, "role": "", "status": "fixed", "value": num(v, 5), "unit": ""}
+                                 + [{"name": printed.get(n, parameter_name(n)), "role": "", "status": "fixed", "value": num(v, 5), "unit": ""}
                                     for n, v in (s.get("fixed_parameters") or {}).items()])
     setup_path = predict_run.document.get("setup") if predict_run is not None else None
     if setup_path and Path(setup_path).is_file():
@@ -182,25 +220,29 @@ def _predict_section(run: RunDir, posteriors: _Posteriors, seed: int) -> dict:
     doc = run.document
     rows = []
     for p in doc.get("predictions", []):
+        model = hz(p.get("q50_hz"), p.get("q05_hz"), p.get("q95_hz"), unit=False)
+        new_peak = hz(None, p.get("predictive_peak_q05_hz"), p.get("predictive_peak_q95_hz"), unit=False)
         rows.append({
             "length": _mm(p["clamping_length"]), "direction": p["direction"], "mode": p["mode"],
             "dominant": yes_no(p.get("dominant")), "fitted": yes_no(p.get("fitted")) if "fitted" in p else "not measured",
-            "measured": num(p.get("measured_hz"), 6),
-            "model_q05": num(p.get("q05_hz"), 6), "model_q50": num(p.get("q50_hz"), 6), "model_q95": num(p.get("q95_hz"), 6),
-            "pred_q05": num(p.get("predictive_peak_q05_hz"), 6), "pred_q95": num(p.get("predictive_peak_q95_hz"), 6),
+            "measured": hz(p.get("measured_hz"), unit=False),
+            "model_q05": _end(model, 0), "model_q50": model.split(" ")[0], "model_q95": _end(model, 1),
+            "pred_q05": _end(new_peak, 0), "pred_q95": _end(new_peak, 1),
             "in_model": yes_no(p.get("measured_in_90")) if "measured_hz" in p else "—",
             "in_pred": yes_no(p.get("measured_in_predictive_90")) if "measured_hz" in p else "—",
         })
-    status = doc.get("posterior_status") or {}
+    status = dict(doc.get("posterior_status") or {})
+    status["warnings"] = [in_words(str(w)) for w in status.get("warnings") or []]
     frf, notes = _frf_figures(run, posteriors, seed)
     images = [F.png_data_uri(p) for p in (run.file("natural_frequencies.png"),) if p]
     ident_rows = []
     for name, e in (doc.get("identifiability") or {}).items():
         ratio = e.get("prior_to_posterior_width")
-        ident_rows.append({"name": name, "verdict": e.get("verdict", "—"),
+        _, q05, q95 = sci_parts(None, e.get("q05"), e.get("q95"), 4)
+        ident_rows.append({"name": parameter_name(name), "verdict": in_words(e.get("verdict", "—")),
                            "width_ratio": num(ratio, 3) if ratio is not None else "—",
-                           "partner": e.get("partner") or "—", "correlation": num(e.get("correlation"), 3),
-                           "q05": num(e.get("q05"), 5), "q95": num(e.get("q95"), 5)})
+                           "partner": parameter_name(e["partner"]) if e.get("partner") else "—",
+                           "correlation": num(e.get("correlation"), 3), "q05": q05, "q95": q95})
     return {"path": str(run.path), "rows": rows, "status": status,
             "status_converged": yes_no(status.get("converged")),
             "interval_definitions": doc.get("interval_definitions") or {}, "frf": frf, "notes": notes,
@@ -213,11 +255,11 @@ def _lobes_section(run: RunDir) -> dict:
     rec = doc.get("recommended")
     facts = []
     if rec:
-        facts = [("spindle speed (rpm)", num(rec.get("spindle_speed_rpm"), 5)),
-                 ("axial depth (mm)", num(1e3 * rec["depth_m"], 4) if rec.get("depth_m") is not None else "—"),
+        facts = [("spindle speed (rpm)", rpm(rec.get("spindle_speed_rpm"), unit=False)),
+                 ("axial depth (mm)", mm(rec.get("depth_m")).removesuffix(" mm")),
                  ("P(stable)", num(rec.get("p_stable"), 3)),
                  ("P(stable) in the speed/depth neighbourhood", num(rec.get("p_stable_neighbourhood"), 3)),
-                 ("binding limit", str(rec.get("binding_limit", "—")))]
+                 ("depth set by", depth_limit_name(rec.get("binding_limit") or "stability"))]
     images = [F.png_data_uri(p) for p in (run.file("lobes.png"),) if p]
     npz = run.file("p_stable.npz")
     if npz:
@@ -226,8 +268,9 @@ def _lobes_section(run: RunDir) -> dict:
                                             float(doc.get("level", 0.95)), rec))
     src = doc.get("source") or {}
     return {"path": str(run.path), "recommended": rec, "facts": facts, "images": images,
-            "level": num(doc.get("level"), 3), "method": doc.get("method"), "n_draws": doc.get("n_draws"),
-            "warnings": [str(w) for w in doc.get("warnings", [])],
+            "level": num(doc.get("level"), 3), "method": method_name(str(doc.get("method"))),
+            "n_draws": doc.get("n_draws"),
+            "warnings": [in_words(str(w)) for w in doc.get("warnings", [])],
             "clamping": _mm(src["clamping_length_m"]) if src.get("clamping_length_m") else None,
             "cutting": doc.get("cutting") or {}}
 
@@ -246,22 +289,36 @@ def _discrepancy_section(run: RunDir) -> dict:
     d = run.document
     rows = [{"key": k, "before": num(v, 3), "after": num((d.get("frequency_error_pct_after") or {}).get(k), 3)}
             for k, v in (d.get("frequency_error_pct_before") or {}).items()]
-    return {"path": str(run.path), "adequate": yes_no(d.get("adequate")), "named": d.get("named_effect") or "none",
-            "confounded": ", ".join(d.get("confounded_with") or []) or "none",
+    return {"path": str(run.path), "adequate": yes_no(d.get("adequate")),
+            "named": effect_name(d["named_effect"]) if d.get("named_effect") else "nothing is missing",
+            "confounded": ", ".join(map(effect_name, d.get("confounded_with") or [])) or "no other",
             "gap_before": num(100 * d["gap_before"], 3) if d.get("gap_before") is not None else "—",
             "gap_after": num(100 * d["gap_after"], 3) if d.get("gap_after") is not None else "—",
-            "runner_up": d.get("runner_up") or "—", "rows": rows,
-            "reasons": [str(r) for r in ((d.get("detection") or {}).get("reasons") or [])],
+            "runner_up": effect_name(d["runner_up"]) if d.get("runner_up") else "—", "rows": rows,
+            "reasons": [in_words(str(r)) for r in ((d.get("detection") or {}).get("reasons") or [])],
             "images": _images(run, ("frf_before_after.png", "frequency_errors.png", "stiffness_before_after.png"))}
 
 
 def _design_section(run: RunDir) -> dict:
     d = run.document
     best = d.get("best") or {}
+    unit = d.get("unit", "")
+    shown = "mm" if unit == "m" else unit
+
+    def width(x):
+        return units_width(x, unit).removesuffix(f" {shown}") if x is not None else "—"
+
     return {"path": str(run.path), "verdict": d.get("verdict", "—"), "worth_it": yes_no(d.get("worth_it")),
-            "target": d.get("target", "—"), "unit": d.get("unit", ""), "best": best.get("test", "—"),
-            "current_width": num(d.get("current_width"), 4), "expected_width": num(best.get("expected_width"), 4),
-            "mc_error": num(best.get("mc_error"), 2), "images": _images(run, ("design.png",))}
+            "target": d.get("target", "—"), "unit": shown, "best": best.get("test", "—"),
+            "current_width": width(d.get("current_width")), "expected_width": width(best.get("expected_width")),
+            "mc_error": width(best.get("mc_error")), "images": _images(run, ("design.png",))}
+
+
+def _end(text: str, i: int) -> str:
+    """End ``i`` (0 low, 1 high) of the interval in :func:`~bayes_rcsa.units.hz`'s text ``"median (lo–hi)"``."""
+    if "(" not in text:
+        return "—"
+    return text.split("(", 1)[1].rstrip(")").split("–")[i]
 
 
 # -- assembly ------------------------------------------------------------------
@@ -271,6 +328,20 @@ def answer_of_runs(runs: Sequence[RunDir]):
     """The summary block (:class:`~bayes_rcsa.report.answer.Answer`) of run directories, numbered as their
     sections in the report."""
     return build_answer((r.kind, str(r.path / KINDS[r.kind]), r.document) for r in runs)
+
+
+def _title(runs) -> str:
+    """The setup's name (from the first run that names a readable setup file), else a plain title."""
+    for r in runs:
+        setup = (r.document.get("source") or {}).get("setup") if r.kind == "lobes" else r.document.get("setup")
+        if isinstance(setup, str) and Path(setup).is_file():
+            try:
+                from ..io.setup import load_setup
+
+                return f"{load_setup(setup, load_data=False, load_spindle=False).name}: bayes_rcsa report"
+            except (BayesRCSAError, OSError):  # the title is a courtesy; a damaged setup is named by its section
+                continue
+    return "bayes_rcsa report"
 
 
 def build_report(paths: Sequence, seed: int = 0, title: str | None = None) -> str:
@@ -299,7 +370,7 @@ def build_report(paths: Sequence, seed: int = 0, title: str | None = None) -> st
     posteriors = _Posteriors()
     try:
         ctx = {
-            "title": title or "bayes_rcsa report",
+            "title": title or _title(runs),
             "runs": [(r.kind, str(r.path)) for r in runs],
             "setup": _setup_section(first("predict"), first("identify"), posteriors),
             "identify": [_identify_section(r) for r in by_kind.get("identify", [])],

@@ -18,6 +18,8 @@ from pathlib import Path
 
 from ..errors import DataError
 from ..io.atomic import atomic_write_text
+from ..units import hz, hz_range, length_mm, mm, num, percent, rpm, sci
+from ..vocabulary import effect_name, gap_name, in_words
 from .answer import answer_css, answer_html, answer_markdown, build_answer
 
 __all__ = ["demo_index_html", "demo_answer", "write_demo_index"]
@@ -59,39 +61,40 @@ def demo_index_html(summary: dict, freqs: dict, lobes: dict, discrepancy: dict |
         measured = p.get("measured_hz")
         err = "" if measured is None else f"{100 * (p['q50_hz'] - measured) / measured:+.2f} %"
         lo, hi = p.get("predictive_peak_q05_hz"), p.get("predictive_peak_q95_hz")
-        pred = "&mdash;" if lo is None or hi is None else f"{lo:.1f} &ndash; {hi:.1f}"
+        median = hz(p["q50_hz"], p["q05_hz"], p["q95_hz"], unit=False).split(" ")[0]
+        pred = "&mdash;" if lo is None or hi is None else hz_range(lo, hi)
         rows.append(
-            f"<tr><td>{p['clamping_length'] * 1e3:.1f}</td><td>{html.escape(p['direction'])}</td>"
-            f"<td>{p['q05_hz']:.1f} &ndash; {p['q95_hz']:.1f}</td><td>{p['q50_hz']:.1f}</td><td>{pred}</td>"
-            f"<td>{'' if measured is None else f'{measured:.1f}'}</td><td>{err}</td></tr>"
+            f"<tr><td>{num(1e3 * p['clamping_length'])}</td><td>{html.escape(p['direction'])}</td>"
+            f"<td>{hz_range(p['q05_hz'], p['q95_hz'])}</td><td>{median}</td><td>{pred}</td>"
+            f"<td>{'' if measured is None else hz(measured, unit=False)}</td><td>{err}</td></tr>"
         )
     stiff = []
     for s in summary.get("stiffness", []):
         stiff.append(
-            f"<tr><td>{s['clamping_length'] * 1e3:.1f}</td>"
-            f"<td>{s['k_xf']['q05']:.4g} &ndash; {s['k_xf']['q95']:.4g}</td>"
-            f"<td>{s['k_thetaM']['q05']:.4g} &ndash; {s['k_thetaM']['q95']:.4g}</td></tr>"
+            f"<tr><td>{num(1e3 * s['clamping_length'])}</td>"
+            f"<td>{html.escape(sci(s['k_xf']['q50'], 3, s['k_xf']['q05'], s['k_xf']['q95']))}</td>"
+            f"<td>{html.escape(sci(s['k_thetaM']['q50'], 3, s['k_thetaM']['q05'], s['k_thetaM']['q95']))}</td></tr>"
         )
     rec = lobes.get("recommended")
     rec_text = (
         "no speed reaches the required P(stable)"
         if not rec
-        else f"{rec['spindle_speed_rpm']:.0f} rpm, a<sub>p</sub> = {rec['depth_m'] * 1e3:.3f} mm "
+        else f"{rpm(rec['spindle_speed_rpm'])}, a<sub>p</sub> = {mm(rec['depth_m'])} "
         f"(P(stable) = {rec['p_stable']:.2f})"
     )
-    warnings = "".join(f"<li>{html.escape(w)}</li>" for w in summary.get("warnings", [])) or "<li>none</li>"
+    warned = "".join(f"<li>{html.escape(in_words(w))}</li>" for w in summary.get("warnings", []))
+    warnings = f"Warnings: <ul>{warned}</ul>" if warned else "No warnings."
     disc = ""
     if discrepancy is not None:
         named = discrepancy.get("named_effect")
-        verdict = (f"the model misses <b>{html.escape(named)}</b>; the amended setup is "
+        verdict = (f"the model misses <b>{html.escape(effect_name(named))}</b>; the amended setup is "
                    f"<a href=\"discrepancy/setup.amended.toml\">discrepancy/setup.amended.toml</a>" if named else
                    "no known effect is missing" if discrepancy.get("adequate") else
                    "the model disagrees with the measurements but no known effect explains it; the intervals were "
                    "widened by a statistical discrepancy term")
         disc = (f"<h2>Model check (discrepancy workflow)</h2><p>Adequate: <b>{_yes_no(discrepancy.get('adequate'))}</b>; "
-                f"{verdict}. Gap ({html.escape(str(discrepancy.get('gap_metric', '')).split(':')[0])}): "
-                f"{discrepancy.get('gap_before', float('nan')):.3g} before, {discrepancy.get('gap_after', float('nan')):.3g} "
-                f"after. <a href=\"discrepancy/summary.md\">discrepancy/summary.md</a> &middot; "
+                f"{verdict}. {html.escape(gap_name(discrepancy.get('gap_metric', '')).capitalize())}: "
+                f"{_gap(discrepancy, 'before')} before, {_gap(discrepancy, 'after')} after. <a href=\"discrepancy/summary.md\">discrepancy/summary.md</a> &middot; "
                 f"<a href=\"discrepancy/discrepancy.json\">discrepancy/discrepancy.json</a></p>")
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>bayes_rcsa demo</title>
@@ -101,9 +104,10 @@ td,th{{border:1px solid #999;padding:3px 8px;text-align:right}}img{{max-width:10
 <h1>bayes_rcsa demo: ER32 collet + 7.94 mm end mill</h1>
 {answer_html(demo_answer(summary, freqs, lobes, discrepancy), href="report.html")}
 <p>Contact identified from the 25 mm and 40 mm hammer tests (x and y); 30 mm and 35 mm are held out.
-Sampler converged: <b>{_yes_no(summary.get('converged'))}</b>. Warnings: <ul>{warnings}</ul></p>
-<h2>Contact stiffness, 90 % credible intervals</h2>
-<table><tr><th>clamping (mm)</th><th>k<sub>xf</sub> (N/m)</th><th>k<sub>&theta;M</sub> (N m/rad)</th></tr>
+Sampler converged: <b>{_yes_no(summary.get('converged'))}</b>. {warnings}</p>
+<h2>Contact stiffness, median and 90 % credible interval</h2>
+<table><tr><th>clamping (mm)</th><th>contact stiffness, translational k<sub>xf</sub> (N/m)</th>
+<th>contact stiffness, rotational k<sub>&theta;M</sub> (N m/rad)</th></tr>
 {''.join(stiff)}</table>
 <h2>First tool-point natural frequency</h2>
 <table><tr><th>clamping (mm)</th><th>dir</th><th>model 90 % credible interval (Hz)</th><th>model median (Hz)</th><th>new measured peak, 90 % predictive interval (Hz)</th><th>measured (Hz)</th><th>error</th></tr>
@@ -114,7 +118,7 @@ noisy and is to be compared with the predictive interval of a new measurement.</
 <a href="predict/report.html">prediction report</a> &middot; <a href="identify/summary.json">identify/summary.json</a>
 &middot; <a href="predict/frequencies.json">predict/frequencies.json</a> &middot; <a href="lobes/lobes.json">lobes/lobes.json</a></p>
 <img src="predict/frf_bands.png" alt="FRF bands"><img src="predict/natural_frequencies.png" alt="natural frequencies">
-<h2>Stability lobes at 30 mm, case b (95 % immersion, feed y)</h2>
+<h2>Stability lobes at {_lobes_case(lobes)}</h2>
 <p>Recommended operating point: {rec_text}</p>
 <img src="lobes/lobes.png" alt="stability lobes">
 {disc}
@@ -122,6 +126,30 @@ noisy and is to be compared with the predictive interval of a new measurement.</
 <img src="identify/corner.png" alt="corner"></details>
 </body></html>
 """
+
+
+def _gap(discrepancy: dict, when: str) -> str:
+    """The model check's systematic mismatch before/after, as the model check's own summary writes it."""
+    if discrepancy.get(f"gap_{when}_at_noise_floor"):
+        return f"at the noise floor (below {percent(discrepancy.get('gap_resolution'))})"
+    return percent(discrepancy.get(f"gap_{when}"))
+
+
+def _lobes_case(lobes: dict) -> str:
+    """The cutting case of a lobes run in words: ``30 mm clamping, 4 flutes, 95 % radial immersion, ...``."""
+    src, cut = lobes.get("source") or {}, lobes.get("cutting") or {}
+    parts = []
+    if src.get("clamping_length_m"):
+        parts.append(f"{length_mm(src['clamping_length_m'])} clamping")
+    if cut.get("flutes"):
+        parts.append(f"{cut['flutes']} flutes")
+    if cut.get("radial_immersion") is not None:
+        parts.append(f"{percent(cut['radial_immersion'], 3)} radial immersion")
+    if cut.get("milling"):
+        parts.append(f"{cut['milling']} milling")
+    if cut.get("feed"):
+        parts.append(f"feed in {cut['feed']}")
+    return ", ".join(parts) or "the requested clamping length"
 
 
 def _yes_no(b) -> str:

@@ -11,19 +11,20 @@ refusal of its pooled estimate) and the warnings.
 from __future__ import annotations
 
 from . import figures as F
-from .answer import num
+from ..units import num, sci
+from ..vocabulary import in_words, parameter_name
 
 __all__ = ["library_section"]
 
 
 def _interval(lo, mid, hi, digits: int = 3) -> str:
-    return f"{num(mid, digits)} [{num(lo, digits)}, {num(hi, digits)}]"
+    return sci(mid, digits, lo, hi)
 
 
 def library_section(run) -> dict:
     """Template context of one library run (``run.document`` = library.json)."""
     doc = run.document
-    laws = [{"type": r["holder_type"], "parameter": r["parameter"], "unit": r["unit"],
+    laws = [{"type": r["holder_type"], "parameter": parameter_name(r["parameter"]), "unit": r["unit"],
              "median": _interval(r["median_at_10mm_q05"], r["median_at_10mm"], r["median_at_10mm_q95"]),
              "slope": _interval(r["slope_q05"], r["slope_q50"], r["slope_q95"], 2),
              "spread": _interval(r["spread_q05"], r["spread_q50"], r["spread_q95"], 2),
@@ -41,4 +42,4 @@ def library_section(run) -> dict:
               for t, v in doc["stage2"].items()]
     images = [F.png_data_uri(p) for p in (run.file("shrinkage.png"),) if p]
     return {"path": str(run.path), "laws": laws, "setups": setups, "stage2": stage2, "outliers": doc["outliers"],
-            "warnings": doc["warnings"], "images": images}
+            "warnings": [in_words(w) for w in doc["warnings"]], "images": images}

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..errors import SetupError
 from ..messages import current_warnings, merge_warnings, warning_log
+from ..units import mm, num, rpm
 from .result import Result, saving
 
 __all__ = ["update", "CutUpdate"]
@@ -99,11 +100,11 @@ class CutUpdate(Result):
         ess = self.ess_draws
         rows = [("cuts", str(self.document["inputs"]["n_cuts"])),
                 ("effective draws", "unknown" if ess is None else f"{ess:.0f} of {self.document['ess']['n_draws']}"),
-                ("tangential cutting coefficient K_t", f"{kt[1] / 1e6:.4g} MPa (90 %: {kt[0] / 1e6:.4g}-{kt[2] / 1e6:.4g})"),
-                ("radial cutting coefficient K_r", f"{kr[1] / 1e6:.4g} MPa (90 %: {kr[0] / 1e6:.4g}-{kr[2] / 1e6:.4g})")]
+                ("tangential cutting coefficient Kt, 90 % interval", _mpa(kt)),
+                ("radial cutting coefficient Kr, 90 % interval", _mpa(kr))]
         r = self.recommended
         if r is not None:
-            rows.append(("recommended", f"{r['spindle_speed_rpm']:.0f} rpm, {r['depth_m'] * 1e3:.3f} mm"))
+            rows.append(("recommended", f"{rpm(r['spindle_speed_rpm'])}, {mm(r['depth_m'])}"))
         return rows
 
     def summary_line(self) -> str:
@@ -114,11 +115,11 @@ class CutUpdate(Result):
         msg = (f"wrote {where / 'posterior.nc'}, update.json; {doc['inputs']['n_cuts']} cuts, "
                + ("MCMC fallback, " if doc["sampler"] == "mcmc" else "")
                + ("ESS unknown of " if ess is None else f"ESS {ess:.0f} of ")
-               + f"{doc['ess']['n_draws']} draws; K_t {kt[1]:.4g} Pa (90 % {kt[0]:.4g}-{kt[2]:.4g})")
+               + f"{doc['ess']['n_draws']} draws; tangential cutting coefficient Kt {_mpa(kt)}")
         lobes = doc.get("lobes")
         if lobes is not None:
             b, a = lobes["hammer_only"]["recommended"], lobes["with_cuts"]["recommended"]
-            fmt = lambda r: "none" if r is None else f"{r['spindle_speed_rpm']:.0f} rpm, {r['depth_m'] * 1e3:.3f} mm"  # noqa: E731
+            fmt = lambda r: "no recommendation" if r is None else f"{rpm(r['spindle_speed_rpm'])}, {mm(r['depth_m'])}"  # noqa: E731
             msg += f"; recommendation hammer only {fmt(b)} -> with cuts {fmt(a)}"
         return msg
 
@@ -248,3 +249,9 @@ def _posterior_file(posterior) -> Path:
         raise SetupError("update: the posterior is only in memory; the updated posterior.nc keeps the hammer "
                          "posterior's file data, so save it first (Posterior.save(folder))")
     return posterior.path
+
+
+def _mpa(q) -> str:
+    """A cutting coefficient's (q05, q50, q95) in Pa as ``790 MPa (780–800)`` (N/mm², as cutting data give it)."""
+    lo, mid, hi = (None if v is None else v / 1e6 for v in q)
+    return f"{num(mid)} MPa ({num(lo)}–{num(hi)})"

@@ -21,6 +21,7 @@ from typing import ClassVar
 
 from ..errors import SetupError
 from ..messages import merge_warnings, warning_log
+from ..units import length_mm, mm, num, percent, rpm, width
 from .result import Result, saving
 from ._posterior_input import is_path, posterior_parts, setup_of
 
@@ -65,6 +66,23 @@ class Design(Result):
         """Hammer tests: whether another test is worth it (the no-data plan names the pair to measure)."""
         return self.document.get("verdict", f"measure {self.document['best']['test']} (no-data plan)")
 
+    @property
+    def verdict_text(self) -> str:
+        """:attr:`verdict` for people: the widths in the unit policy's units (mm, Hz, ×10ⁿ N/m)."""
+        from ..design import WORTH_IT_FRACTION
+
+        d = self.document
+        b, unit = d.get("best"), d.get("unit", "")
+        if d.get("mode") != "posterior" or not isinstance(b, dict) or d.get("current_width") is None:
+            return self.verdict
+        current = width(d["current_width"], unit)
+        if d.get("worth_it"):
+            return (f"measure {_test_words(b)}: expected to shrink the 90 % width of {d['target']} from {current} to "
+                    f"{width(b['expected_width'], unit)}")
+        return (f"more tests are not worth it: the best candidate ({_test_words(b)}) is expected to shrink the 90 % width "
+                f"of {d['target']} by {width(d.get('expected_gain'), unit)} ({percent(d.get('relative_gain'))}), "
+                f"less than {percent(WORTH_IT_FRACTION)} of the current {current}")
+
     def to_dict(self) -> dict:
         return json.loads(json.dumps(self.document))
 
@@ -74,26 +92,26 @@ class Design(Result):
             b = d.get("best")
             if b is None:
                 return [("next cut", "none proposed")]
-            return [("next cut: spindle speed", f"{b['speed_rpm']:.0f} rpm"),
-                    ("next cut: axial depth", f"{b['depth_m'] * 1e3:.3f} mm"),
+            return [("next cut: spindle speed", rpm(b["speed_rpm"])),
+                    ("next cut: axial depth", mm(b["depth_m"])),
                     ("P(chatter) of the cut", f"{b['p_chatter']:.2f}"),
-                    ("expected gain", f"{b['gain']:.3g} of {d['current']:.3g}")]
-        rows = [("recommendation", self.verdict)]
+                    ("expected gain", f"{num(b['gain'], 3)} of {num(d['current'], 3)}")]
+        rows = [("recommendation", self.verdict_text)]
         unit = d.get("unit", "")
         if d.get("current_width") is not None:
-            rows.append(("current 90 % width", f"{d['current_width']:.4g} {unit}".strip()))
+            rows.append(("current 90 % width", width(d["current_width"], unit)))
         best = d.get("best") or {}
         if best.get("expected_width") is not None:
-            rows.append(("expected 90 % width after the best test", f"{best['expected_width']:.4g} {unit}".strip()))
+            rows.append(("expected 90 % width after the best test", width(best["expected_width"], unit)))
         return rows
 
     def summary_line(self) -> str:
         if not self.next_cut:
-            return f"{self.verdict}; results in {self.folder}"
+            return f"{self.verdict_text}; results in {self.folder}"
         b = self.document.get("best")
         return ("no cut proposed" if b is None else
-                f"next cut {b['speed_rpm']:.0f} rpm, {b['depth_m']:.4g} m (P(chatter) {b['p_chatter']:.2f}, expected "
-                f"gain {b['gain']:.3g} of {self.document['current']:.3g})") + f"; results in {self.folder}"
+                f"next cut {rpm(b['speed_rpm'])}, {mm(b['depth_m'])} (P(chatter) {b['p_chatter']:.2f}, expected "
+                f"gain {num(b['gain'], 3)} of {num(self.document['current'], 3)})") + f"; results in {self.folder}"
 
     def summary_data(self) -> dict:
         if self.next_cut:
@@ -284,3 +302,12 @@ def _next_cut(setup, posterior, target, candidates, kt, kr, kt_tolerance, kr_tol
     return run_next_cut(setup_path, path, cutting, float(clamping_length),
                         CoefficientPrior.from_tolerances(kt, kt_tolerance, kr, kr_tolerance), speeds_rpm, depths_m,
                         next_cut_target, risk_budget, cuts, draws, particles, seed, tool=tool)
+
+
+def _test_words(best: dict) -> str:
+    """A candidate hammer test in words: ``x at 30 mm`` (its tool named only when the setup names its tools)."""
+    if best.get("clamping_length") is None or not best.get("direction"):
+        return str(best.get("test"))
+    tool = best.get("tool")
+    return (f"{best['direction']} at {length_mm(best['clamping_length'])}"
+            + ("" if tool in (None, "", "tool") else f" with tool “{tool}”"))

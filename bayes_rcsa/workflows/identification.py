@@ -22,6 +22,8 @@ from typing import Any, ClassVar, Sequence
 
 from ..errors import SetupError
 from ..messages import current_warnings, merge_warnings, warning_log
+from ..units import hz, length_mm, sci
+from ..vocabulary import identification_name, parameter_name
 from .result import Result, check_output_directory, saving
 
 __all__ = ["identify", "Posterior", "CutTestOptions", "EARLIER_OUTPUTS", "CHECKPOINT_FILES", "sampler_setting"]
@@ -152,27 +154,32 @@ class Posterior(Result):
         return self.summary
 
     def headline(self) -> list[tuple[str, str]]:
-        rows = [("method", self.method), ("converged", "yes" if self.converged else "NO")]
+        rows = [("method", self.method_name), ("converged", "yes" if self.converged else "NO")]
         for e in self.summary.get("natural_frequencies", []) or []:
             q = [e.get(k) for k in ("q05_hz", "q50_hz", "q95_hz")]
             if q[1] is None:
                 continue
-            label = f"natural frequency at {e['clamping_length'] * 1e3:g} mm ({e.get('direction', 'x')})"
-            rows.append((label, f"{q[1]:.1f} Hz (90 %: {q[0]:.1f}-{q[2]:.1f} Hz)" if None not in q
-                         else f"{q[1]:.1f} Hz"))
+            label = f"natural frequency at {length_mm(e['clamping_length'])} ({e.get('direction', 'x')}), 90 % interval"
+            rows.append((label, hz(q[1], q[0], q[2])))
         for e in self.summary.get("stiffness", []) or []:
-            for key, name, unit in (("k_xf", "translational", "N/m"), ("k_thetaM", "rotational", "N m/rad")):
-                k = (e.get(key) or {}).get("q50")
-                if k is not None:
-                    rows.append((f"{name} contact stiffness at {e['clamping_length'] * 1e3:g} mm", f"{k:.4g} {unit}"))
+            for key, unit in (("k_xf", "N/m"), ("k_thetaM", "N m/rad")):
+                k = e.get(key) or {}
+                if k.get("q50") is not None:
+                    rows.append((f"{parameter_name(key)} at {length_mm(e['clamping_length'])}, 90 % interval",
+                                 sci(k["q50"], 3, k.get("q05"), k.get("q95"), unit)))
         return rows
+
+    @property
+    def method_name(self) -> str:
+        """The method in words (``Bayesian fit of the tap tests with the library prior``)."""
+        return identification_name(self.method, library=bool(self.summary.get("library")))
 
     def summary_line(self) -> str:
         where = "memory" if self.path is None and self.folder is None else str(self.folder)
         if self.zero_taps:
             return f"zero taps: population predictive of holder type {self.summary['holder_type']}; results in {where}"
         status = "converged" if self.converged else "NOT converged"
-        return f"{self.method}: {status}{self._sampler_note()}; results in {where}"
+        return f"{self.method_name}: {status}{self._sampler_note()}; results in {where}"
 
     def _sampler_note(self) -> str:
         """How the draws were made, when importance sampling was asked for (accepted, or why the chain ran)."""

@@ -17,6 +17,8 @@ from typing import Any, Callable, ClassVar
 
 from ..errors import SetupError
 from ..messages import current_warnings, merge_warnings, warning_log
+from ..units import quantity
+from ..vocabulary import parameter_name
 from .batch_run import CommandLine, check_run_folder, executor_for, progress_printer
 from .result import Result, saving
 
@@ -68,19 +70,19 @@ class Population(Result):
 
     def headline(self) -> list[tuple[str, str]]:
         rows = [("combinations", str(len(self.setups))), ("holder types", ", ".join(self.holder_types)),
-                ("outliers", ", ".join(self.outliers) or "none")]
-        names = {"k_xf": "translational contact stiffness", "k_thetaM": "rotational contact stiffness"}
+                ("outliers", ", ".join(self.outliers) or "no outlier")]
         for law in self.document.get("laws", []):
-            if law.get("parameter") in names:
-                rows.append((f"{law['holder_type']}: {names[law['parameter']]} at 10 mm shank",
-                             f"{law['median_at_10mm']:.4g} {law['unit']} (90 %: {law['median_at_10mm_q05']:.4g}-"
-                             f"{law['median_at_10mm_q95']:.4g})"))
+            if law.get("parameter") in ("k_xf", "k_thetaM"):
+                rows.append((f"{law['holder_type']}: {parameter_name(law['parameter'])} at 10 mm shank, 90 % interval",
+                             quantity(law["median_at_10mm"], law["unit"], law["median_at_10mm_q05"],
+                                      law["median_at_10mm_q95"])))
         return rows
 
     def summary_line(self) -> str:
         where = None if self.folder is None else Path(self.folder) / "population.nc"
         return (f"{len(self.setups)} combination(s) in {len(self.holder_types)} holder type(s) "
-                f"{self.holder_types}; outliers: {self.outliers or 'none'}; population in {where}")
+                f"({', '.join(self.holder_types)}); outliers: {', '.join(self.outliers) or 'no outlier'}; "
+                f"population in {where}")
 
     def summary_data(self) -> dict:
         return {"holder_types": self.holder_types, "outliers": self.outliers, "ran": self.ran,

@@ -25,6 +25,8 @@ from typing import TYPE_CHECKING, Callable, ClassVar, Sequence
 from ..discrepancy.files import FILES
 from ..errors import SetupError
 from ..messages import merge_warnings, warning_log
+from ..units import num, percent
+from ..vocabulary import effect_name, humanise
 from .result import Result, saving
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -35,11 +37,6 @@ __all__ = ["check_model", "ModelCheck", "Candidate"]
 
 #: Prefix of the progress lines (the command line's ``--verbose`` prints the same).
 PROGRESS_PREFIX = "bayes-rcsa discrepancy: "
-
-
-def printed_name(term: str) -> str:
-    """A model term's name as a person reads it (``tip_mass`` -> ``tip mass``)."""
-    return term.replace("_", " ")
 
 
 @dataclass(frozen=True)
@@ -160,7 +157,7 @@ class ModelCheck(Result):
             sys_gap = c.get("systematic_gap_fitted_lines")
             explained = (1.0 - sys_gap / base if c["criterion"] is not None and sys_gap is not None and base
                          and not floor else None)
-            out.append(Candidate(c["effect"], printed_name(c["effect"]), c["description"], c["score"],
+            out.append(Candidate(c["effect"], effect_name(c["effect"]), c["description"], c["score"],
                                  c["criterion"], explained, dict(c["parameters"])))
         return tuple(out)
 
@@ -240,34 +237,34 @@ class ModelCheck(Result):
         """``{parameter name: printed label}`` of the named terms (empty when neither fit nor setup is known)."""
         if self.computation is not None:
             pm = self.computation.final.problem.parameters
-            return {n: pm[n].label or printed_name(n) for n in pm.names if pm[n].term}
+            return {n: pm[n].label or humanise(n) for n in pm.names if pm[n].term}
         if self.setup is not None:
             from ..params.terms import get_term
 
             model = self.setup.model()
-            return {p.name: p.label or printed_name(p.name) for t in (self.named_effect, *self.also_named) if t
+            return {p.name: p.label or humanise(p.name) for t in (self.named_effect, *self.also_named) if t
                     for p in get_term(t)().parameters(model)}
         return {}
 
     def _gap_text(self, key: str) -> str:
         if self.report.get(f"{key}_at_noise_floor"):
-            return f"at the noise floor (below {100 * self.report['gap_resolution']:.2g} %)"
-        return f"{100 * self.report[key]:.2g} %"
+            return f"at the noise floor (below {percent(self.report['gap_resolution'])})"
+        return percent(self.report[key])
 
     def headline(self) -> list[tuple[str, str]]:
         rows = [("Model explains the measurements", "yes" if self.adequate else "no")]
         named = self.named_effect
         if named:
-            rows.append(("Missing effect", " + ".join(printed_name(t) for t in (named, *self.also_named))))
+            rows.append(("Missing effect", " + ".join(effect_name(t) for t in (named, *self.also_named))))
             if self.confounded_with:
-                rows.append(("Explains the data as well", ", ".join(map(printed_name, self.confounded_with))))
+                rows.append(("Explains the data as well", ", ".join(map(effect_name, self.confounded_with))))
             labels = self._parameter_labels()
             for c in self.report["candidates"]:
                 if c["effect"] == named:
                     for n, q in c["parameters"].items():
                         if n in labels:
-                            rows.append((labels[n], f"{q['q50']:.4g} (90 % interval {q['q05']:.4g} to "
-                                                    f"{q['q95']:.4g})"))
+                            rows.append((labels[n], f"{num(q['q50'])} (90 % interval {num(q['q05'])} to "
+                                                    f"{num(q['q95'])})"))
         elif not self.adequate:
             rows.append(("Missing effect", "none of the known effects; a statistical discrepancy widens the "
                                            "intervals"))

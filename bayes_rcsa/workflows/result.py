@@ -136,7 +136,9 @@ class Result:
     def _repr_html_(self) -> str:
         rows = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>"
                        for k, v in self.headline())
-        warn = "".join(f"<li>{html.escape(w)}</li>" for w in getattr(self, "warnings", ()) or ())
+        from ..vocabulary import in_words
+
+        warn = "".join(f"<li>{html.escape(in_words(w))}</li>" for w in getattr(self, "warnings", ()) or ())
         return (f"<div><strong>{html.escape(self.title)}</strong>"
                 + (f"<table>{rows}</table>" if rows else "")
                 + (f"<p>Warnings:</p><ul>{warn}</ul>" if warn else "") + "</div>")

@@ -20,6 +20,8 @@ import numpy as np
 
 from ..errors import DataError, SetupError
 from ..messages import warning_log
+from ..units import hz, length_mm, sci
+from ..vocabulary import parameter_name
 from .result import Result
 
 __all__ = ["simulate", "SimulatedFRF"]
@@ -102,20 +104,20 @@ class SimulatedFRF(Result):
     def headline(self) -> list[tuple[str, str]]:
         rows = []
         if self.clamping_length is not None:
-            rows.append(("clamping length", f"{self.clamping_length * 1e3:g} mm"))
+            rows.append(("clamping length", length_mm(self.clamping_length)))
         if self.kx is not None:
-            rows.append(("translational contact stiffness", f"{self.kx:.4g} N/m"))
+            rows.append((parameter_name("k_xf"), sci(self.kx, 3, unit="N/m")))
         if self.ktheta is not None:
-            rows.append(("rotational contact stiffness", f"{self.ktheta:.4g} N m/rad"))
+            rows.append((parameter_name("k_thetaM"), sci(self.ktheta, 3, unit="N m/rad")))
         return rows + [
-            ("frequency range", f"{self.frequency_hz[0]:g}-{self.frequency_hz[-1]:g} Hz ({self.frequency_hz.size} lines)"),
-            ("largest |h|", f"{self.peak_abs_m_per_n:.3g} m/N at {self.peak_hz:g} Hz"),
+            ("frequency range", f"{self.frequency_hz[0]:g}–{self.frequency_hz[-1]:g} Hz ({self.frequency_hz.size} lines)"),
+            ("largest |h|", f"{sci(self.peak_abs_m_per_n, 3, unit='m/N')} at {hz(self.peak_hz)}"),
         ]
 
     def summary_line(self) -> str:
         f = self.frequency_hz
-        return (f"wrote {self.path} ({f.size} lines, {f[0]:g}-{f[-1]:g} Hz; largest |h| "
-                f"{self.peak_abs_m_per_n:.3g} m/N at {self.peak_hz:g} Hz)")
+        return (f"wrote {self.path} ({f.size} lines, {f[0]:g}–{f[-1]:g} Hz; largest |h| "
+                f"{sci(self.peak_abs_m_per_n, 3, unit='m/N')} at {hz(self.peak_hz)})")
 
     def summary_data(self) -> dict:
         return {"n_lines": int(self.frequency_hz.size), "peak_hz": self.peak_hz,

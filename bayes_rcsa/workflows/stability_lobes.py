@@ -27,6 +27,8 @@ import numpy as np
 
 from ..errors import SetupError
 from ..messages import merge_warnings, warning_log
+from ..units import mm, num, percent, rpm
+from ..vocabulary import depth_limit_name, method_name
 from .result import Result, saving
 from ._posterior_input import is_path, posterior_parts, setup_of
 
@@ -85,19 +87,18 @@ class Lobes(Result):
 
     def headline(self) -> list[tuple[str, str]]:
         d = self.document
-        rows = [("method", f"{d['method'].upper()}, {d['n_draws']} draw(s)"), ("required P(stable)", f"{self.level:g}")]
+        rows = [("method", f"{method_name(d['method'])}, {d['n_draws']} draw(s)"), ("required P(stable)", num(self.level))]
         rec = self.recommended
         if rec is None:
             rows.append(("recommended point", f"none: {d.get('recommended_note', '')}"))
             return rows
         below, above = rec["margin_speed_rpm"]["below"], rec["margin_speed_rpm"]["above"]
-        rows += [("recommended spindle speed", f"{rec['spindle_speed_rpm']:.0f} rpm"),
-                 ("recommended axial depth", f"{rec['depth_m'] * 1e3:.3f} mm"),
+        rows += [("recommended spindle speed", rpm(rec["spindle_speed_rpm"])),
+                 ("recommended axial depth", mm(rec["depth_m"])),
                  ("P(stable) over the neighbourhood", f"{rec['p_stable_neighbourhood']:.2f}"),
-                 ("speed margins", f"{'-' if below is None else f'{below:.0f}'} / "
-                                   f"{'-' if above is None else f'{above:.0f}'} rpm"),
-                 ("depth margin", f"{rec['margin_depth_m'] * 1e3:.3f} mm"),
-                 ("limited by", str(rec["binding_limit"]))]
+                 ("speed margins", f"{rpm(below, unit=False)} / {rpm(above)}"),
+                 ("depth margin", mm(rec["margin_depth_m"])),
+                 ("limited by", depth_limit_name(rec["binding_limit"]))]
         return rows
 
     def summary_line(self) -> str:
@@ -106,17 +107,19 @@ class Lobes(Result):
         msg = f"wrote {self.path}, p_stable.npz, lobes.png" if self.path is not None else "lobes computed"
         if rec is not None:
             below, above = rec["margin_speed_rpm"]["below"], rec["margin_speed_rpm"]["above"]
-            msg += (f"; recommended {rec['spindle_speed_rpm']:.0f} rpm, {rec['depth_m'] * 1e3:.3f} mm (P(stable) >= "
-                    f"{rec['p_stable_neighbourhood']:.2f} over ±{100 * rec['speed_tolerance_rel']:g} % speed and "
-                    f"+{100 * rec['depth_margin_rel']:g} % depth; margins {'-' if below is None else f'{below:.0f}'}/"
-                    f"{'-' if above is None else f'{above:.0f}'} rpm, {rec['margin_depth_m'] * 1e3:.3f} mm; limited by "
-                    f"{rec['binding_limit']})")
+            msg += (f"; recommended {rpm(rec['spindle_speed_rpm'])}, {mm(rec['depth_m'])} (P(stable) >= "
+                    f"{rec['p_stable_neighbourhood']:.2f} over ±{num(100 * rec['speed_tolerance_rel'])} % speed and "
+                    f"+{num(100 * rec['depth_margin_rel'])} % depth; margins {rpm(below, unit=False)}/"
+                    f"{rpm(above)}, {mm(rec['margin_depth_m'])}; limited by {depth_limit_name(rec['binding_limit'])})")
         else:
             msg += f"; no recommendation: {d.get('recommended_note', '')}"
         med = d.get("median_recommended")
         if rec is not None and med is not None and d["n_draws"] > 1:
-            msg += (f"; at P(stable) >= 0.5 it would be {med['spindle_speed_rpm']:.0f} rpm, {med['depth_m'] * 1e3:.3f} mm "
-                    f"(confidence {d['level']:g} costs {(med['depth_m'] - rec['depth_m']) * 1e3:.3f} mm)")
+            cost = med["depth_m"] - rec["depth_m"]
+            rel = (d.get("confidence_cost") or {}).get("relative")
+            msg += (f"; at P(stable) >= 0.5 it would be {rpm(med['spindle_speed_rpm'])}, {mm(med['depth_m'])} "
+                    f"(confidence {num(d['level'])} costs {mm(cost)}" + ("" if rel is None else f", {percent(rel)}")
+                    + ")")
         source = d["source"]
         if source.get("deterministic"):
             msg += "; " + source["deterministic_note"]
@@ -326,7 +329,7 @@ def lobes(*, posterior=None, setup=None, clamping_length: float | None = None, t
             from ..stability.progress import ProgressBar
 
             _print_estimate(impl, frf, speeds, method, budget_s)
-            bar = ProgressBar(f"lobes: {method}")
+            bar = ProgressBar(f"lobes: {method_name(method)}")
         try:
             res = lobes_from_frf_draws(
                 frf.frf_x, frf.frf_y, frf.frequency_hz, cutting, speeds, method=method, level=level,
@@ -460,10 +463,11 @@ def _print_estimate(impl, frf, speeds, method: str, budget: float) -> None:
     from ..stability.progress import format_seconds
 
     est = impl.estimate_seconds(frf.n_draws, speeds.size, frf.frequency_hz.size)
-    print(f"lobes: {method}, {frf.n_draws} draw(s) x {speeds.size} speeds: estimated {format_seconds(est)}",
+    print(f"lobes: {method_name(method)}, {frf.n_draws} draw(s) x {speeds.size} speeds: estimated "
+          f"{format_seconds(est)}",
           file=sys.stderr)
     if est > budget:
         print(f"lobes: that is more than --budget {budget:g} s; to cut it use fewer draws (--draws "
               f"{max(1, frf.n_draws // 4)} is about 4x faster), a coarser speed grid (START:STOP:{max(2, speeds.size // 2)} "
               f"halves it)" + ("" if method == "zoa" else ", or --method zoa (seconds; accurate at moderate to "
-                               "full radial immersion, SDM is needed below about 0.3)"), file=sys.stderr)
+                               "full radial immersion, semi-discretisation is needed below about 0.3)"), file=sys.stderr)

@@ -93,15 +93,15 @@ class Campaign(Result):
         if self.kind == "library":
             return [("holder-tool combinations", str(len(self.document["combinations"]))),
                     ("holder types", ", ".join(self.holder_types)),
-                    ("special combinations", ", ".join(self.specials) or "none"), ("seed", str(self.seed))]
+                    ("special combinations", ", ".join(self.specials) or "no special combination"),
+                    ("seed", str(self.seed))]
         rows = [("simulated FRFs", str(len(self.frfs)))]
         if self.kind == "campaign":
             lengths = sorted({m["clamping_length"] for m in self.document.get("measurements", [])
                               if "clamping_length" in m})
             if lengths:
                 rows.append(("clamping lengths", ", ".join(f"{v * 1e3:g}" for v in lengths) + " mm"))
-            rows.append(("hidden effects", ", ".join(f"{k} = {v:g}" for k, v in self.hidden_effects.items())
-                         or "none"))
+            rows.append(("hidden effects", _effects(self.hidden_effects) or "no hidden effect"))
             if self.cuts_truth is not None:
                 stable = sum(c["stable"] for c in self.cuts_truth["cuts"])
                 rows.append(("cutting tests", f"{self.n_cuts} ({stable} stable)"))
@@ -114,9 +114,10 @@ class Campaign(Result):
                     f"{folder} (seed {self.seed})")
         if self.kind == "library":
             return (f"wrote a tool library of {len(self.document['combinations'])} holder-tool combinations "
-                    f"({', '.join(self.holder_types)}; special: {', '.join(self.specials) or 'none'}), manifest.toml "
+                    f"({', '.join(self.holder_types)}; special: {', '.join(self.specials) or 'no combination'}), "
+                    "manifest.toml "
                     f"and library.json to {folder} (seed {self.seed})")
-        effects = ", ".join(f"{k}={v:g}" for k, v in self.hidden_effects.items()) or "none"
+        effects = _effects(self.hidden_effects) or "no hidden effect"
         cuts = ""
         if self.cuts_truth is not None:
             stable = sum(c["stable"] for c in self.cuts_truth["cuts"])
@@ -330,3 +331,11 @@ def _library(base, spec, seed, log) -> Campaign:
     library = generate_library(spec, base, seed)
     return Campaign(kind="library", seed=seed, document=_plain(library.record()),
                     holder_types=tuple(spec.holder_types), warnings=tuple(log), generated=(library,))
+
+
+def _effects(hidden: dict) -> str:
+    """The bench's hidden effects in words (``tip_mass=0.005`` -> ``mass at the tool tip = 0.005``)."""
+    from ..units import num
+    from ..vocabulary import EFFECTS, effect_name, parameter_name
+
+    return ", ".join(f"{effect_name(k) if k in EFFECTS else parameter_name(k)} = {num(v)}" for k, v in hidden.items())
