@@ -86,7 +86,7 @@ def corner_figure(samples: np.ndarray, labels: Sequence[str], truths: Sequence[f
             for v in q[:, i]:
                 ax.axvline(v, color="k", ls="--", lw=0.8)
             ax.set_yticks([])
-            ax.set_title(f"{labels[i]}\n{q[1, i]:.4g} [{q[0, i]:.4g}, {q[2, i]:.4g}]", fontsize=8)
+            ax.set_title(f"{labels[i]}\n" + _interval_text(q[:, i]), fontsize=8)
         else:
             ax.plot(shown[:, j], shown[:, i], ".", ms=1.5, color="k", alpha=0.3)
             ax.set_ylim(*lims[i])
@@ -105,6 +105,14 @@ def corner_figure(samples: np.ndarray, labels: Sequence[str], truths: Sequence[f
             ax.set_yticklabels([])
     finish(fig)
     return fig
+
+
+def _interval_text(q) -> str:
+    """``median [q05, q95]`` with the decimals the interval's width justifies (a narrow posterior of a log10
+    stiffness needs five: 6.25503 [6.25475, 6.25531], where four significant digits gave 6.255 [6.255, 6.255])."""
+    half = 0.5 * abs(float(q[2]) - float(q[0]))
+    d = 3 if not half > 0 else int(min(8, max(0, 1 - np.floor(np.log10(half)))))
+    return f"{q[1]:.{d}f} [{q[0]:.{d}f}, {q[2]:.{d}f}]"
 
 
 def frf_plot(panels: Sequence[dict], path) -> Path:
