@@ -61,7 +61,8 @@ def _posterior_plots():
     from bayes_rcsa.posterior import plots as P
 
     bands, modes = _bands_and_modes()
-    yield "frf_band_plot", P.frf_band_plot(bands, modes, None, title="predicted tool-point FRF")["figure"]
+    # three rows: the title and the key on top must keep their height in inches, not in figure fractions
+    yield "frf_band_plot", P.frf_band_plot(bands * 3, modes, None, title="predicted tool-point FRF")["figure"]
     yield "frf_zoom_plot", P.frf_zoom_plot(bands, modes, None)["figure"]
     yield "natural_frequency_plot", P.natural_frequency_plot(modes, None)["figure"]
     rng = np.random.default_rng(0)

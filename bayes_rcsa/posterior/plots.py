@@ -145,14 +145,15 @@ def frf_band_plot(bands: Sequence, modes: Sequence, path, title: str = "") -> di
                        "median_peak_magnitude": float(np.max(q[2])), "modes": drawn})
     for ax in axes[n:]:
         ax.set_visible(False)
+    inch = 1.0 / fig.get_figheight()  # figure fraction of an inch: the strips on top keep their height
     if title:
-        fig.suptitle(title, fontsize=10)
+        fig.suptitle(title, fontsize=10, y=1.0 - 0.08 * inch, va="top")
     keys, labels = axes[0].get_legend_handles_labels()
     common = [(h, lab) for h, lab in zip(keys, labels) if not lab.startswith("mode ")]
-    top = 1.0 - (0.3 if title else 0.0) / fig.get_figheight()
+    top = 1.0 - (0.32 if title else 0.02) * inch
     fig.legend([h for h, _ in common], [lab for _, lab in common], loc="upper center", ncol=len(common),
                frameon=False, bbox_to_anchor=(0.5, top))
-    finish(fig, rect=(0, 0, 1, top - 0.35 / fig.get_figheight()))
+    finish(fig, rect=(0, 0, 1, top - 0.35 * inch))
     return _save(fig, path, {"kind": "frf_bands", "panels": panels})
 
 
