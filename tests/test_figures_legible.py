@@ -309,8 +309,6 @@ def _shown(t) -> bool:
 
 def _inspect(fig) -> list[str]:
     """The rule violations of a finished figure (empty when it is legible)."""
-    from matplotlib.text import Text
-
     fig.draw_without_rendering()
     r = fig.canvas.get_renderer()
     canvas = fig.bbox
@@ -334,6 +332,7 @@ def _inspect(fig) -> list[str]:
         leg = ax.get_legend()
         if leg is not None and leg.get_visible():
             texts += [("legend text", t, "inner") for t in leg.get_texts()]
+            texts.append(("legend title", leg.get_title(), "inner"))
     for container in [fig] + list(fig.subfigs):
         for t in container.texts:
             texts.append(("figure text", t, "free"))
@@ -341,11 +340,12 @@ def _inspect(fig) -> list[str]:
             texts.append(("suptitle", container._suptitle, "free"))
         for leg in container.legends:
             texts += [("legend text", t, "inner") for t in leg.get_texts()]
+            texts.append(("legend title", leg.get_title(), "inner"))
     seen = set()  # a suptitle is also one of the figure's texts
     texts = [(d, t, k) for d, t, k in texts if _shown(t) and not (id(t) in seen or seen.add(id(t)))]
-    for t in fig.findobj(Text):
-        if _shown(t) and t.get_fontsize() < MIN_FONT_PT - 1e-9:
-            problems.append(f"text {t.get_text()!r} at {t.get_fontsize():g} pt < {MIN_FONT_PT:g} pt")
+    for d, t, k in texts:
+        if t.get_fontsize() < MIN_FONT_PT - 1e-9:
+            problems.append(f"{d} {t.get_text()!r} at {t.get_fontsize():g} pt < {MIN_FONT_PT:g} pt")
     sizes = {t.get_fontsize() for d, t, k in texts if k == "tick"}
     if sizes and sizes != {TICK_FONT_PT}:
         problems.append(f"tick labels in sizes {sorted(sizes)} (expected all {TICK_FONT_PT:g} pt)")
