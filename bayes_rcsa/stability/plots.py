@@ -101,8 +101,12 @@ def lobes_figure(res, tests=None, title: str = "", max_depth: float | None = Non
     top = a_mm[-1]
     levels = [v for v in (0.05, 0.5, 0.95) if p_map.min() < v < p_map.max()]
     if not deterministic and levels:
-        cs = ax.contour(n, a_mm, p_map.T, levels=levels, colors="k", linewidths=0.8)
-        ax.clabel(cs, fmt={v: f"P={v:g}" for v in levels}, fontsize=8)
+        # one line style per level, named in the key: labels written on the contours sat on top of each other and
+        # of the lobes where the levels run close together (a narrow posterior)
+        styles = {0.05: ":", 0.5: "-", 0.95: "-."}
+        ax.contour(n, a_mm, p_map.T, levels=levels, colors="k", linewidths=0.8, linestyles=[styles[v] for v in levels])
+        for v in levels:
+            ax.plot([], [], styles[v], color="k", lw=0.8, label=f"P(stable) = {v:g}")
     ax.plot(n, np.minimum(curve[0.5], top * 1.05), "-", color="navy", lw=1.4,
             label="lobe" if deterministic else "median boundary (q50)")
     if not deterministic:
