@@ -120,7 +120,8 @@ def test_setup_outside_the_manifest_folder_runs_with_one_warning(where, batch_en
 
 def test_failed_setup_leaves_no_half_made_folder_and_reruns(batch_env, tmp_path, capsys):
     lib = batch_env
-    (lib / "b" / "setup.toml").write_text("FAIL\n")
+    # TOML (the manifest refuses a file that is none); the fake step fails on the marker
+    (lib / "b" / "setup.toml").write_text("# FAIL\n")
     manifest = _manifest(lib, {"a": "a/setup.toml", "b": "b/setup.toml"})
     out = tmp_path / "out"
     assert _batch(manifest, out) == 1

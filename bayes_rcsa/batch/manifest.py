@@ -36,7 +36,7 @@ import re
 import warnings
 from pathlib import Path
 
-from ..errors import DataWarning
+from ..errors import DataWarning, SetupError
 from ..io.tables import TableContext, did_you_mean, is_number, load_document
 
 __all__ = ["SetupJob", "load_manifest", "IDENTIFY_KEYS", "PREDICT_KEYS", "LOBES_KEYS"]
@@ -178,7 +178,7 @@ def load_manifest(path) -> tuple[SetupJob, ...]:
     ------
     SetupError
         Unknown tables or keys (with a suggestion), missing ``name``/``file``,
-        duplicate or unusable names, setup files that do not exist, values of
+        duplicate or unusable names, setup files that do not exist or are no TOML document, values of
         the wrong type.  The commands check the values themselves when they
         run (a bad value fails that setup only).
 
@@ -223,6 +223,12 @@ def load_manifest(path) -> tuple[SetupJob, ...]:
         setup_file = ctx.resolve(entry["file"])
         if not setup_file.is_file():
             raise ctx.bad(where, "file", entry["file"], f"an existing setup file ({setup_file} not found)")
+        try:
+            # a file that is no TOML document at all (the entry names the wrong file) is refused here, before any
+            # setup folder is made, like a missing one; what the setup holds is checked when it runs
+            load_document(setup_file)
+        except SetupError as exc:
+            raise ctx.bad(where, "file", entry["file"], f"a setup file (TOML); {exc}") from None
         if not _inside(setup_file, path.absolute().parent):
             # policy (docs/scaling-out.md, "Setup files outside the manifest's folder"): allowed, with a warning
             warnings.warn(f"{path}: {where} file = {entry['file']!r} lies outside the manifest's folder "

@@ -9,6 +9,8 @@ coefficients with tolerances, and the executor options of ``batch`` and
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from ..errors import SetupError
@@ -16,7 +18,8 @@ from ._common import parse_float, parse_float_list, positive_int
 
 __all__ = ["DEFAULT_SPEED_POINTS", "KT_HELP", "KR_HELP", "add_cutting_arguments", "parse_speeds", "parse_fraction",
            "parse_coefficient", "cutting_keywords", "parse_averages", "optional_float", "parse_directions",
-           "boundary_width_numbers", "CUT_FLAGS", "add_cut_arguments", "cut_test_numbers"]
+           "boundary_width_numbers", "CUT_FLAGS", "add_cut_arguments", "cut_test_numbers", "join_negative_values",
+           "check_lengths_in_metres", "MM_SUSPECT_M", "LENGTH_OPTIONS"]
 
 DEFAULT_SPEED_POINTS = 400
 
@@ -44,24 +47,104 @@ def add_cutting_arguments(p, kt_help: str = KT_HELP, kr_help: str = KR_HELP, req
 
 
 def parse_speeds(text: str, option: str = "--speeds") -> np.ndarray:
-    """``START:STOP[:COUNT]`` rpm -> increasing grid of COUNT speeds (default 400)."""
+    """``START:STOP[:COUNT]`` rpm -> increasing grid of COUNT speeds (default 400).
+
+    Each malformed range gets its own one-line message: not two or three parts, a part that is not a number, a
+    speed <= 0 (also ``--speeds -5000:30000``, which :func:`join_negative_values` hands over as a value),
+    STOP <= START, a COUNT that is not an integer >= 2.
+    """
+    example = "e.g. 5000:30000 or 5000:30000:400"
     parts = text.split(":")
     if len(parts) not in (2, 3):
-        raise SetupError(f"{option} {text!r}: expected START:STOP[:COUNT] in rpm")
-    start = parse_float(parts[0], option, positive=True)
-    stop = parse_float(parts[1], option, positive=True)
+        raise SetupError(f"{option} {text!r}: expected START:STOP[:COUNT] in rpm, {example}")
+    try:
+        start, stop = float(parts[0]), float(parts[1])
+    except ValueError:
+        raise SetupError(f"{option} {text!r}: START and STOP must be numbers in rpm, {example}") from None
+    if not (np.isfinite(start) and np.isfinite(stop)) or start <= 0 or stop <= 0:
+        raise SetupError(f"{option} {text!r}: spindle speeds are in rpm and must be > 0, {example}")
     count = DEFAULT_SPEED_POINTS
     if len(parts) == 3:
         try:
             count = int(parts[2])
         except ValueError:
-            raise SetupError(f"{option} {text!r}: COUNT must be an integer") from None
-    if stop <= start or count < 2:
-        raise SetupError(f"{option} {text!r}: expected STOP > START and COUNT >= 2")
+            raise SetupError(f"{option} {text!r}: COUNT must be an integer >= 2") from None
+    if stop <= start:
+        raise SetupError(f"{option} {text!r}: STOP must be above START (speeds in rpm, {example})")
+    if count < 2:
+        raise SetupError(f"{option} {text!r}: COUNT must be an integer >= 2")
     from ..io.limits import check_count
 
     check_count("speed_points", count, f"{option} {text!r}: COUNT")
     return np.linspace(start, stop, count)
+
+
+def join_negative_values(argv: list[str]) -> list[str]:
+    """``--speeds -5000:30000`` -> ``--speeds=-5000:30000``, so that the option's own check names the problem.
+
+    argparse takes a value starting with ``-`` for an option (unless it is a plain negative number) and answers
+    only "expected one argument"; joined with ``=``, the value reaches the option's parser, which says what is
+    wrong with it.  Tokens after ``--`` are left alone.
+    """
+    out, i = [], 0
+    argv = list(argv)
+    while i < len(argv):
+        tok = argv[i]
+        if tok == "--":
+            out.extend(argv[i:])
+            break
+        nxt = argv[i + 1] if i + 1 < len(argv) else ""
+        if tok.startswith("--") and "=" not in tok and _NEGATIVE_VALUE.match(nxt):
+            out.append(f"{tok}={nxt}")
+            i += 2
+            continue
+        out.append(tok)
+        i += 1
+    return out
+
+
+_NEGATIVE_VALUE = re.compile(r"^-\.?\d")
+
+#: Lengths (m) at or above which a command-line or setup length is taken for millimetres: no clamping length,
+#: tool, holder, flute or depth of cut reaches 1 m.
+MM_SUSPECT_M = 1.0
+
+#: The options holding lengths in metres (argparse dest -> option).
+LENGTH_OPTIONS = {"lengths": "--lengths", "clamping_length": "--clamping-length",
+                  "cut_clamping_length": "--cut-clamping-length", "cut_length": "--cut-length",
+                  "flute_length": "--flute-length", "max_depth": "--max-depth", "depths": "--depths"}
+
+
+def _length_values(value) -> list[float]:
+    """The lengths in an option's value: ``0.025``, ``'0.025,0.04'``, a tuple, or a ``C:D[:N]`` range (not N)."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return [float(value)]
+    if isinstance(value, (tuple, list)):
+        return [v for item in value for v in _length_values(item)]
+    if not isinstance(value, str):
+        return []
+    out = []
+    for part in value.split(","):
+        for piece in part.split(":")[:2]:
+            try:
+                out.append(float(piece))
+            except ValueError:
+                pass  # not a number: the option's own parser says so
+    return out
+
+
+def check_lengths_in_metres(args) -> None:
+    """Refuse, before any computation, a length option whose value looks like millimetres.
+
+    ``--lengths 25,40`` -> ``--lengths '25,40': lengths are in metres; did you mean 0.025,0.04?``.
+    """
+    for dest, option in LENGTH_OPTIONS.items():
+        value = getattr(args, dest, None)
+        values = _length_values(value)
+        if any(v >= MM_SUSPECT_M for v in values if np.isfinite(v)):
+            shown = value if isinstance(value, str) else ",".join(f"{v:g}" for v in values)
+            guess = ",".join(f"{v * 1e-3:g}" for v in values)
+            raise SetupError(f"{option} {shown!r}: lengths are in metres; did you mean {guess}?")
 
 
 def parse_fraction(text: str, option: str, lo: float, hi: float) -> float:

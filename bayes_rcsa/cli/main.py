@@ -28,6 +28,7 @@ from .. import __version__
 from ..errors import BayesRCSAError, OutputError
 from ..messages import warning_log
 from ..vocabulary import in_words
+from ._arguments import check_lengths_in_metres, join_negative_values
 from ._common import Summary, check_arguments, command_warnings, merge_warnings
 
 __all__ = ["main", "build_parser", "COMMANDS", "HelpFormatter", "HELP_WIDTH"]
@@ -186,7 +187,7 @@ def _unraisable_as_lines(command: str):
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(join_negative_values(sys.argv[1:] if argv is None else argv))
     with _one_line_warnings(args.command), _unraisable_as_lines(args.command) as status:
         status.append(_run(args))
     return status[0]
@@ -195,6 +196,7 @@ def main(argv: list[str] | None = None) -> int:
 def _run(args) -> int:
     try:
         check_arguments(args)
+        check_lengths_in_metres(args)
         result = args.func(args)
         if isinstance(result, Summary):
             return _report(args, result)

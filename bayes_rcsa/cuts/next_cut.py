@@ -469,7 +469,7 @@ def _plot(result: NextCutResult, path):
 
 def next_cut_figure(result: NextCutResult):
     """The current P(stable) map, the candidates' expected gains and the proposed cut (a matplotlib Figure)."""
-    from ..io.figures import new_figure
+    from ..io.figures import finish, new_figure
 
     fig = new_figure(7.0, 4.4)
     ax = fig.add_subplot(111)
@@ -498,6 +498,6 @@ def next_cut_figure(result: NextCutResult):
     ax.set_xlabel("spindle speed (rpm)")
     ax.set_ylabel("axial depth (mm)")
     ax.set_title(f"next cut for target {result.target.text or result.target.kind}", fontsize=9)
-    ax.legend(fontsize=6, loc="upper right")
-    fig.tight_layout()
+    ax.legend(fontsize=8, loc="upper right")
+    finish(fig)
     return fig

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io.atomic import atomic_write_text
-from ..io.figures import new_figure, save_png
+from ..io.figures import finish, new_figure, save_png
 from ..io.jsonable import dumps_strict
 
 __all__ = ["write_design_outputs", "design_figure"]
@@ -65,6 +65,6 @@ def design_figure(doc: dict):
     ax.axhline(doc["current_width"], color="k", ls="--", lw=1, label="current width")
     ax.set_ylabel(f"expected 90 % width ({unit})")
     ax.set_yscale("log")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
+    ax.legend(fontsize=8)
+    finish(fig)
     return fig

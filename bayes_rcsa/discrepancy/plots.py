@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.figures import new_figure, save_png
+from ..io.figures import finish, new_figure, save_png
 
 #: The plots' names (their files are NAME.png), in the order they are written.
 PLOT_NAMES = ("frf_before_after", "residuals_before_after", "frequency_errors", "stiffness_before_after")
@@ -38,12 +38,11 @@ def _panels(evaluation: dict, label_after: str, height: float, draw, ylabel: str
         draw(ax, b["frf"]["frequency_hz"][j], b["frf"]["measured"][j], b["frf"]["predicted"][j], a["frf"]["predicted"][j])
         ax.set_title(f"{m['direction']} {m['clamping_length'] * 1e3:g} mm" + ("" if m["fitted"] else " (held out)"),
                      fontsize=8)
-        ax.set_xlabel("frequency [Hz]", fontsize=7)
-        ax.set_ylabel(ylabel, fontsize=7)
-        ax.tick_params(labelsize=6)
+        ax.set_xlabel("frequency [Hz]", fontsize=8)
+        ax.set_ylabel(ylabel, fontsize=8)
         if j == 0:
-            ax.legend(fontsize=6)
-    fig.tight_layout()
+            ax.legend(fontsize=8)
+    finish(fig)
     return fig
 
 
@@ -74,7 +73,7 @@ def _frequency_plot(evaluation: dict, label_after: str):
     point and interval are shown as computed.  Before and after are offset slightly in clamping length, and
     the modes of one measurement fan out to the right.
     """
-    fig = new_figure(5.4, 3.6)
+    fig = new_figure(6.6, 3.6)
     ax = fig.add_subplot(1, 1, 1)
     for k, (key, colour, lab) in enumerate((("before", "C3", "baseline"), ("after", "C0", label_after))):
         for m in evaluation[key]["measurements"]:
@@ -97,8 +96,8 @@ def _frequency_plot(evaluation: dict, label_after: str):
     ax.set_ylim(lo * 1.5 if lo < 0 else lo, hi * 1.5 if hi > 0 else hi)  # room for the end markers
     ax.set_xlabel("clamping length [mm]")
     ax.set_ylabel("mode k error [%], model - measured\n(bars: model 90 % interval)", fontsize=8)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)  # beside the axes: no bar hidden
+    finish(fig)
     return fig
 
 
@@ -115,8 +114,9 @@ def _stiffness_plot(evaluation: dict, label_after: str):
         ax.set_yscale("log")
         ax.set_xlabel("clamping length [mm]")
         ax.set_ylabel(f"{name} [{'N/m' if name == 'k_xf' else 'N m/rad'}] (90 % interval)")
-        ax.legend(fontsize=7)
-    fig.tight_layout()
+    # one key above both panels: inside either it would hide a length's interval
+    fig.legend(*fig.axes[0].get_legend_handles_labels(), loc="upper center", ncol=2, frameon=False)
+    finish(fig, rect=(0, 0, 1, 1 - 0.35 / fig.get_figheight()))
     return fig
 
 

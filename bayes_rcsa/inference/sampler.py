@@ -421,13 +421,24 @@ def _tau(chain: np.ndarray, c: float = 5.0) -> np.ndarray:
 
 
 class _Progress:
-    """A minimal progress line on stderr (no dependency on tqdm)."""
+    """A minimal progress line on stderr (no dependency on tqdm).
 
-    def __init__(self, enabled: bool, total: int):
+    On a terminal the line is redrawn in place (carriage return) at most every 0.25 s and at every convergence
+    check.  On any other stream (a log file, a pipe) nothing is written while sampling; :meth:`close` writes the
+    last state as one line, the same rule as :class:`bayes_rcsa.io.progress.Heartbeat` (a log of a 20000-step
+    run held 80 ``sampling [###---]`` lines before).
+    """
+
+    def __init__(self, enabled: bool, total: int, stream=None):
         self.enabled = enabled
         self.total = total
-        self.tty = enabled and sys.stderr.isatty()
+        self.stream = sys.stderr if stream is None else stream
+        try:
+            self.tty = enabled and bool(self.stream.isatty())
+        except (AttributeError, ValueError, OSError):
+            self.tty = False
         self.last = 0.0
+        self.line = ""
 
     def update(self, step: int, extra: str = "", force: bool = False) -> None:
         if not self.enabled:
@@ -438,17 +449,18 @@ class _Progress:
         self.last = now
         frac = step / self.total
         bar = "#" * int(30 * frac) + "-" * (30 - int(30 * frac))
-        line = f"sampling [{bar}] {step}/{self.total} {extra}"
+        self.line = f"sampling [{bar}] {step}/{self.total} {extra}".rstrip()
         if self.tty:
-            sys.stderr.write("\r" + line[:120].ljust(120))
-        else:
-            sys.stderr.write(line + "\n")
-        sys.stderr.flush()
+            self.stream.write("\r" + self.line[:120].ljust(120))
+            self.stream.flush()
 
     def close(self) -> None:
         if self.tty:
-            sys.stderr.write("\n")
-            sys.stderr.flush()
+            self.stream.write("\n")
+            self.stream.flush()
+        elif self.enabled and self.line:
+            self.stream.write(self.line + "\n")  # not a terminal: the final state, once
+            self.stream.flush()
 
 
 @dataclass

@@ -10,7 +10,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..io.figures import new_figure, save_png
+from ..io.figures import finish, new_figure, save_png
 from ..stats.sbc import ecdf_difference, simultaneous_band
 
 __all__ = ["sbc_figure", "sbc_plot"]
@@ -61,14 +61,12 @@ def sbc_figure(ranks: np.ndarray, n_draws: int, names: Sequence[str], rng: np.ra
         ax.set_xlabel("fractional rank", fontsize=8)
         if p_values is not None:
             ax.text(0.03, 0.04, f"p = {p_values[j]:.3g}", transform=ax.transAxes, fontsize=8)
-        for a in axes[:, j]:
-            a.tick_params(labelsize=7)
     axes[0, 0].set_ylabel("replicates", fontsize=8)
     axes[1, 0].set_ylabel("ECDF - uniform", fontsize=8)
-    axes[1, 0].legend(fontsize=7, loc="upper left")
+    axes[1, 0].legend(fontsize=8, loc="upper left")
     if title:
         fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
+    finish(fig)
     return fig
 
 

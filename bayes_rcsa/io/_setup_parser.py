@@ -268,6 +268,48 @@ def _measurements(ctx, doc, holder, tools, spindle_dirs, contact, load_data) -> 
     return tuple(out)
 
 
+#: Geometry lengths (m) at or above which a setup value is taken for millimetres: no holder, tool or clamping
+#: length reaches 1 m (the same rule as the command line's length options).
+_MM_SUSPECT_M = 1.0
+
+
+def _geometry_lengths(doc: dict):
+    """``(where, key, value)`` of every length of the holder, the tools, the clamping range and the measurements."""
+    def segments(where, tbl, keys):
+        listed = tbl.get("segments")
+        for i, seg in enumerate(listed if isinstance(listed, list) else []):
+            if isinstance(seg, dict):
+                for key in keys:
+                    yield where, f"segments[{i}].{key}", seg.get(key)
+
+    holder = doc.get("holder")
+    if isinstance(holder, dict):
+        yield from segments("[holder]", holder, ("length", "outer_diameter", "inner_diameter"))
+    tools = [("[tool]", doc.get("tool"))]
+    if isinstance(doc.get("tools"), dict):
+        tools += [(f"[tools.{name}]", t) for name, t in doc["tools"].items()]
+    for where, tool in tools:
+        if isinstance(tool, dict):
+            yield where, "total_length", tool.get("total_length")
+            yield from segments(where, tool, ("length", "diameter"))
+    contact = doc.get("contact")
+    if isinstance(contact, dict) and isinstance(contact.get("clamping_range"), list):
+        for k, v in enumerate(contact["clamping_range"]):
+            yield "[contact]", f"clamping_range[{k}]", v
+    if isinstance(doc.get("measurement"), list):
+        for i, m in enumerate(doc["measurement"]):
+            if isinstance(m, dict):
+                file = f" ({m['file']})" if isinstance(m.get("file"), str) else ""
+                yield f"[[measurement]] {i}{file}", "clamping_length", m.get("clamping_length")
+
+
+def _check_metres(ctx: _Ctx, doc: dict) -> None:
+    """Refuse a geometry length that looks like millimetres, naming it and its value in metres."""
+    for where, key, v in _geometry_lengths(doc):
+        if _is_number(v) and v >= _MM_SUSPECT_M:
+            raise SetupError(f"{ctx.file}: {where} {key} = {v!r}: lengths are in metres; did you mean {v * 1e-3:g}?")
+
+
 def parse_setup(path: Path, load_data: bool, load_spindle: bool | None = None) -> Setup:
     """Parse and validate a setup file.
 
@@ -304,6 +346,7 @@ def parse_setup(path: Path, load_data: bool, load_spindle: bool | None = None) -
     ctx = _Ctx(path)
     doc = load_document(path)
     check_top_level(ctx, doc, _KNOWN)
+    _check_metres(ctx, doc)
     name = _str(ctx, doc, "(top level)", "name", "a non-empty string", default=path.stem)
     stage_tables = _stage_tables(ctx, doc)
     materials = parse_materials(ctx, doc)

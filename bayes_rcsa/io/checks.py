@@ -50,6 +50,9 @@ __all__ = [
     "SCALE_REFUSE",
     "SWAP_IMAG_POSITIVE",
     "SENSITIVITY_FACTOR",
+    "FLANGE_CROSS_MIN",
+    "RESONANCE_PHASE_DROP_DEG",
+    "RESONANCE_PEAK_RISE",
     "sensitivity_factor",
     "spindle_block_problem",
     "check_spindle_block",
@@ -87,6 +90,11 @@ SENSITIVITY_SPREAD = 1.5
 #: length squared of the order of the spindle nose (observed 1e2-5e3 on the bench, rotor and example files);
 #: below 1 the two columns hold each other's data.
 FLANGE_P_OVER_H_MIN = 1.0
+#: Smallest (median |l|)^2 / (median |h| median |p|) of a flange block whose |l| is also below |h|: near a mode
+#: the block is nearly rank one, so |l| is close to the geometric mean of |h| and |p| (0.5-1 on the bench and
+#: example files).  A block with h and l/n exchanged has |l| < |h| and this ratio near (|h|/|l|)^2 |h|/|p|,
+#: about 1e-3; reciprocity and passivity still hold, so only the magnitudes tell.
+FLANGE_CROSS_MIN = 0.1
 # The imaginary 2x2 block of a passive point block is negative semi-definite: (Im l)^2 <= Im h Im p.  Refused
 # when |Im l| exceeds twice sqrt(Im h Im p) on more than half of the |l|-weighted lines (a model block stays
 # below 1.0, noise does not double it where the signal is strong).
@@ -376,6 +384,10 @@ def _flange_block_problems(block) -> list[str]:
         out.append("h is zero")
     elif 0 < mp < FLANGE_P_OVER_H_MIN * mh:  # p = 0: a block without rotations (translation only) is valid
         out.append(f"median |p| = {mp:.3g} is below median |h| = {mh:.3g}")
+    ml = float(np.median(np.abs(0.5 * (l + n))))
+    if 0 < ml < mh and mp > 0 and ml ** 2 < FLANGE_CROSS_MIN * mh * mp:  # l = 0: a block without coupling
+        out.append(f"median |l| = {ml:.3g} is below median |h| = {mh:.3g} and far below sqrt(|h| |p|) = "
+                   f"{math.sqrt(mh * mp):.3g}")
     cross = 0.5 * (l + n).imag
     bound = np.sqrt(np.clip(h.imag * p.imag, 0.0, None))
     w = _weights(0.5 * (l + n))
@@ -459,6 +471,10 @@ def check_spindle_block(block, what: str) -> None:
                         "block has p 1e2-1e4 x larger than h numerically (1/length^2): h and p columns swapped, or "
                         "a column in other units?")
     for problem in _flange_block_problems(b):
+        if problem.startswith("median |l|"):
+            raise DataError(f"{what}: the h and l/n columns look swapped: {problem}; a flange block has |h| < |l| < "
+                            "|p| numerically (h in m/N, l in 1/N, p in rad/(N m)) and |l| near sqrt(|h| |p|); check "
+                            "the column headers")
         if problem.startswith("|Im l|"):
             raise DataError(f"{what}: not a passive point block: {problem} (the imaginary 2x2 block of a passive "
                             "point block is negative semi-definite): l and n in other units, or taken from another "
@@ -603,7 +619,23 @@ def resonance_problem(frequency_hz, values) -> str | None:
         return (f"no resonance inside its band {f[0]:g}-{f[-1]:g} Hz: the largest |H| is at its {where} line "
                 f"({f[k]:g} Hz), so the file cannot determine the contact (measure over a band that holds the first "
                 "tool mode)")
+    # a bump is no resonance: across a mode the phase of a receptance falls by 90 deg within its half-power band
+    # (still by more than 50 deg over a band as narrow as +-2.5 % about a 5 %-damped mode), and |H| at the peak
+    # stands out from the band's ends; a bump of a weak neighbouring mode does neither
+    phase = np.degrees(np.unwrap(np.angle(np.asarray(values))))
+    drop = float(np.max(np.maximum.accumulate(phase) - phase))
+    rise = float(v[k] / max(v[0], v[-1]))
+    if drop < RESONANCE_PHASE_DROP_DEG and rise < RESONANCE_PEAK_RISE:
+        return (f"no resonance inside its band {f[0]:g}-{f[-1]:g} Hz: its largest |H| ({f[k]:g} Hz) is only "
+                f"{rise:.2f} x the band's ends and the phase falls by {drop:.0f} deg (a resonance: about 90 deg or more), "
+                "so the file cannot determine the contact (measure over a band that holds the first tool mode)")
     return None
+
+
+#: Smallest phase drop (deg) across a tool-point band that holds a resonance (:func:`resonance_problem`).
+RESONANCE_PHASE_DROP_DEG = 45.0
+#: Peak |H| over the larger band-end |H| below which a band without that phase drop holds no resonance.
+RESONANCE_PEAK_RISE = 1.5
 
 
 #: Relative difference of the dominant natural frequencies of X and Y tool-point FRFs beyond which they are said

@@ -113,7 +113,7 @@ def read_csv_columns(
     ------
     DataError
         Missing or unreadable file, no header, no data rows, a missing or
-        duplicated column, a row with the wrong number of fields, or a field
+        duplicated column, the header row again in mid-file, a row with the wrong number of fields, or a field
         that is not a number.  NaN and inf parse here; range checks belong to
         the caller.
     """
@@ -157,6 +157,9 @@ def read_csv_columns(
     lines = np.array([ln for ln, _ in numbered[1:]], dtype=int)
     columns = {name: np.empty(len(body)) for name in index}
     for r, (fields, line) in enumerate(zip(body, lines)):
+        if [f.strip().lower() for f in fields] == header:
+            raise DataError(f"{path}: line {line}: the header row repeats in mid-file (two tables joined into one "
+                            f"{what}?); keep one header at the top and one table")
         if len(fields) != len(header):
             raise DataError(f"{path}: line {line}: {len(fields)} fields, but the header has {len(header)} columns")
         for name, k in index.items():

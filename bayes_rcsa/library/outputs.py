@@ -185,7 +185,7 @@ def shrinkage_plot(path, names, setups: list[dict]) -> Path:
 
 def shrinkage_figure(names, setups: list[dict]):
     """Each setup's own stage-1 median and 90 % interval against its pooled one, per coordinate, vs diameter."""
-    from ..io.figures import new_figure
+    from ..io.figures import finish, new_figure
 
     fig = new_figure(4.0 * len(names), 3.6)
     types = sorted({s["holder_type"] for s in setups})
@@ -203,12 +203,12 @@ def shrinkage_figure(names, setups: list[dict]):
                 ax.errorbar([dmm + 0.15], [pooled[1]], yerr=[[pooled[1] - pooled[0]], [pooled[2] - pooled[1]]],
                             fmt="o", color=c, ms=4, lw=1.2)
             if s.get("outlier"):
-                ax.annotate(s["name"], (dmm, own[1]), fontsize=7, color="red")
+                ax.annotate(s["name"], (dmm, own[1]), textcoords="offset points", xytext=(5, 3), color="red")
         ax.set_xlabel("shank diameter (mm)")
         ax.set_ylabel(f"{n} [{coordinate_units(n)}]")
     handles = [fig.axes[0].plot([], [], "o", color=colours[t], label=t)[0] for t in types]
     handles += [fig.axes[0].plot([], [], "o", mfc="none", color="k", label="own (stage 1)")[0],
                 fig.axes[0].plot([], [], "o", color="k", label="pooled")[0]]
     fig.legend(handles=handles, loc="upper center", ncol=len(handles), fontsize=8, frameon=False)
-    fig.tight_layout(rect=(0, 0, 1, 0.9))
+    finish(fig, rect=(0, 0, 1, 0.9))
     return fig

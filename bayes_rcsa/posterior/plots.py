@@ -18,7 +18,7 @@ import numpy as np
 
 from ..io.atomic import atomic_path
 from ..io.jsonable import dumps_strict
-from ..io.figures import new_figure as _figure
+from ..io.figures import finish, lower_triangle, new_figure as _figure
 
 __all__ = [
     "METADATA_KEY",
@@ -94,7 +94,9 @@ def frf_band_plot(bands: Sequence, modes: Sequence, path, title: str = "") -> di
     n = len(bands)
     cols = 2 if n > 1 else 1
     rows = int(np.ceil(n / cols))
-    fig = _figure(6.0 * cols, 3.6 * rows + (0.4 if title else 0))
+    per_panel = max([sum(m.configuration == b.configuration for m in modes) for b in bands] + [0])
+    # each panel's mode list sits under it (a legend inside would cover the curves), the common keys on top
+    fig = _figure(6.0 * cols, (3.6 + 0.2 * per_panel) * rows + 0.4 + (0.3 if title else 0))
     axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False).ravel())
     panels = []
     for ax, b in zip(axes, bands):
@@ -109,19 +111,25 @@ def frf_band_plot(bands: Sequence, modes: Sequence, path, title: str = "") -> di
             ax.semilogy(fm[keep], np.abs(b.measured.values[keep]), ".", ms=1.5, color="k", label="measured")
         c = b.configuration
         drawn = []
-        ymax = float(np.max(q[4]))
+        ymin, ymax = ax.get_ylim()
+        if b.measured is not None and np.any(keep):
+            ymax = max(ymax, float(np.max(np.abs(b.measured.values[keep]))))
+        # a strip above every curve for the mode numbers (log axis: 0.15 of the decades shown), so that no label
+        # covers the data; the intervals themselves are listed under the panel
+        ax.set_ylim(ymin, ymax * (ymax / ymin) ** 0.15)
+        mode_handles = []
         for m in (m for m in modes if m.configuration == c):
             nf = m.natural_frequency_hz
             if nf["q50"] is None:
                 continue
-            ax.axvspan(nf["q05"], nf["q95"], color="tab:red", alpha=0.25, lw=0)
-            ax.axvline(nf["q50"], color="tab:red", lw=0.8)
-            text = f"mode {m.mode}: {nf['q50']:.1f} Hz\n90 %: [{nf['q05']:.1f}, {nf['q95']:.1f}]"
+            text = f"mode {m.mode}: {nf['q50']:.1f} Hz, 90 % [{nf['q05']:.1f}, {nf['q95']:.1f}]"
             if m.has_measurement and m.measured_hz is not None:
                 ax.axvline(m.measured_hz, color="k", lw=0.8, ls="--")
-                text += f"\nmeasured {m.measured_hz:.1f}"
-            ax.annotate(text, (nf["q50"], ymax), textcoords="offset points", xytext=(3, -4), va="top", fontsize=6,
-                        color="tab:red")
+                text += f", measured {m.measured_hz:.1f}"
+            mode_handles.append(ax.axvspan(nf["q05"], nf["q95"], color="tab:red", alpha=0.25, lw=0, label=text))
+            ax.axvline(nf["q50"], color="tab:red", lw=0.8)
+            ax.annotate(str(m.mode), (nf["q50"], 1.0), xycoords=("data", "axes fraction"), textcoords="offset points",
+                        xytext=(2, -3), ha="left", va="top", color="tab:red")
             drawn.append({"mode": m.mode, "dominant": m.dominant,
                           **{f"{k}_hz": v for k, v in nf.items()},
                           "measured_hz": m.measured_hz if m.has_measurement else None})
@@ -129,15 +137,23 @@ def frf_band_plot(bands: Sequence, modes: Sequence, path, title: str = "") -> di
         ax.set_title(f"{c.tool} {c.direction}, clamping {_mm(c.clamping_length)}{fitted}", fontsize=9)
         ax.set_xlabel("frequency (Hz)")
         ax.set_ylabel("|H| (m/N)")
-        ax.legend(fontsize=6, loc="lower left")
+        if mode_handles:
+            ax.legend(handles=mode_handles, loc="upper left", bbox_to_anchor=(0.0, -0.2), frameon=False,
+                      borderaxespad=0.0, handlelength=1.2)
         panels.append({"clamping_length": c.clamping_length, "direction": c.direction, "tool": c.tool,
                        "frequency_range_hz": [float(f[0]), float(f[-1])],
                        "median_peak_magnitude": float(np.max(q[2])), "modes": drawn})
     for ax in axes[n:]:
         ax.set_visible(False)
+    inch = 1.0 / fig.get_figheight()  # figure fraction of an inch: the strips on top keep their height
     if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
+        fig.suptitle(title, fontsize=10, y=1.0 - 0.08 * inch, va="top")
+    keys, labels = axes[0].get_legend_handles_labels()
+    common = [(h, lab) for h, lab in zip(keys, labels) if not lab.startswith("mode ")]
+    top = 1.0 - (0.32 if title else 0.02) * inch
+    fig.legend([h for h, _ in common], [lab for _, lab in common], loc="upper center", ncol=len(common),
+               frameon=False, bbox_to_anchor=(0.5, top))
+    finish(fig, rect=(0, 0, 1, top - 0.35 * inch))
     return _save(fig, path, {"kind": "frf_bands", "panels": panels})
 
 
@@ -184,17 +200,16 @@ def frf_zoom_plot(bands: Sequence, modes: Sequence, path, rel_window: float = 0.
         ax.set_title(f"{c.direction} {_mm(c.clamping_length)}: {nf['q50']:.1f} [{nf['q05']:.1f}, {nf['q95']:.1f}] Hz",
                      fontsize=8)
         ax.set_xlim(lo, hi)
-        ax.tick_params(labelsize=7)
-        ax.set_xlabel("frequency (Hz)", fontsize=7)
-        ax.set_ylabel("|H| (m/N)", fontsize=7)
+        ax.set_xlabel("frequency (Hz)", fontsize=8)
+        ax.set_ylabel("|H| (m/N)", fontsize=8)
         panels.append({"clamping_length": c.clamping_length, "direction": c.direction, "tool": c.tool,
                        "window_hz": [lo, hi], "mode": m.mode, **{f"{key}_hz": v for key, v in nf.items()},
                        "measured_hz": meas})
     if shown:
-        axes[0].legend(fontsize=6)
+        axes[0].legend(fontsize=8)
     for ax in axes[len(shown):]:
         ax.set_visible(False)
-    fig.tight_layout()
+    finish(fig)
     return _save(fig, path, {"kind": "frf_zoom", "panels": panels})
 
 
@@ -244,7 +259,7 @@ def natural_frequency_plot(modes: Sequence, path) -> dict:
     ax.set_xlabel("clamping length (mm)")
     ax.set_ylabel("natural frequency (Hz)")
     ax.set_title("Dominant mode: predicted vs measured", fontsize=9)
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     ax_err.axhline(0.0, color="k", lw=0.8)
     ax_err.set_xlabel("clamping length (mm)")
@@ -252,8 +267,8 @@ def natural_frequency_plot(modes: Sequence, path) -> dict:
     ax_err.set_title("Prediction error where measured", fontsize=9)
     ax_err.grid(alpha=0.3)
     if any(line.get_label() and not line.get_label().startswith("_") for line in ax_err.get_lines()) or ax_err.containers:
-        ax_err.legend(fontsize=7)
-    fig.tight_layout()
+        ax_err.legend(fontsize=8)
+    finish(fig)
     return _save(fig, path, {"kind": "natural_frequencies", "series": out})
 
 
@@ -338,29 +353,24 @@ def corner_overlay_figure(groups: Sequence[Mapping], labels: Sequence[str], leve
                     cy = 0.5 * (edges[i][1:] + edges[i][:-1])
                     if len(th) >= 1:
                         ax.contour(cx, cy, h2.T, levels=th + [h2.max() + 1], colors=[color], linewidths=0.9)
-        for i in range(p):
-            for j in range(p):
-                ax = axes[i, j]
-                if j > i:
-                    ax.set_visible(False)
-                    continue
-                ax.set_xlim(*ranges[j])
-                if i != j:
-                    ax.set_ylim(*ranges[i])
-                else:
-                    ax.set_ylim(0, 1.1)
-                    ax.set_yticks([])
-                ax.tick_params(labelsize=6)
-                if i == p - 1:
-                    ax.set_xlabel(labels[j], fontsize=7)
-                if j == 0 and i > 0:
-                    ax.set_ylabel(labels[i], fontsize=7)
+        for i, j, ax in lower_triangle(axes):
+            ax.set_xlim(*ranges[j])
+            if i != j:
+                ax.set_ylim(*ranges[i])
+            else:
+                ax.set_ylim(0, 1.1)
+                ax.set_yticks([])
+            if i == p - 1:
+                ax.set_xlabel(labels[j])
+            if j == 0 and i > 0:
+                ax.set_ylabel(labels[i])
         sub.suptitle(g["title"], fontsize=9)
         out_groups.append({"title": g["title"], "fits": stats})
     from matplotlib.lines import Line2D
 
     handles = [Line2D([], [], color=colors[n], label=n) for n in names]
-    fig.legend(handles=handles, loc="lower center", ncol=min(len(names), 6), fontsize=7, frameon=False)
+    fig.legend(handles=handles, loc="lower center", ncol=min(len(names), 6), fontsize=8, frameon=False)
+    finish(fig, layout=False)
     return fig, {"kind": "corner_overlay", "labels": list(labels), "ranges": ranges.tolist(), "levels": list(levels),
                  "groups": out_groups}
 
@@ -408,17 +418,17 @@ def forest_figure(panels: Sequence[Mapping], fit_order: Sequence[str] | None = N
             yt.append(base)
             yl.append(row["label"])
         ax.set_yticks(yt)
-        ax.set_yticklabels(yl, fontsize=7)
+        ax.set_yticklabels(yl, fontsize=8)
         ax.set_xlabel(pnl.get("xlabel", ""), fontsize=8)
         ax.set_title(pnl.get("title", ""), fontsize=9)
-        ax.tick_params(axis="x", labelsize=7)
+        ax.tick_params(axis="x", labelsize=8)
         ax.grid(axis="x", alpha=0.3)
         drawn.append({"title": pnl.get("title", ""), "rows": [dict(r) for r in rows]})
     from matplotlib.lines import Line2D
 
     handles = [Line2D([], [], color=colors[n], marker="o", label=n) for n in names]
-    fig.legend(handles=handles, loc="lower center", ncol=min(len(names), 6), fontsize=7, frameon=False)
+    fig.legend(handles=handles, loc="lower center", ncol=min(len(names), 6), fontsize=8, frameon=False)
     if title:
         fig.suptitle(title, fontsize=10)
-    fig.tight_layout(rect=(0, 0.08, 1, 0.95 if title else 1))
+    finish(fig, rect=(0, 0.08, 1, 0.95 if title else 1))
     return fig, {"kind": "forest", "panels": drawn}

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..io.figures import finish, new_figure
 from . import figures as F
 from ..units import mm, num, rpm
 from ..vocabulary import in_words
@@ -37,9 +38,9 @@ def _rec(r) -> str:
 
 
 def _figure(lobes: dict, cuts: list) -> str:
-    plt = F._pyplot()
     n = np.asarray(lobes["speed_rpm"], dtype=float)
-    fig, ax = plt.subplots(figsize=(7.5, 3.6))
+    fig = new_figure(7.5, 3.6)
+    ax = fig.add_subplot(1, 1, 1)
     for key, colour, label in (("hammer_only", "0.55", "hammer only"), ("with_cuts", "C0", f"hammer + {len(cuts)} cuts")):
         s = lobes[key]
         med = np.array([np.nan if v is None else v for v in s["median_limit_m"]], dtype=float) * 1e3
@@ -57,8 +58,9 @@ def _figure(lobes: dict, cuts: list) -> str:
     ax.set_xlabel("spindle speed (rpm)")
     ax.set_ylabel("axial depth (mm)")
     ax.set_ylim(bottom=0)
-    ax.legend(fontsize=7, loc="upper left")
+    ax.legend(fontsize=8, loc="upper left")
     ax.set_title("hammer only vs hammer + cuts (○ stable, × chatter, ★ recommendation)", fontsize=9)
+    finish(fig)
     return F.figure_data_uri(fig)
 
 

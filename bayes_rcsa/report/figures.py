@@ -19,6 +19,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import DataError
+from ..io.figures import finish, new_figure
 
 __all__ = ["png_data_uri", "figure_data_uri", "geometry_figure", "frf_zoom_figure", "p_stable_figure"]
 
@@ -34,22 +35,11 @@ def png_data_uri(path) -> str:
 
 
 def figure_data_uri(fig, dpi: int = 90) -> str:
-    """Render a matplotlib figure to a PNG data URI and close it."""
-    import matplotlib.pyplot as plt
-
+    """Render a matplotlib figure (from :func:`bayes_rcsa.io.figures.new_figure`, no pyplot state) to a PNG data
+    URI."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
-    plt.close(fig)
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def geometry_figure(holder, tool, clamping_length: float, clamping_range: tuple[float, float] | None = None) -> str:
@@ -68,12 +58,12 @@ def geometry_figure(holder, tool, clamping_length: float, clamping_range: tuple[
     """
     from matplotlib.patches import Rectangle
 
-    plt = _pyplot()
     mm = 1e3
-    fig, ax = plt.subplots(figsize=(9, 3.2))
+    fig = new_figure(9, 3.2)
+    ax = fig.add_subplot(1, 1, 1)
     d_max = max(s.outer_diameter for s in holder.segments) * mm
     ax.add_patch(Rectangle((-8, -0.75 * d_max), 8, 1.5 * d_max, facecolor="0.85", edgecolor="k", hatch="//"))
-    ax.text(-4, 0.8 * d_max, "spindle flange\n(measured receptance)", ha="left", va="bottom", fontsize=7)
+    ax.text(-4, 0.8 * d_max, "spindle flange\n(measured receptance)", ha="left", va="bottom", fontsize=8)
     x = 0.0
     for s in holder.segments:
         r = s.outer_diameter * mm / 2
@@ -100,16 +90,17 @@ def geometry_figure(holder, tool, clamping_length: float, clamping_range: tuple[
     ax.text((holder_end + tip) / 2, y2 + 0.5, f"overhang {(tool.total_length - clamping_length) * mm:.1f} mm",
             ha="center", va="bottom", fontsize=8, color="#a52")
     ax.plot([tip], [0], "kv")
-    ax.text(tip, 2, "tool point\n(hammer test)", ha="center", va="bottom", fontsize=7)
+    ax.text(tip, 2, "tool point\n(hammer test)", ha="center", va="bottom", fontsize=8)
     if clamping_range is not None:
         lo, hi = clamping_range
-        ax.text(holder_end, 0.75 * d_max, f"feasible clamping {lo * mm:g}-{hi * mm:g} mm", ha="center", fontsize=7)
+        ax.text(holder_end, 0.75 * d_max, f"feasible clamping {lo * mm:g}-{hi * mm:g} mm", ha="center", fontsize=8)
     ax.set_xlim(-10, tip + 12)
     ax.set_ylim(-0.95 * d_max / 2 - 14, 1.1 * d_max)
     ax.set_aspect("equal")
     ax.set_xlabel("axial position from the spindle flange (mm)")
     ax.set_yticks([])
     ax.set_title("spindle - holder - tool (schematic, to scale)", fontsize=9)
+    finish(fig)
     return figure_data_uri(fig)
 
 
@@ -137,9 +128,9 @@ def frf_zoom_figure(label: str, frequency_hz: np.ndarray, h: np.ndarray, modes: 
     measured : FRF, optional
         The measurement, drawn as points.
     """
-    plt = _pyplot()
     n = max(len(modes), 1)
-    fig, axes = plt.subplots(3, n, figsize=(4.2 * n, 7.0), squeeze=False, sharex="col")
+    fig = new_figure(4.2 * n, 7.0)
+    axes = fig.subplots(3, n, squeeze=False, sharex="col")
     levels = [0.05, 0.25, 0.5, 0.75, 0.95]
     mag = np.abs(h)
     q_mag = np.quantile(mag, levels, axis=0)
@@ -175,8 +166,8 @@ def frf_zoom_figure(label: str, frequency_hz: np.ndarray, h: np.ndarray, modes: 
             ax.grid(alpha=0.3)
         axes[0, k].set_title(f"{label}, mode {m['mode']}", fontsize=9)
         axes[2, k].set_xlabel("frequency (Hz)")
-    axes[0, 0].legend(fontsize=7)
-    fig.tight_layout()
+    axes[0, 0].legend(fontsize=8)
+    finish(fig)
     return figure_data_uri(fig, dpi=75)
 
 
@@ -194,8 +185,8 @@ def p_stable_figure(speed_rpm: np.ndarray, depth_m: np.ndarray, p_stable: np.nda
     recommended : dict or None
         ``lobes.json`` ``recommended`` (``spindle_speed_rpm``, ``depth_m``).
     """
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig = new_figure(8, 4)
+    ax = fig.add_subplot(1, 1, 1)
     pc = ax.pcolormesh(speed_rpm, depth_m * 1e3, p_stable.T, cmap="RdYlGn", vmin=0, vmax=1, shading="auto")
     fig.colorbar(pc, ax=ax, label="P(stable)")
     ax.contour(speed_rpm, depth_m * 1e3, p_stable.T, levels=[level], colors="k", linewidths=1)
@@ -206,4 +197,5 @@ def p_stable_figure(speed_rpm: np.ndarray, depth_m: np.ndarray, p_stable: np.nda
     ax.set_xlabel("spindle speed (rpm)")
     ax.set_ylabel("axial depth of cut (mm)")
     ax.set_title(f"probability of stable cutting; black line: P(stable) = {level:g}", fontsize=9)
+    finish(fig)
     return figure_data_uri(fig)

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from .identification import SpindleIdentification
-from ..io.figures import new_figure as _figure, save_png as _save
+from ..io.figures import finish, new_figure as _figure, save_png as _save
 
 __all__ = ["receptance_plot", "reproduction_plot", "receptance_figure", "reproduction_figure"]
 
@@ -75,12 +75,12 @@ def receptance_figure(result: SpindleIdentification, truth: np.ndarray | None = 
             # keep the axes on the smoothed curve; raw outliers in flagged bands would squash it
             top = max(np.max(np.abs(sm)), np.quantile(raw_mag, 0.99)) * 3
             am.set_ylim(np.min(np.abs(sm)) / 3, top)
-    axes[0][0].legend(fontsize=7, loc="best")
+    axes[0][0].legend(fontsize=8, loc="best")
     axes[-1][0].set_xlabel("frequency [Hz]")
     axes[-1][1].set_xlabel("frequency [Hz]")
     fig.suptitle(f"flange receptance, direction {result.direction} (red: unreliable inversion, "
                  f"relative std > {result.threshold:g})", fontsize=10)
-    fig.tight_layout()
+    finish(fig)
     return fig
 
 
@@ -94,8 +94,8 @@ def reproduction_figure(result: SpindleIdentification):
         ax.semilogy(f, np.abs(result.measured[:, k]), ".", ms=1.5, color="0.45", label="measured")
         ax.semilogy(f, np.abs(result.reproduced[:, k]), color="tab:orange", lw=1.0, label="artifact + smoothed spindle")
         ax.set_ylabel(f"|{name}| [m/N]")
-    axes[0].legend(fontsize=7)
+    axes[0].legend(fontsize=8)
     axes[-1].set_xlabel("frequency [Hz]")
     fig.suptitle(f"artifact hammer tests, direction {result.direction}", fontsize=10)
-    fig.tight_layout()
+    finish(fig)
     return fig

@@ -80,14 +80,14 @@ def lobes_figure(res, tests=None, title: str = "", max_depth: float | None = Non
     -------
     matplotlib.figure.Figure
     """
-    from ..io.figures import new_figure
+    from ..io.figures import finish, new_figure
 
     n_full = res.speed_rpm
     n, p_map, block = display_map(n_full, res.p_stable)
     a_mm = res.depth_m * 1e3
     curve = {k: _reduce(np.where(np.isfinite(v), v * 1e3, np.nan), block, "min") for k, v in res.quantiles.items()}
     deterministic = res.depth_limit_m.shape[0] == 1
-    fig = new_figure(9, 5.5)
+    fig = new_figure(9, 6.5)
     ax = fig.add_subplot(1, 1, 1)
     step = np.diff(n)
     if n.size > 1 and np.allclose(step, step[0], rtol=1e-6) and np.allclose(np.diff(a_mm), a_mm[1] - a_mm[0], rtol=1e-6):
@@ -101,8 +101,12 @@ def lobes_figure(res, tests=None, title: str = "", max_depth: float | None = Non
     top = a_mm[-1]
     levels = [v for v in (0.05, 0.5, 0.95) if p_map.min() < v < p_map.max()]
     if not deterministic and levels:
-        cs = ax.contour(n, a_mm, p_map.T, levels=levels, colors="k", linewidths=0.8)
-        ax.clabel(cs, fmt={v: f"P={v:g}" for v in levels}, fontsize=7)
+        # one line style per level, named in the key: labels written on the contours sat on top of each other and
+        # of the lobes where the levels run close together (a narrow posterior)
+        styles = {0.05: ":", 0.5: "-", 0.95: "-."}
+        ax.contour(n, a_mm, p_map.T, levels=levels, colors="k", linewidths=0.8, linestyles=[styles[v] for v in levels])
+        for v in levels:
+            ax.plot([], [], styles[v], color="k", lw=0.8, label=f"P(stable) = {v:g}")
     ax.plot(n, np.minimum(curve[0.5], top * 1.05), "-", color="navy", lw=1.4,
             label="lobe" if deterministic else "median boundary (q50)")
     if not deterministic:
@@ -137,6 +141,7 @@ def lobes_figure(res, tests=None, title: str = "", max_depth: float | None = Non
     ax.set_xlabel("spindle speed (rpm)")
     ax.set_ylabel("axial depth of cut (mm)")
     ax.set_title(title)
-    ax.legend(loc="upper left", fontsize=7)
-    fig.tight_layout()
+    # the key under the chart: inside, it hid the tests and pockets in the deep part of the map
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=3, frameon=False)
+    finish(fig)
     return fig

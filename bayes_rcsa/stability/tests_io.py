@@ -108,6 +108,9 @@ def read_cut_table(path) -> CutTable:
     for lineno, line in rows[1:]:
         where = f"{path}:{lineno}"
         cells = next(csv.reader(_io.StringIO(line)))
+        if [c.strip().lower() for c in cells] == header:
+            raise DataError(f"{where}: the header row repeats in mid-file (two tables joined?); keep one header "
+                            "at the top")
         if len(cells) != len(header):
             raise DataError(f"{where}: {len(cells)} fields, expected {len(header)}")
         try:

@@ -184,7 +184,7 @@ class SimulatedFRF(Result):
     # -- pictures --------------------------------------------------------------------------------------------
     def figures(self) -> dict:
         """``{"frf": Figure}``: |h| (m/N, log scale) and phase (deg) over frequency (Hz)."""
-        from ..io.figures import new_figure
+        from ..io.figures import finish, new_figure
 
         fig = new_figure(7, 5)
         am, ap = fig.subplots(2, 1, sharex=True)
@@ -195,7 +195,7 @@ class SimulatedFRF(Result):
         ap.set_xlabel("frequency (Hz)")
         length = "" if self.clamping_length is None else f", clamping length {self.clamping_length * 1e3:g} mm"
         fig.suptitle(f"simulated tool-point FRF, direction {self.direction}{length}", fontsize=10)
-        fig.tight_layout()
+        finish(fig)
         return {"frf": fig}
 
 

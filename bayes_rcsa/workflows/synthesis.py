@@ -205,7 +205,7 @@ class Campaign(Result):
         """``{"frfs": Figure}``: |H| (m/N) of every simulated FRF over frequency (Hz); none for a library."""
         if not self.frfs:
             return {}
-        from ..io.figures import new_figure
+        from ..io.figures import finish, new_figure
 
         fig = new_figure(8, 5)
         ax = fig.subplots()
@@ -213,10 +213,10 @@ class Campaign(Result):
             ax.semilogy(frf.frequency_hz, np.abs(frf.values), lw=0.8, label=Path(name).stem)
         ax.set_xlabel("frequency (Hz)")
         ax.set_ylabel("|H| (m/N)")
-        ax.legend(fontsize=6, ncol=2)
+        ax.legend(fontsize=8, ncol=2)
         ax.set_title(f"synthetic {'artifact hammer tests' if self.kind == 'artifact' else 'tool-point FRFs'} "
                      f"(seed {self.seed})", fontsize=10)
-        fig.tight_layout()
+        finish(fig)
         return {"frfs": fig}
 
 
