@@ -57,7 +57,7 @@ def design_figure(doc: dict):
             lo = np.array([c["width_range_90"][0] for c in rows])
             hi = np.array([c["width_range_90"][1] for c in rows])
             e = np.array([c["mc_error"] for c in rows])
-            ax.errorbar(x, y, yerr=e, marker="o", capsize=3, label=f"direction {d}, tool {t} (± MC error)")
+            ax.errorbar(x, y, yerr=e, marker="o", capsize=3, label=f"direction {d}, {t} (± MC error)")
             ax.fill_between(x, lo, hi, alpha=0.15, label="5-95 % of the width after one test")
         ax.axvline(1e3 * doc["target_clamping_length"], color="0.5", ls=":", label="target length")
         ax.set_xlabel("candidate clamping length (mm)")

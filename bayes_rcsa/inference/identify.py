@@ -122,13 +122,17 @@ class IdentificationResult:
 
 
 def sampling_labels(parameters: ParameterModel) -> list[str]:
-    """Axis labels of the sampling coordinates: ``log10`` / ``ln`` for log-scale priors, with units."""
+    """Axis labels of the sampling coordinates: ``log10`` / ``ln`` for log-scale priors, the printed symbol or
+    name (``kxf``, ``noise scale of measurement 2``: :mod:`bayes_rcsa.vocabulary`), with units."""
+    from ..vocabulary import parameter_name, parameter_symbol
+
     out = []
     for n in parameters.names:
         unit = parameters.unit(n)
         kind = parameters.priors[n].kind
         prefix = {"log-uniform": "log10 ", "log-normal": "ln "}.get(kind, "")
-        out.append(f"{prefix}{n}" + (f" [{unit}]" if unit and unit != "1" else ""))
+        shown = parameter_symbol(n) or parameter_name(n, parameters[n].label, symbol=False)
+        out.append(f"{prefix}{shown}" + (f" [{unit}]" if unit and unit != "1" else ""))
     return out
 
 
