@@ -18,7 +18,7 @@ def register(subparsers) -> None:
         "written from that folder: the bundled example campaign (setup.toml, spindle_x.csv, spindle_y.csv, "
         "tip_<dir>_<mm>mm.csv, truth.json; the demo's data), bench.toml (the synthetic bench configuration for "
         "'bayes-rcsa synthesize'), artifact/artifact.toml with its standard-artifact hammer tests (for "
-        "'bayes-rcsa spindle'), library.toml with the three set-ups of a small synthetic tool library in "
+        "'bayes-rcsa spindle'), library.toml with the two set-ups of a small synthetic tool library in "
         "library/ (for 'bayes-rcsa batch' and 'bayes-rcsa library') and README.txt naming each file.  Takes a "
         "few seconds.  DIR must be new or empty unless --force.",
     )
