@@ -430,6 +430,11 @@ def _base_demo(t):
     t.opts = {"--max-steps": "20", "--out": str(t.root / "out")}
 
 
+def _base_example(t):
+    t.pos = []
+    t.opts = {"--out": str(t.root / "out")}
+
+
 def _manifest_edit(old: str, new: str):
     return lambda t: _text_replace(old, new)(t.root / "library.toml")
 
@@ -631,6 +636,11 @@ SPECS: dict[str, Spec] = {
     }, ["report.html", "index.html", "summary.md"], examples=8, min_size=1,
         # a valid demo costs ~35 s even with --max-steps 20: every example carries one refused input
         fast=None),
+    "example": Spec(_base_example, {**OUT_TAKEN, **SEED_C},
+                    ["README.txt", "setup.toml", "bench.toml", "artifact/artifact.toml", "library.toml"], examples=6,
+                    # a valid run generates the synthetic artifact and library (~4 s): every example carries one
+                    # refused input (the valid run is tests/test_docs_runner.py's)
+                    min_size=1, fast=None),
 }
 
 

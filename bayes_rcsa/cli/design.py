@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import warnings
 from pathlib import Path
 
 from ..errors import SetupError
@@ -26,6 +27,9 @@ expected 90 % width of the dominant natural frequency averaged over the range (p
 
   --target    frequency@L | stiffness@L | lobes@L:START:STOP[:COUNT]   (L in m, speeds in rpm)
   --candidates 0.030,0.035,0.040,tool:NAME@0.030,dir:y@0.030
+  both required with --posterior, e.g.
+  design setup.toml --posterior fit/posterior.nc --target frequency@0.035
+         --candidates 0.030,0.040,dir:y@0.035 --out design
 
 Writes to --out: design.json (ranking best first, expected widths with Monte Carlo errors, the
 verdict whether another test is worth it) and design.png. See docs/design.md.
@@ -37,7 +41,7 @@ possible outcomes of --next-cut-target: map (uncertain area of the P(stable) map
 width of the depth limit there) or mrr@P (best removal rate at P(stable) >= P; maximised). Candidates
 with P(chatter) > --risk-budget are never proposed.
   design SETUP --posterior P --next-cut --clamping-length 0.03 --speeds 5000:30000:25
-         --depths 5e-6:8e-5:15 --kt 790e6±30% --kr 230e6 --flutes 4 --radial-immersion 0.95
+         --depths 5e-6:8e-5:15 --kt 790e6±30% --kr 230e6 --flutes 4 --immersion 0.95
          --feed y [--cuts CUTS.csv] [--risk-budget 0.3] --out DIR
 """
 
@@ -49,8 +53,8 @@ def register(subparsers) -> None:
     p.add_argument("--posterior", type=Path, default=None, metavar="FILE",
                    help="posterior.nc written by 'bayes-rcsa identify' (omit for the no-data planning mode)")
     p.add_argument("--candidates", default=None, metavar="LIST",
-                   help="candidate tests: clamping lengths in m, tool:NAME@L, dir:D@L (no-data mode: lengths only; "
-                   "default 7 lengths over the feasible range)")
+                   help="candidate tests: clamping lengths in m, tool:NAME@L, dir:D@L (required with --posterior; "
+                   "no-data mode: lengths only, default 7 lengths over the feasible range)")
     p.add_argument("--target", default=None, metavar="TARGET",
                    help="frequency@L, stiffness@L or lobes@L:START:STOP[:COUNT] (required with --posterior)")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
@@ -67,7 +71,11 @@ def register(subparsers) -> None:
     cut.add_argument("--kt", default=None, metavar="PA", help="tangential cutting-force coefficient in Pa")
     cut.add_argument("--kr", default=None, metavar="PA", help="radial cutting-force coefficient in Pa")
     cut.add_argument("--flutes", type=positive_int, default=None, help="number of flutes")
-    cut.add_argument("--radial-immersion", default=None, metavar="R", help="radial depth / diameter in (0, 1]")
+    cut.add_argument("--immersion", default=None, metavar="R",
+                     help="radial depth / tool diameter in (0, 1], 1 = slotting (as in lobes and update)")
+    # the option's name before issue #45: one name for one quantity across commands, the old one still read
+    cut.add_argument("--radial-immersion", dest="immersion", action=_DeprecatedName, new_name="--immersion",
+                     help=argparse.SUPPRESS)
     cut.add_argument("--milling", choices=("down", "up"), default="down", help="down (climb) or up milling")
     p.add_argument("--no-plots", action="store_true", help="skip design.png")
     _add_next_cut_arguments(p)
@@ -75,9 +83,24 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
+class _DeprecatedName(argparse.Action):
+    """An option's former name: stores into the new option's ``dest`` and leaves a deprecation warning."""
+
+    def __init__(self, option_strings, dest, new_name: str, **kwargs):
+        super().__init__(option_strings, dest, **kwargs)
+        self.new_name = new_name
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        setattr(namespace, self.dest, values)
+        namespace.deprecated_names = [*getattr(namespace, "deprecated_names", []), (option_string, self.new_name)]
+
+
 def run(args: argparse.Namespace) -> Summary:
     from ..workflows.experiment_design import design_test
 
+    for old, new in getattr(args, "deprecated_names", ()):
+        warnings.warn(f"{old} is deprecated; use {new} (the same option of lobes and update)", FutureWarning,
+                      stacklevel=2)
     kw = _next_cut_keywords(args) if args.next_cut else _hammer_keywords(args)
     check_output_directory(args.out, args.force)  # refused before the design is computed (again under the lock)
     result = design_test(args.setup, args.posterior, target=args.target, draws=args.draws, seed=args.seed,
@@ -95,7 +118,7 @@ def _hammer_keywords(args) -> dict:
     return {"candidates": candidates, "truths": args.truths, "method": args.method,
             "noise_scale": args.noise_scale, "kt": optional_float(args.kt, "--kt"),
             "kr": optional_float(args.kr, "--kr", positive=False),
-            "radial_immersion": optional_float(args.radial_immersion, "--radial-immersion")}
+            "radial_immersion": optional_float(args.immersion, "--immersion")}
 
 
 # ------------------------------------------------------------- --next-cut (issue #23) --
@@ -136,7 +159,7 @@ def _next_cut_keywords(args) -> dict:
     kt, kt_tol = parse_coefficient(args.kt, "--kt") if args.kt is not None else (None, 0.0)
     kr, kr_tol = parse_coefficient(args.kr, "--kr") if args.kr is not None else (None, 0.0)
     return {"candidates": args.candidates, "kt": kt, "kr": kr, "kt_tolerance": kt_tol, "kr_tolerance": kr_tol,
-            "radial_immersion": optional_float(args.radial_immersion, "--radial-immersion"), "feed": args.feed,
+            "radial_immersion": optional_float(args.immersion, "--immersion"), "feed": args.feed,
             "speeds_rpm": None if args.speeds is None else _axis(args.speeds, "--speeds", 25),
             "depths_m": None if args.depths is None else _axis(args.depths, "--depths", 15),
             "clamping_length": optional_float(args.clamping_length, "--clamping-length"), "cuts": args.cuts,

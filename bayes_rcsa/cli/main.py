@@ -39,6 +39,7 @@ HELP_WIDTH = 100
 # Order of appearance in --help; each name is a module of bayes_rcsa.cli.
 COMMANDS = (
     "demo",
+    "example",
     "simulate",
     "synthesize",
     "spindle",

@@ -262,7 +262,7 @@ class TargetEvaluator:
         elif target.kind == "lobes":
             if cutting is None:
                 raise SetupError(f"--target {target.text!r}: a lobes target needs the cutting conditions "
-                                 f"(--kt, --kr, --flutes, --radial-immersion)")
+                                 f"(--kt, --kr, --flutes, --immersion)")
             missing = [d for d in ("x", "y") if d not in setup.spindle]
             if missing:
                 raise SetupError(f"--target {target.text!r}: chatter limits need spindle receptances in x and y; "

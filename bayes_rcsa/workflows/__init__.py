@@ -36,6 +36,7 @@ EXPORTS: dict[str, str] = {
     "synthesize": "synthesis", "Campaign": "synthesis",
     "simulate": "simulation", "SimulatedFRF": "simulation",
     "demo": "demo_run", "Demo": "demo_run",
+    "write_example_files": "example_files", "ExampleFiles": "example_files",
 }
 
 __all__ = sorted(EXPORTS)

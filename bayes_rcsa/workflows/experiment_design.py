@@ -270,7 +270,7 @@ def _hammer(setup, posterior, target, candidates, draws, truths, method, seed, n
         from ..stability import CuttingConditions
 
         missing = [o for o, v in (("--kt", kt), ("--kr", kr), ("--flutes", flutes),
-                                  ("--radial-immersion", radial_immersion)) if v is None]
+                                  ("--immersion", radial_immersion)) if v is None]
         if missing:
             raise SetupError(f"--target {target.text!r}: a lobes target needs {', '.join(missing)}")
         cutting = CuttingConditions(kt=kt, kr=kr, flutes=flutes, radial_immersion=radial_immersion, milling=milling)
@@ -286,7 +286,7 @@ def _next_cut(setup, posterior, target, candidates, kt, kr, kt_tolerance, kr_tol
 
     missing = [o for o, v in (("--posterior", posterior), ("--speeds", speeds_rpm), ("--depths", depths_m),
                               ("--clamping-length", clamping_length), ("--kt", kt), ("--kr", kr),
-                              ("--flutes", flutes), ("--radial-immersion", radial_immersion)) if v is None]
+                              ("--flutes", flutes), ("--immersion", radial_immersion)) if v is None]
     if missing:
         raise SetupError(f"--next-cut needs {', '.join(missing)}")
     if target is not None or candidates is not None:
