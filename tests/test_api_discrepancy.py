@@ -18,6 +18,7 @@ import pytest
 
 from bayes_rcsa.cli import main as cli_main
 from bayes_rcsa.errors import SetupError
+from bayes_rcsa.vocabulary import in_words
 from bayes_rcsa.io.setup import load_setup
 from bayes_rcsa.synthetic import default_bench_config, generate_campaign, write_campaign
 from bayes_rcsa.workflows import model_check as api
@@ -51,7 +52,7 @@ def test_the_check_names_the_tip_mass_and_its_attributes_are_the_document(check)
                                                                                                  r["gap_after"])
     assert check.usable_for_prediction and not check.gap_grew and check.final_terms == ("tip_mass",)
     first, second = check.candidates
-    assert (first.effect, first.name, second.name) == ("tip_mass", "tip mass", "contact damping")
+    assert (first.effect, first.name, second.name) == ("tip_mass", "mass at the tool tip", "joint damping off the assumed value")
     assert first.criterion == r["candidates"][0]["criterion"] > np.log(100)
     # the fraction of the baseline's systematic gap at the fitted lines each candidate removes: the tip mass
     # all of it, the joint damping part; the same ratio the naming rule uses (select.decide)
@@ -93,7 +94,7 @@ def test_the_command_line_saves_the_check_of_the_same_call(check, campaign, tmp_
     err = captured.err.strip().splitlines()
     assert err[-1] == f"bayes-rcsa discrepancy: {saved.summary_line()}"
     assert err[-1].endswith(f"wrote {out}/discrepancy.json and setup.amended.toml")
-    assert err[:-1] == [f"bayes-rcsa discrepancy: warning: {w}" for w in check.warnings]
+    assert err[:-1] == [f"bayes-rcsa discrepancy: warning: {in_words(w)}" for w in check.warnings]  # printed in words
     data = json.loads(captured.out)
     assert data["files"] == [str(out.resolve() / n) for n in ("setup.amended.toml", "discrepancy.json", "summary.md")]
     assert {k: data[k] for k in check.summary_data()} == check.summary_data()

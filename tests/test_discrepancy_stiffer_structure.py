@@ -104,7 +104,9 @@ def test_a_tool_stiffer_than_declared_is_not_named_on_the_rotor_bench(tmp_path):
     assert "k_thetaM" in r["final_prior_bound_pile_up"]
     write_discrepancy(res, tmp_path / "out", plots=False)
     text = (tmp_path / "out" / "summary.md").read_text()
-    assert "stiffer than the declared one" in text and "`spindle_rotation_omitted`" in text
+    from bayes_rcsa.vocabulary import effect_name
+
+    assert "stiffer than the declared one" in text and effect_name("spindle_rotation_omitted") in text
 
 
 @pytest.mark.slow

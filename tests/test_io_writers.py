@@ -61,8 +61,8 @@ def test_to_jsonable_and_strict_dumps():
 
 def test_demo_index_page_shows_the_numbers_it_is_given():
     summary = {"converged": True, "warnings": ["k_xf <piles> at a bound"],
-               "stiffness": [{"clamping_length": 0.025, "k_xf": {"q05": 1e7, "q95": 2e7},
-                              "k_thetaM": {"q05": 3e5, "q95": 4e5}}]}
+               "stiffness": [{"clamping_length": 0.025, "k_xf": {"q05": 1e7, "q50": 1.5e7, "q95": 2e7},
+                              "k_thetaM": {"q05": 3e5, "q50": 3.5e5, "q95": 4e5}}]}
     freqs = {"predictions": [
         {"mode": 1, "clamping_length": 0.03, "direction": "x", "q05_hz": 950.0, "q50_hz": 960.0, "q95_hz": 970.0,
          "measured_hz": 962.0},
@@ -71,12 +71,12 @@ def test_demo_index_page_shows_the_numbers_it_is_given():
     lobes = {"recommended": {"spindle_speed_rpm": 14184.0, "depth_m": 0.000115, "p_stable": 0.96}}
     page = demo_index_html(summary, freqs, lobes)
     # model interval, median, predictive interval of a new measured peak (none given: a dash), measured, error
-    assert "<td>950.0 &ndash; 970.0</td><td>960.0</td><td>&mdash;</td><td>962.0</td><td>-0.21 %</td>" in page
+    assert "<td>950–970</td><td>960</td><td>&mdash;</td><td>962.0</td><td>-0.21 %</td>" in page
     with_pred = {"predictions": [dict(freqs["predictions"][0], predictive_peak_q05_hz=940.0,
                                       predictive_peak_q95_hz=980.0)]}
-    assert "<td>940.0 &ndash; 980.0</td><td>962.0</td>" in demo_index_html(summary, with_pred, lobes)
-    assert "1e+07 &ndash; 2e+07" in page
+    assert "<td>940–980</td><td>962.0</td>" in demo_index_html(summary, with_pred, lobes)
+    assert "<td>15.0×10⁶ (10.0×10⁶–20.0×10⁶)</td><td>350×10³ (300×10³–400×10³)</td>" in page  # docs/data-formats.md
     assert "14184 rpm" in page and "0.115 mm" in page
-    assert "k_xf &lt;piles&gt; at a bound" in page  # escaped
-    assert "<td>2.0</td>" not in page  # only the first mode is tabulated
+    assert "contact stiffness, translational (kxf) &lt;piles&gt; at a bound" in page  # escaped, in words
+    assert "<td>2</td>" not in page and "<td>2.0</td>" not in page  # only the first mode is tabulated
     assert "no speed reaches" in demo_index_html(summary, freqs, {"recommended": None})

@@ -295,7 +295,8 @@ def test_report_sentence_of_a_ridge_parameter_does_not_contradict_its_verdict():
     ident = {"verdict": "identified only in combination with k_thetaM", "contraction": 1 - 3.9e-8, "bound": None,
              "partner": "k_thetaM", "correlation": -0.98, "width_ratio": 5.0, "q05": 1.7e6, "q95": 1.9e6}
     text = undetermined_statement("k_xf", ident, None)
-    assert text.startswith("k_xf is identified only in combination with k_thetaM")
+    assert text.startswith("The contact stiffness, translational (kxf) is identified only in combination with the "
+                           "contact stiffness, rotational (kθM)")
     assert "no value is quoted" not in text and "1 - " not in text
     # a parameter that really is undetermined: contraction printed readably, never "0.000"/"1 - ..."
     loose = {"verdict": "not identified", "contraction": 0.04, "bound": None, "q05": 1.0, "q95": 9.0}

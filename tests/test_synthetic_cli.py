@@ -37,7 +37,7 @@ def test_synthesize_writes_a_readable_campaign(tmp_path, config, capsys):
     out = tmp_path / "camp"
     assert main(["synthesize", str(config), "--out", str(out), "--seed", "4"]) == 0
     msg = capsys.readouterr().err
-    assert "2 tool-point FRFs" in msg and "tip_mass=0.002" in msg
+    assert "2 tool-point FRFs" in msg and "mass at the tool tip = 0.002" in msg
     setup = load_setup(out / "setup.toml")
     assert [m.file.name for m in setup.measurements] == ["tip_x_25mm.csv", "tip_x_35mm.csv"]
     frf = read_frf_csv(out / "tip_x_25mm.csv")

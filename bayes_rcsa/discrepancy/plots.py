@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io.figures import finish, new_figure, save_png
-from ..vocabulary import parameter_name
+from ..vocabulary import parameter_name, parameter_symbol
 
 #: The plots' names (their files are NAME.png), in the order they are written.
 PLOT_NAMES = ("frf_before_after", "residuals_before_after", "frequency_errors", "stiffness_before_after")
@@ -114,7 +114,7 @@ def _stiffness_plot(evaluation: dict, label_after: str):
                         capsize=3)
         ax.set_yscale("log")
         ax.set_xlabel("clamping length [mm]")
-        ax.set_ylabel(f"{parameter_name(name)} [{'N/m' if name == 'k_xf' else 'N m/rad'}] (90 % interval)")
+        ax.set_ylabel(f"{parameter_symbol(name) or parameter_name(name)} [{'N/m' if name == 'k_xf' else 'N m/rad'}] (90 % interval)")
     # one key above both panels: inside either it would hide a length's interval
     fig.legend(*fig.axes[0].get_legend_handles_labels(), loc="upper center", ncol=2, frameon=False)
     finish(fig, rect=(0, 0, 1, 1 - 0.35 / fig.get_figheight()))
