@@ -93,3 +93,24 @@ def test_usage_errors_are_one_line(capsys):
         main(["no-such-command"])
     assert exc.value.code == 2
     assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_no_help_text_has_a_broken_line_wrap():
+    """Every command's --help reads as paragraphs: no line of a paragraph ends after one or two words because a
+    source line was a few characters wider than the help width (``design --help`` showed "... after its" /
+    "two" / "possible outcomes ...")."""
+    import argparse
+
+    from bayes_rcsa.cli.main import build_parser
+
+    parser = build_parser()
+    subs = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    bad = []
+    for name, sub in subs.choices.items():
+        lines = sub.format_help().splitlines()
+        for prev, line, nxt in zip(lines, lines[1:], lines[2:]):
+            words = line.split()
+            if (prev.strip() and nxt.strip() and 0 < len(words) <= 2 and not line.startswith(" ")
+                    and nxt[:1].islower() and len(prev) > 60):
+                bad.append(f"{name}: {line!r}")
+    assert not bad, bad

@@ -34,12 +34,12 @@ expected 90 % width of the dominant natural frequency averaged over the range (p
 Writes to --out: design.json (ranking best first, expected widths with Monte Carlo errors, the
 verdict whether another test is worth it) and design.png. See docs/design.md.
 
-With --next-cut: which TEST CUT next (docs/stability.md, "Which cut next"). Every pair of --speeds x
---depths is a candidate; the posterior's draws with cutting coefficients from --kt V±T (and the cuts
-made so far, --cuts) give each candidate's P(chatter) and the exact expected uncertainty after its two
-possible outcomes of --next-cut-target: map (uncertain area of the P(stable) map), depth@SPEED (90 %
-width of the depth limit there) or mrr@P (best removal rate at P(stable) >= P; maximised). Candidates
-with P(chatter) > --risk-budget are never proposed.
+With --next-cut: which TEST CUT next (docs/stability.md, "Which cut next"). Every pair of
+--speeds x --depths is a candidate; the posterior's draws with cutting coefficients from --kt V±T
+(and the cuts made so far, --cuts) give each candidate's P(chatter) and the exact expected
+uncertainty after its two possible outcomes of --next-cut-target: map (uncertain area of the
+P(stable) map), depth@SPEED (90 % width of the depth limit there) or mrr@P (best removal rate at
+P(stable) >= P; maximised). Candidates with P(chatter) > --risk-budget are never proposed.
   design SETUP --posterior P --next-cut --clamping-length 0.03 --speeds 5000:30000:25
          --depths 5e-6:8e-5:15 --kt 790e6±30% --kr 230e6 --flutes 4 --immersion 0.95
          --feed y [--cuts CUTS.csv] [--risk-budget 0.3] --out DIR

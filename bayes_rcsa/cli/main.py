@@ -92,7 +92,16 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
         if "\n" not in text.strip():
             return textwrap.fill(" ".join(text.split()), width, initial_indent=indent, subsequent_indent=indent)
         out = []
-        for line in text.splitlines():
+        # consecutive unindented lines are one paragraph of prose: filled as a whole, so that a source line a few
+        # characters wider than the help width does not leave one word on a line of its own
+        lines, merged = text.splitlines(), []
+        for line in lines:
+            if merged and line.strip() and not line[:1].isspace() and merged[-1].strip() \
+                    and not merged[-1][:1].isspace():
+                merged[-1] = merged[-1].rstrip() + " " + line.strip()
+            else:
+                merged.append(line)
+        for line in merged:
             if len(line) + len(indent) <= width or not line.strip():
                 out.append(indent + line)
                 continue
