@@ -168,3 +168,22 @@ def test_recommendation_does_not_depend_on_the_map_resolution():
         assert block == doc["p_stable_map"]["display_speed_block"] == 3
         assert shown_p.shape == (doc["p_stable_map"]["display_columns"], p) == (1001, p)
         np.testing.assert_allclose(shown_p[5], res.p_stable[15:18].mean(axis=0))
+
+
+def test_the_warm_up_loads_the_kernels_with_the_signatures_the_job_calls():
+    """bayes_rcsa.stability.warmup calls the compiled envelope and map on tiny inputs to load their cached machine
+    code beside the job; inputs of other types would make numba compile a second version instead (seconds of
+    interpreter time taken from the job).  After the warm-up, a job on the compiled path adds no signature."""
+    from bayes_rcsa.stability import _zoa_kernel, warmup
+    from bayes_rcsa.stability.modal_fit import ModalModel
+
+    warmup.start(kernels=True, figure=False).join(120)
+    before = {k: list(getattr(_zoa_kernel, k).signatures) for k in ("lower_envelope", "stable_fractions")}
+    assert all(len(v) >= 1 for v in before.values()), before
+    f = np.arange(600.0, 3000.0, 8.0)
+    rng = np.random.default_rng(5)
+    gx = np.array([ModalModel([1287 * a], [0.02], [1.0e6]).frf(f) for a in rng.normal(1, 0.01, 60)])
+    gy = np.array([ModalModel([1340 * a], [0.03], [1.3e6]).frf(f) for a in rng.normal(1, 0.01, 60)])
+    lobes_from_frf_draws(gx, gy, f, CUT, np.linspace(5000, 30000, 4000))  # 60 x 4000 cells: compiled
+    after = {k: list(getattr(_zoa_kernel, k).signatures) for k in ("lower_envelope", "stable_fractions")}
+    assert after == before

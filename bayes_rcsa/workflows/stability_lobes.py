@@ -313,6 +313,10 @@ def lobes(*, posterior=None, setup=None, clamping_length: float | None = None, t
                      "split the speed range into several runs")
         frf = _dynamics(parts, inference_data, setup, clamping_length, tool, measured_x, measured_y, averages,
                         deterministic, draws, seed, spindle_samples)
+        # the inputs are read and checked: load the compiled kernels (many draws) and matplotlib beside the job
+        from ..stability import warmup
+
+        warmup.start(kernels=frf.n_draws > 1 and method == "zoa", figure=True)
         check_memory(8.0 * (8 * frf.n_draws * speeds.size + 4 * n_cells)
                      + 16.0 * 6 * frf.n_draws * frf.frequency_hz.size,
                      f"{frf.n_draws} draw(s) x {frf.frequency_hz.size} frequency lines x --speeds {speeds.size}",

@@ -1,0 +1,47 @@
+"""Load what a lobes job will need in a background thread while the job starts.
+
+A probabilistic lobes run spends about a second on loading code it will certainly use: numba and the cached
+machine code of the compiled envelope and map (:mod:`._zoa_kernel`), and matplotlib for the figure.  That loading
+is Python work holding the interpreter lock, but the job's own first steps (reading the FRF files, drawing
+the realisations, the eigenvalues of 750,000 2 x 2 matrices, sorting) run mostly inside numpy, which releases the
+lock; on a machine with a second core the two overlap.  :func:`start` returns at once; whatever the thread has
+not finished is loaded by the job when it gets there (Python's per-module import locks make that safe), so the
+results are the same with or without it.
+"""
+
+from __future__ import annotations
+
+import threading
+
+__all__ = ["start"]
+
+
+def _load(kernels: bool, figure: bool) -> None:
+    if kernels:
+        import numpy as np
+
+        from . import _zoa_kernel
+
+        # calling each kernel once on tiny inputs loads its cached machine code (numba compiles nothing here:
+        # the signatures are those of the real call, float64/int64 arrays)
+        one = np.zeros((1, 1))
+        _zoa_kernel.stable_fractions(np.ones((1, 1)), np.ones(1), np.zeros((1, 1)))
+        _zoa_kernel.lower_envelope(np.full((1, 2, 2), np.inf), np.zeros((1, 2, 2)), np.ones(2), np.ones(2), 1, 1,
+                                   np.ones(2), True, np.full((1, 2), np.inf), one.copy(),
+                                   np.zeros((1, 1), dtype=np.int64), False)
+    if figure:
+        import matplotlib.backends.backend_agg  # noqa: F401
+        import matplotlib.figure  # noqa: F401
+
+
+def start(kernels: bool = True, figure: bool = True) -> threading.Thread:
+    """Start loading the compiled kernels (``kernels``) and matplotlib (``figure``) in a daemon thread."""
+    def run():
+        try:
+            _load(kernels, figure)
+        except Exception:  # a warm-up only: the job itself loads (and reports) whatever failed here
+            pass
+
+    thread = threading.Thread(target=run, name="bayes_rcsa-warmup", daemon=True)
+    thread.start()
+    return thread
