@@ -41,7 +41,31 @@ def _register(monkeypatch):
 
 
 def _run(path, seed=0, **kw):
-    return run_discrepancy(load_setup(path), DiscrepancyOptions(lengths=FIT, seed=seed, **kw)).report
+    report = run_discrepancy(load_setup(path), DiscrepancyOptions(lengths=FIT, seed=seed, **kw)).report
+    _check_honest(report)
+    return report
+
+
+def _check_honest(r: dict) -> None:
+    """Every report of this file: gap_grew matches its own gap numbers, and no decisive candidate is missing."""
+    from bayes_rcsa.discrepancy.document import GAP_LABELS, gaps_grown
+    from bayes_rcsa.discrepancy.render import summary_markdown
+    from bayes_rcsa.discrepancy.select import LN_BF_NAME
+    from bayes_rcsa.vocabulary import effect_name
+
+    before = {k: r[f"{k}_before"] for k in GAP_LABELS}
+    after = {k: r[f"{k}_after"] for k in GAP_LABELS}
+    grown = [k for k in GAP_LABELS if before[k] is not None and after[k] is not None
+             and after[k] > before[k] + r["gap_resolution"]]
+    assert r["gaps_grown"] == grown == gaps_grown(before, after, r["gap_resolution"])
+    assert r["gap_grew"] is bool(grown)
+    named = {r["named_effect"], *r["also_named"]} - {None}
+    decisive = {c["effect"] for c in r["candidates"] if c["criterion"] is not None and c["criterion"] > LN_BF_NAME}
+    assert {m["effect"] for m in r["decisive_not_named"]} == decisive - named
+    md = summary_markdown(r)
+    for m in r["decisive_not_named"]:
+        assert effect_name(m["effect"]) in md and m["reason"] in md
+    assert ("**The systematic mismatch grew**" in md) is r["gap_grew"]
 
 
 @pytest.mark.parametrize("effect", ["contact_damping", "fluted_section"])

@@ -87,7 +87,8 @@ def build_report(res) -> dict:
                 ) if remainder else []
     near = modes_near_features(a["measurements"], features)
     usable, why = usable and not near, why + near
-    grew = bool(a["gap"] > b["gap"] + a["gap_detail"]["resolution"])
+    grown = gaps_grown(b, a, a["gap_detail"]["resolution"])
+    grew = bool(grown)
     warnings = [f"final model: {w}" for w in on_bounds]
     beyond = sorted({md["map_outside_reason"] for m in a["measurements"] for md in m["modes"]
                      if md.get("map_outside_interval")})
@@ -113,7 +114,8 @@ def build_report(res) -> dict:
     if not usable:
         warnings.append("final model not usable for prediction: " + "; ".join(why))
     elif grew:
-        warnings.append(f"the systematic gap grew in the final model ({100 * b['gap']:.2g} % -> {100 * a['gap']:.2g} %)")
+        warnings.append("the systematic gap grew in the final model: " + "; ".join(
+            f"{GAP_LABELS[k]} {100 * b[k]:.2g} % -> {100 * a[k]:.2g} %" for k in grown))
     n_fitted = len({round(m["clamping_length"], 9) for m in a["measurements"] if m["fitted"]})
     assumed = remainder and n_fitted < MIN_LENGTHS_FOR_BEND
     for m in a["measurements"]:
@@ -156,6 +158,8 @@ def build_report(res) -> dict:
         "unexplained_features": features,
         "usable_for_prediction_reasons": why,
         "gap_grew": grew,
+        # which reported gaps grew (keys of the gaps above without _before/_after); gap_grew is true iff any did
+        "gaps_grown": grown,
         "mode_rule": MODE_RULE,
         "mode_bias": {"rule": BIAS_RULE, "applied": bool(a["mode_bias_notes"]), "notes": a["mode_bias_notes"],
                       "observation": a.get("mode_bias_observation"),
@@ -186,4 +190,70 @@ def build_report(res) -> dict:
         "timing_s": res.timing,
         "seed": res.options.seed,
     }
+    out["decisive_not_named"] = decisive_not_named(out)
+    return out
+
+
+#: The gaps a report states before and after (``<key>_before`` / ``<key>_after``) and what they are called.
+GAP_LABELS = {"gap": "systematic gap", "gap_fitted": "systematic gap at the fitted lengths",
+              "gap_held_out": "systematic gap at the lengths not fitted"}
+
+
+def gaps_grown(before: dict, after: dict, resolution: float) -> list[str]:
+    """The reported gaps (keys of :data:`GAP_LABELS`) larger after than before by more than ``resolution``.
+
+    A final model is reported as making the fit worse whenever any of them grew: the held-out gap can grow while
+    the fitted one shrinks (a term that does not carry to other clamping lengths), and the summary must not then
+    read as an improvement.
+    """
+    out = []
+    for key in GAP_LABELS:
+        x, y = before.get(key), after.get(key)
+        if x is not None and y is not None and y > x + resolution:
+            out.append(key)
+    return out
+
+
+def decisive_not_named(report: dict) -> list[dict]:
+    """Every candidate whose criterion exceeds ln 100 (decisive) but that the report does not name, with why.
+
+    Each entry: ``effect``, ``criterion``, ``reason`` (plain words), ``explains`` (the fraction of the fitted lines'
+    systematic gap its refit removes, or None) and ``deciding_test`` (a measurement that would settle it).
+    Nothing decisive may be dropped in silence: an effect that fits far better than the model but sits on the edge
+    of its prior, removes only part of the gap or stands beside an equally good one is still evidence.
+    """
+    named = [n for n in [report.get("named_effect"), *report.get("also_named", [])] if n]
+    partial = {p["effect"]: p for p in report.get("partially_explained_by", [])}
+    confounded = set(report.get("confounded_with", []))
+    base = report.get("gap_fitted_before")
+    decisive = [c for c in report.get("candidates", [])
+                if c.get("criterion") is not None and c["criterion"] > LN_BF_NAME and c["effect"] not in named]
+    out = []
+    for c in decisive:
+        e = c["effect"]
+        sys_gap = c.get("systematic_gap_fitted_lines")
+        explains = (max(0.0, 1.0 - sys_gap / base) if sys_gap is not None and base else None)
+        edge = c.get("parameters_on_range_limit") or c.get("parameters_on_prior_edge") or []
+        p = partial.get(e, {})
+        if e in confounded:
+            reason = "explains the data as well as the named effect"
+        elif edge:
+            reason = f"fits only with {', '.join(edge)} on the edge of its prior (the effect may be larger than the prior allows)"
+        elif c.get("implausible"):
+            reason = "its best fit is physically implausible: " + "; ".join(c["implausible"])
+        elif p.get("held_out_gap_grew"):
+            reason = "makes the clamping lengths it was not fitted to worse"
+        elif p.get("contact_held_on_upper_bound"):
+            reason = "keeps the contact stiffness on its upper bound (the structure is stiffer than declared)"
+        elif p.get("outranked_by_edge") or p.get("outranked_by_implausible"):
+            reason = f"outranked by {p.get('outranked_by_edge') or p.get('outranked_by_implausible')}, itself not named"
+        elif p.get("systematic_gap_ratio") is not None:
+            reason = "removes only part of the systematic gap"
+        else:
+            reason = f"outranked by {named[0]}" if named else "not named by the rule (see the criterion text)"
+        other = named[0] if named else next((d["effect"] for d in decisive if d["effect"] != e), None)
+        test = (separating_test(e, other) if other else
+                "measure a clamping length not yet measured: the effect predicts how the mismatch changes with it")
+        out.append({"effect": e, "criterion": float(c["criterion"]), "reason": reason, "explains": explains,
+                    "deciding_test": test})
     return out

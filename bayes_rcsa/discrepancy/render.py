@@ -112,9 +112,21 @@ def summary_markdown(report: dict) -> str:
             lines += ["", "The mode frequencies carry the bias between model and measurement learned at the "
                       "measured clamping lengths; between them that bias is interpolated with its uncertainty, "
                       "so predictions at other clamping lengths are wider than the model alone would say. " + how]
+    missed = report.get("decisive_not_named", [])
+    if missed:
+        lines += ["", "Effects that fit decisively better than the model (criterion above ln 100) but are not named:"]
+        for m in missed:
+            part = f", removes {100 * m['explains']:.0f} % of the systematic mismatch" if m.get("explains") is not None else ""
+            lines.append(f"- {effect_name(m['effect'])} (criterion {m['criterion']:+.1f}{part}): {m['reason']}. "
+                         f"To decide: {m['deciding_test']}.")
     if report.get("gap_grew"):
-        lines += ["", f"**The systematic mismatch grew** in the final model ({percent(report['gap_before'])} -> "
-                  f"{percent(report['gap_after'])}): the added term makes the fit worse, not more honest."]
+        labels = {"gap": "overall", "gap_fitted": "at the fitted clamping lengths",
+                  "gap_held_out": "at the clamping lengths not fitted"}
+        grown = report.get("gaps_grown") or ["gap"]
+        detail = "; ".join(f"{labels.get(k, k)} {percent(report[k + '_before'])} -> {percent(report[k + '_after'])}"
+                           for k in grown if report.get(k + "_before") is not None)
+        lines += ["", f"**The systematic mismatch grew** in the final model ({detail}): the added term makes the "
+                  "fit worse, not more honest."]
     if not report.get("usable_for_prediction", True):
         lines += ["", "**Not usable for prediction.** The final model's intervals are too narrow for the "
                   "disagreement, so no frequency interval below may be used to choose a spindle speed:"]
