@@ -128,6 +128,10 @@ def test_text_outputs_print_contractions_readably(bench):
         assert "1 - " not in text and "1 - 3" not in text
     assert "prior width / posterior width = " in md
     assert "identified only in combination with k_thetaM" in md and "marginal / conditional width" in md
+    # the fits' warnings in words, each under the fit's clamping lengths (not "multi: sigma_0: R-hat ...")
+    if "## Warnings of the fits" in md:
+        warned = md.split("## Warnings of the fits", 1)[1].split("\n## ", 1)[0]
+        assert "sigma_" not in warned and "multi:" not in warned and "- fit " in warned
 
 
 def test_multi_length_posterior_contracts_both_stiffnesses_more(bench):

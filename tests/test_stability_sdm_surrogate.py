@@ -123,3 +123,13 @@ def test_few_draws_or_a_variable_pitch_are_always_exact(monkeypatch):
     assert len(res.modal_fits) == 3
     with pytest.raises(AssertionError, match="the surrogate was used"):
         sdm.depth_limits(gx, gy, F, CUT, SPEEDS[:1], MethodOptions())
+
+
+def test_the_run_time_estimate_follows_the_surrogate_rule():
+    # what `lobes` prints before an SDM run: 500 draws cost 12 exact draws' time with the surrogate, all 500 with
+    # --sdm-exact (the estimate printed before a minutes-long run must say minutes)
+    sdm = STABILITY_METHODS.get("sdm")
+    fast, slow = sdm.estimate_seconds(500, 400, 1501), sdm.estimate_seconds(500, 400, 1501, exact=True)
+    assert fast == pytest.approx(sdm_draws._exact_seconds(sdm_draws.EXACT_DRAWS, 400, 1501))
+    assert slow == pytest.approx(sdm_draws._exact_seconds(500, 400, 1501)) and slow > 20 * fast
+    assert sdm.estimate_seconds(10, 400, 1501) == sdm.estimate_seconds(10, 400, 1501, exact=True)

@@ -26,6 +26,8 @@ import numpy as np
 
 from ..errors import SetupError
 from ..io.atomic import atomic_write_text
+from ..units import lengths_mm
+from ..vocabulary import in_words
 from .draws import CONTACT_NAMES, PosteriorDraws, draws_from_result
 from .identifiability import (
     BOUND_TAIL,
@@ -51,6 +53,11 @@ __all__ = ["FitSpec", "FitAnalysis", "Study", "plan_fits", "run_fit", "analyse_f
 
 _LENGTH_MATCH = 1e-7
 ANALYSIS_MAX_DRAWS = 1000  # draws pushed through the model for the influence analysis of each fit
+
+
+def _fit_title(spec) -> str:
+    """A fit of the study in words: ``fit at 25 mm`` or ``fit over 25 and 40 mm`` (its ``name`` stays in the JSON)."""
+    return f"{'fit at' if len(spec.lengths) == 1 else 'fit over'} {lengths_mm(spec.lengths)}"
 
 
 @dataclass(frozen=True)
@@ -489,11 +496,12 @@ def _blocks(study: Study, images: Sequence[str]) -> list[tuple]:
         ("h", 2, "Findings"),
         ("ul", doc["findings"]),
     ]
-    statements = [f"{f.spec.name}: {s}" for f in study.fits for s in f.entry["statements"]]
+    statements = [f"{_fit_title(f.spec)}: {s}" for f in study.fits for s in f.entry["statements"]]
     if statements:
         blocks += [("h", 2, "What the data do not determine"), ("ul", statements)]
     blocks += _table_rows(study)
-    warn = [f"{f.spec.name}: {w}" for f in study.fits for w in f.entry["warnings"]]
+    # in words (docs/data-formats.md): the fits' warnings name parameters by their identifiers (sigma_0: R-hat ...)
+    warn = [f"{_fit_title(f.spec)}: {in_words(w)}" for f in study.fits for w in f.entry["warnings"]]
     if warn:
         blocks += [("h", 2, "Warnings of the fits"), ("ul", warn)]
     for img in images:

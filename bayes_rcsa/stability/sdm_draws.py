@@ -90,15 +90,15 @@ class SDMMethod:
         if options.intervals is not None and options.intervals < 2:
             raise SetupError(f"intervals={options.intervals!r}: expected >= 2 per tooth period")
 
-    def estimate_seconds(self, n_draws: int, n_speeds: int, n_freq: int) -> float:
+    def estimate_seconds(self, n_draws: int, n_speeds: int, n_freq: int, exact: bool = False) -> float:
         # measured on the bundled example (tip_x/tip_y_30mm.csv, 1501 lines, 3-4 modes per direction, 500 coherence
         # realisations, 2 shared and loaded cores): about 1.5 s fixed (imports, the full fits of the mean FRFs and
         # of the measured FRFs), 0.02 s per draw for the batched refits of both directions, 0.01 s per draw for the
         # limits next to the recommendation and 2.5 ms per (draw, speed) pair (5 speeds: 20 s CPU, 23 s wall,
         # estimate 23 s; 50 speeds: 48 s CPU, 72 s wall, estimate 79 s)
         # (with the surrogate: EXACT_DRAWS exact draws; the zero-order limits of the others cost milliseconds)
-        return _exact_seconds(min(n_draws, EXACT_DRAWS) if n_draws > SURROGATE_MIN_DRAWS else n_draws, n_speeds,
-                              n_freq)
+        surrogate = n_draws > SURROGATE_MIN_DRAWS and not exact
+        return _exact_seconds(min(n_draws, EXACT_DRAWS) if surrogate else n_draws, n_speeds, n_freq)
 
     def depth_limits(self, frf_x, frf_y, frequency_hz, cutting, speeds_rpm, options, progress=None):
         self.check(options)

@@ -332,7 +332,7 @@ def lobes(*, posterior=None, setup=None, clamping_length: float | None = None, t
         if progress:
             from ..stability.progress import ProgressBar
 
-            _print_estimate(impl, frf, speeds, method, budget_s)
+            _print_estimate(impl, frf, speeds, method, budget_s, sdm_exact)
             bar = ProgressBar(f"lobes: {method_name(method)}")
         try:
             res = lobes_from_frf_draws(
@@ -462,11 +462,12 @@ def _pair_warnings(mx, my) -> list[str]:
     return xy_pair_warnings(Path(mx.files[0]).name, Path(my.files[0]).name, mx.frequency_hz, mx.mean, gy)
 
 
-def _print_estimate(impl, frf, speeds, method: str, budget: float) -> None:
-    """The run-time estimate on stderr (with advice when it exceeds ``budget`` s)."""
+def _print_estimate(impl, frf, speeds, method: str, budget: float, exact: bool = False) -> None:
+    """The run-time estimate on stderr (with advice when it exceeds ``budget`` s); ``exact``: every draw computed
+    by the method itself (``--sdm-exact``), passed only then, so that a registered method without the option works."""
     from ..stability.progress import format_seconds
 
-    est = impl.estimate_seconds(frf.n_draws, speeds.size, frf.frequency_hz.size)
+    est = impl.estimate_seconds(frf.n_draws, speeds.size, frf.frequency_hz.size, **({"exact": True} if exact else {}))
     print(f"lobes: {method_name(method)}, {frf.n_draws} draw(s) x {speeds.size} speeds: estimated "
           f"{format_seconds(est)}",
           file=sys.stderr)
