@@ -70,7 +70,11 @@ def runs(tmp_path_factory):
     (root / "discrepancy").mkdir()
     disc = {"adequate": False, "named_effect": "tip_mass", "confounded_with": ["fluted_section"], "runner_up": "fluted_section",
             "gap_before": 0.0834, "gap_after": 0.0121, "frequency_error_pct_before": {"30 mm x": 1.234},
-            "frequency_error_pct_after": {"30 mm x": -0.0567}, "detection": {"reasons": ["residuals correlated"]}}
+            "frequency_error_pct_after": {"30 mm x": -0.0567}, "detection": {"reasons": ["residuals correlated"]},
+            "gap_grew": False,
+            "decisive_not_named": [{"effect": "spindle_error", "criterion": 75.5, "explains": 0.72,
+                                    "reason": "fits only with spindle_error_k1 on the edge of its prior",
+                                    "deciding_test": "measure another clamping length"}]}
     (root / "discrepancy" / "discrepancy.json").write_text(json.dumps(disc))
     (root / "design").mkdir()
     design = {"mode": "posterior", "target": "dominant natural frequency at 30 mm", "unit": "Hz", "worth_it": True,
@@ -206,6 +210,26 @@ def _check_tables(p: _Tables, runs) -> None:
 
 def test_tables_hold_the_numbers_of_the_json_files(runs):
     _check_tables(_parse(runs["html"].read_text(encoding="utf-8")), runs)
+
+
+def test_a_decisive_candidate_not_named_is_in_the_page_and_a_grown_gap_is_said(runs, tmp_path):
+    """issue #43: no decisive candidate dropped in silence (the HTML as well as summary.md), gap growth stated."""
+    import re
+
+    from bayes_rcsa.report import write_report_html
+    from bayes_rcsa.vocabulary import effect_name
+
+    text = runs["html"].read_text(encoding="utf-8")
+    block = re.search(r'<ul id="discrepancy-not-named-1">(.*?)</ul>', text, re.S)
+    assert block and effect_name("spindle_error") in block.group(1)
+    assert "on the edge of its prior" in block.group(1) and "measure another clamping length" in block.group(1)
+    assert "discrepancy-grew-1" not in text
+    grew = tmp_path / "discrepancy"
+    grew.mkdir()
+    doc = dict(runs["disc"], gap_grew=True, decisive_not_named=[])
+    (grew / "discrepancy.json").write_text(json.dumps(doc))
+    page = write_report_html([grew], tmp_path / "r.html").read_text(encoding="utf-8")
+    assert 'id="discrepancy-grew-1"' in page and "discrepancy-not-named-1" not in page
 
 
 def test_page_is_self_contained_and_speaks_plainly(runs):

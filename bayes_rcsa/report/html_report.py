@@ -296,6 +296,10 @@ def _discrepancy_section(run: RunDir) -> dict:
             "gap_after": num(100 * d["gap_after"], 3) if d.get("gap_after") is not None else "—",
             "runner_up": effect_name(d["runner_up"]) if d.get("runner_up") else "—", "rows": rows,
             "reasons": [in_words(str(r)) for r in ((d.get("detection") or {}).get("reasons") or [])],
+            # decisive candidates not named, each with why and the test that decides it (issue #43: none in silence)
+            "not_named": [f"{effect_name(m['effect'])} (criterion {m['criterion']:+.1f}): {m['reason']}. "
+                          f"To decide: {m['deciding_test']}." for m in d.get("decisive_not_named") or []],
+            "grew": bool(d.get("gap_grew")),
             "images": _images(run, ("frf_before_after.png", "frequency_errors.png", "stiffness_before_after.png"))}
 
 
