@@ -152,6 +152,11 @@ class ModelTerm:
     #: law's ends, so with two lengths it changes nothing the fit sees); the discrepancy workflow does not
     #: offer a term as a default candidate below this.
     min_clamping_lengths: ClassVar[int] = 1
+    #: The parameter whose baseline switches the term off whatever its other parameters (a resonator's or a
+    #: body's mass of 0); ``None`` when there is none.  The discrepancy screen's score test then differentiates
+    #: only in it over the grid of the others (their derivatives are exactly 0 there); a test checks the claim
+    #: for every term that makes it (tests/test_discrepancy_screen_switch.py).
+    switch: ClassVar[str | None] = None
 
     def parameters(self, model: "ToolPointModel") -> tuple[Parameter, ...]:
         """The term's parameters with default priors and baselines for this model."""

@@ -183,6 +183,7 @@ class ExtraMode(ModelTerm):
     kind = "substructure"
     #: the holder's ends (flange, holder tip) are physical limits of the position, not a chosen range
     physical_bounds = {"extra_mode_position": (0.0, 1.0)}
+    switch = "extra_mode_mass_kg"  # a resonator of no mass is no resonator
     description = ("a resonance on the spindle/holder side (drawbar, holder flange, housing) that the spindle "
                    "file does not contain")
 

@@ -129,6 +129,7 @@ class TipMass(ModelTerm):
     description = ("a small mass such as an accelerometer at the tool tip (mass m, centre e beyond the tip, rotary "
                    "inertia m (e^2 + r_g^2))")
     parameter_name = "tip_mass_kg"
+    switch = "tip_mass_kg"  # a body of no mass has no offset that matters
 
     def parameters(self, model) -> tuple[Parameter, ...]:
         mass = (Parameter(self.parameter_name, "kg", "term", prior=Uniform(0.0, 0.02), label="tip mass (kg)",
