@@ -68,13 +68,15 @@ def peak_bandwidth(frequency_hz: np.ndarray, values: np.ndarray) -> float:
 
 
 def _length_maps(likelihood: FRFLikelihood, log_kx: np.ndarray, log_kt: np.ndarray, held: dict[str, float],
-                 max_lines: int, chunk_sets: int = 16384) -> dict[float, np.ndarray]:
+                 max_lines: int, chunk_sets: int = 1024) -> dict[float, np.ndarray]:
     """Profile log-likelihood map ``(n_x, n_t)`` of each distinct clamping length.
 
     The model is evaluated on at most ``max_lines`` lines per measurement
     (a subsampled stack), every grid point being one parameter set with the
     stiffness of the grid at every length (no growth) and the other
-    parameters at the ``held`` values (physical units).
+    parameters at the ``held`` values (physical units).  ``chunk_sets`` grid points are evaluated per call:
+    the maps are the same for any chunk, but (chunk, lines) temporaries that stay in cache are faster (bundled
+    example, 182,000 points x 512 lines: 4.2 s in chunks of 16,384, 3.1-3.4 s in chunks of 1024).
     """
     from ..model.assembly import ConfigurationStack
     from ..params.forward import ForwardModel
