@@ -136,12 +136,12 @@ def score_test(baseline: ModelFit, problem: Problem, effect: str) -> ScoreResult
         # statistic is sharply peaked in it; the others on a coarse one
         axes = [(np.arange(_FINE) + 0.5) / _FINE] + [np.array(_COARSE_Q)] * (len(inactive) - 1)
         grid = list(itertools.product(*[bounds[c, 0] + q * width[c] for c, q in zip(inactive, axes)]))
-    switched = _switch_jacobians(problem, effect, theta0, grid, active, inactive, lambda t: steps(t, active, 1e-3))
-    found = []
+    points = np.repeat(theta0[None], len(grid), axis=0)  # theta0 with the inactive parameters on the grid
     for i, g in enumerate(grid):
-        theta = theta0.copy()
-        for c, u in zip(inactive, g):
-            theta[c] = u
+        points[i, inactive] = g
+    switched = _switch_jacobians(problem, effect, theta0, points, active, inactive, lambda t: steps(t, active, 1e-3))
+    found = []
+    for i, theta in enumerate(points):
         if switched is not None:
             ja = switched[i]
             act = active if np.linalg.norm(ja) > 0 else []
@@ -178,7 +178,7 @@ def score_test(baseline: ModelFit, problem: Problem, effect: str) -> ScoreResult
     return ScoreResult(effect, stat, max(dof, 1), float(chi2.sf(stat, max(dof, 1))), start, starts)
 
 
-def _switch_jacobians(problem: Problem, effect: str, theta0: np.ndarray, grid: list, active: list[int],
+def _switch_jacobians(problem: Problem, effect: str, theta0: np.ndarray, points: np.ndarray, active: list[int],
                       inactive: list[int], step) -> list[np.ndarray] | None:
     """The term Jacobian at every grid point when only the term's switch is active (else ``None``).
 
@@ -189,13 +189,17 @@ def _switch_jacobians(problem: Problem, effect: str, theta0: np.ndarray, grid: l
     columns as differentiating in every term parameter at every point, with a fifth of the model
     evaluations for a four-parameter resonator.
 
+    Parameters
+    ----------
+    points : (n_grid, ndim) sampling coordinates, ``theta0`` with the inactive parameters on the grid
+
     Returns
     -------
     list of (2 n_lines, 1) or None
     """
     from ..params.terms import get_term
 
-    switch = getattr(get_term(effect), "switch", None)
+    switch = get_term(effect).switch
     names = problem.parameters.names
     if not inactive or switch not in names or active != [names.index(switch)]:
         return None
@@ -204,14 +208,11 @@ def _switch_jacobians(problem: Problem, effect: str, theta0: np.ndarray, grid: l
     with np.errstate(divide="ignore"):
         if theta0[col] != float(prior.to_sampling(problem.parameters[switch].baseline)):
             return None  # the term is already on (not a candidate's first screen)
-    thetas = np.repeat(theta0[None], len(grid), axis=0)
-    for i, g in enumerate(grid):
-        for c, u in zip(inactive, g):
-            thetas[i, c] = u
+    thetas = points.copy()
     h = float(step(theta0)[0])  # the step depends on the switch's own coordinate only, the same at every point
     thetas[:, col] += h
     out = []
-    for a in range(0, len(grid), _CHUNK):
+    for a in range(0, len(thetas), _CHUNK):
         # the baseline set (switch at its baseline) evaluated with the chunk, on the same code path
         z = whitened_residuals(problem, np.vstack([theta0[None], thetas[a:a + _CHUNK]]))
         out += [((z[j] - z[0]) / h)[:, None] for j in range(1, z.shape[0])]
