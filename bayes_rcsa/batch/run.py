@@ -38,6 +38,7 @@ from typing import Callable, Sequence
 from ..errors import OutputError
 from ..io.atomic import atomic_write_text, is_io_error, output_error
 from .manifest import SetupJob
+from .streams import output_to
 from .threads import THREAD_VARIABLES, limit_threads
 
 __all__ = ["run_setup", "run_batch", "BatchResult", "limit_threads", "KILL_HOOK_ENV", "THREAD_VARIABLES",
@@ -173,7 +174,7 @@ def _run_setup(job: SetupJob, d: Path, run_command: Callable[[list[str]], int], 
     log = d / "log.txt"
     t0 = time.monotonic()
     status, failed_step, error = "done", None, None
-    with open(log, "w", encoding="utf-8") as fh, contextlib.redirect_stderr(fh), contextlib.redirect_stdout(fh):
+    with open(log, "w", encoding="utf-8") as fh, output_to(fh):
         for step in job.steps:
             if kill_hook == f"{job.name}:{step}":
                 fh.flush()

@@ -7,6 +7,15 @@ the realisations, the eigenvalues of 750,000 2 x 2 matrices, sorting) run mostly
 lock; on a machine with a second core the two overlap.  :func:`start` returns at once; whatever the thread has
 not finished is loaded by the job when it gets there (Python's per-module import locks make that safe), so the
 results are the same with or without it.
+
+The thread must never enter :class:`warnings.catch_warnings`.  Before Python 3.14 that context manager saves
+and restores the process's global filter list and ``showwarning``; entered on two threads at once, the one that
+leaves last restores a state the other has already left, so the job (or the next one in the same process) can
+lose its warnings for good: a filter saved inside a short ``simplefilter("ignore")`` block stays in force, and
+``showwarning`` points at a finished :func:`bayes_rcsa.messages.warning_log`.  Importing scipy and matplotlib
+runs such blocks at module level, so :func:`start` imports those two packages on the calling thread first
+(about 0.2 s each when not yet loaded); what is left for the thread (numba, the kernels' cached code,
+``matplotlib.figure`` and the Agg backend) enters none (tests/test_stability_warmup.py watches it).
 """
 
 from __future__ import annotations
@@ -14,6 +23,10 @@ from __future__ import annotations
 import threading
 
 __all__ = ["start"]
+
+#: Modules whose import enters :class:`warnings.catch_warnings` (module-level code of scipy's ``_lib._util`` and
+#: of matplotlib's ``__init__``): imported on the calling thread before the warm-up thread starts.
+_CALLER_IMPORTS = {"kernels": ("scipy._lib._util",), "figure": ("matplotlib",)}
 
 
 def _load(kernels: bool, figure: bool) -> None:
@@ -35,7 +48,17 @@ def _load(kernels: bool, figure: bool) -> None:
 
 
 def start(kernels: bool = True, figure: bool = True) -> threading.Thread:
-    """Start loading the compiled kernels (``kernels``) and matplotlib (``figure``) in a daemon thread."""
+    """Start loading the compiled kernels (``kernels``) and matplotlib (``figure``) in a daemon thread.
+
+    The packages in ``_CALLER_IMPORTS`` are imported first, on the calling thread (see the module's docstring).
+    """
+    import importlib
+
+    for part, wanted in (("kernels", kernels), ("figure", figure)):
+        if wanted:
+            for name in _CALLER_IMPORTS[part]:
+                importlib.import_module(name)
+
     def run():
         try:
             _load(kernels, figure)
