@@ -50,7 +50,8 @@ MEASURED = (0.025, 0.040)
 UNMEASURED_F = 0.030
 
 
-def replicate(seed: int, step_hz: float, settings: SamplerSettings, effects: dict | None = None) -> dict:
+def replicate(seed: int, step_hz: float, settings: SamplerSettings, effects: dict | None = None,
+              sampler: str = "auto") -> dict:
     """One campaign + identification; returns coverage indicators and timing."""
     rng = np.random.default_rng(seed)
     kx = 10 ** rng.uniform(*np.log10(PRIOR_KX))
@@ -67,7 +68,8 @@ def replicate(seed: int, step_hz: float, settings: SamplerSettings, effects: dic
                           tuple(c["clamping_range"]), c["translational_damping"], c["rotational_damping"])
     model = ToolPointModel(cfg.holder, {"tool": cfg.tool}, camp.spindle)
     t0 = time.perf_counter()
-    res = identify(build_problem(model, camp.measurements, contact, IdentificationOptions()), seed=seed, settings=settings)
+    res = identify(build_problem(model, camp.measurements, contact, IdentificationOptions()), seed=seed, settings=settings,
+                   sampler=sampler)
     wall = time.perf_counter() - t0
     kxd, _ = posterior_stiffness(res, LENGTHS_K)
     truth_k = np.array([true_contact(cfg, l)["k_xf"] for l in LENGTHS_K])
@@ -85,7 +87,7 @@ def replicate(seed: int, step_hz: float, settings: SamplerSettings, effects: dic
         "k50": covered(kxd, truth_k, 0.5), "k90": covered(kxd, truth_k, 0.9),
         "f50": bool(covered(pred_f, truth_f, 0.5)), "f90": bool(covered(pred_f, truth_f, 0.9)),
         "converged": res.summary["converged"], "wall": wall, "tempering": res.tempering,
-        "n_steps": res.summary["n_steps"],
+        "n_steps": res.summary["n_steps"], "sampler": res.summary["sampler"]["mode"],
     }
 
 
@@ -99,6 +101,7 @@ def summarise(rows: list[dict]) -> dict:
         "converged": float(np.mean([r["converged"] for r in rows])),
         "median_wall_s": float(np.median([r["wall"] for r in rows])),
         "median_tempering": float(np.median([r["tempering"] for r in rows])),
+        "importance": float(np.mean([r["sampler"] == "importance" for r in rows])),
     }
 
 
@@ -107,6 +110,8 @@ def main() -> None:
     ap.add_argument("--replicates", type=int, default=50)
     ap.add_argument("--step", type=float, default=4.0, help="frequency line spacing of the campaigns, Hz")
     ap.add_argument("--first-seed", type=int, default=1000)
+    ap.add_argument("--sampler", choices=("auto", "importance", "mcmc"), default="auto",
+                    help="identify's sampler (default auto, identify's default)")
     ap.add_argument("--effect", default=None,
                     help="hidden effect of the bench (e.g. fluted_section) to test the tempering under model discrepancy")
     args = ap.parse_args()
@@ -114,9 +119,11 @@ def main() -> None:
     rows = []
     t0 = time.perf_counter()
     for i in range(args.replicates):
-        rows.append(replicate(args.first_seed + i, args.step, settings, {args.effect: True} if args.effect else None))
+        rows.append(replicate(args.first_seed + i, args.step, settings, {args.effect: True} if args.effect else None,
+                              args.sampler))
         r = rows[-1]
-        print(f"replicate {i:3d}: k90 {r['k90'].astype(int)} f90 {int(r['f90'])} steps {r['n_steps']:5d} "
+        how = r["sampler"] if r["n_steps"] is None else f"chain of {r['n_steps']} steps"
+        print(f"replicate {i:3d}: k90 {r['k90'].astype(int)} f90 {int(r['f90'])} {how} "
               f"beta {r['tempering']:.2f} {r['wall']:.1f} s", flush=True)
     s = summarise(rows)
     se90 = math.sqrt(0.09 / s["n"])
@@ -124,7 +131,8 @@ def main() -> None:
     print(f"{'quantity':<34}{'50 % coverage':>15}{'90 % coverage':>15}")
     print(f"{'k_xf(l), 25/30/35/40 mm (pooled)':<34}{s['k_xf_cov50']:>15.3f}{s['k_xf_cov90']:>15.3f}")
     print(f"{'natural frequency at 30 mm':<34}{s['f_cov50']:>15.3f}{s['f_cov90']:>15.3f}")
-    print(f"replicates {s['n']}, converged {100 * s['converged']:.0f} %, binomial s.e. of a 90 % coverage {se90:.3f}")
+    print(f"replicates {s['n']}, converged {100 * s['converged']:.0f} %, importance sampling accepted "
+          f"{100 * s['importance']:.0f} %, binomial s.e. of a 90 % coverage {se90:.3f}")
     print(f"median wall time per replicate {s['median_wall_s']:.1f} s, total {time.perf_counter() - t0:.0f} s")
 
 

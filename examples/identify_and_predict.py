@@ -38,9 +38,12 @@ def main(seed: int = 0, quick: bool | None = None) -> dict:
     settings = SamplerSettings(max_steps=80, check_every=80, progress=False) if quick else SamplerSettings(progress=False)
     result = identify(problem, seed=seed, settings=settings)
     s = result.summary
-    print(f"converged: {s['converged']}; warnings: {s['warnings'] or 'none'}")
+    # importance sampling (the default) has no chain: no R-hat, and the ESS is the weights' effective sample size
+    how = s["sampler"]
+    print(f"converged: {s['converged']} ({how['mode']}); warnings: {s['warnings'] or 'none'}")
     for name, p in s["parameters"].items():
-        print(f"  {name:9s} median {p['q50']:.4g} [{p['q05']:.4g}, {p['q95']:.4g}]  R-hat {p['rhat']:.3f}  ESS {p['ess_bulk']:.0f}")
+        rhat = "" if p["rhat"] is None else f"  R-hat {p['rhat']:.3f}"
+        print(f"  {name:9s} median {p['q50']:.4g} [{p['q05']:.4g}, {p['q95']:.4g}]{rhat}  ESS {p['ess_bulk']:.0f}")
 
     draws = draws_from_result(result).subset(1000, np.random.default_rng(seed))
     model = setup.model()

@@ -18,9 +18,11 @@ from bayes_rcsa.synthetic import default_bench_config, generate_campaign, write_
 from bayes_rcsa.units import hz, sci
 from test_cuts_cli import world  # noqa: F401  (the module-scoped fixture of the update tests)
 
-#: few steps: cheap, and the run is reported as not converged (a warning that must reach result and JSON)
-SMALL = dict(lengths=(0.025, 0.040), seed=4, max_steps=300, check_every=100)
-SMALL_ARGV = ["--lengths", "0.025,0.040", "--seed", "4", "--max-steps", "300", "--check-every", "100", "--quiet"]
+#: a chain of few steps: cheap, and the run is reported as not converged (a warning that must reach result and JSON;
+#: the default importance sampling would converge)
+SMALL = dict(lengths=(0.025, 0.040), seed=4, max_steps=300, check_every=100, sampler="mcmc")
+SMALL_ARGV = ["--lengths", "0.025,0.040", "--seed", "4", "--max-steps", "300", "--check-every", "100", "--quiet",
+              "--sampler", "mcmc"]
 
 
 @pytest.fixture(scope="module")

@@ -208,8 +208,9 @@ def test_identify_spindle_refuses_bad_options_before_any_work(artifact):
 # -- identifiability ---------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def study(example):
-    """One length (one fit), a few dozen steps: not converged, which is one of the warnings tested."""
-    return bayes_rcsa.identifiability(example, lengths=[0.025], max_steps=40, check_every=20, walkers=18)
+    """One length (one fit), a chain of a few dozen steps: not converged, which is one of the warnings tested."""
+    return bayes_rcsa.identifiability(example, lengths=[0.025], max_steps=40, check_every=20, walkers=18,
+                                      sampler="mcmc")
 
 
 def test_identifiability_saves_the_command_files_and_round_trips(study, tmp_path):

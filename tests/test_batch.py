@@ -25,6 +25,7 @@ N_SETUPS = 8
 MANIFEST = """\
 [defaults]
 method = "single"
+sampler = "mcmc"
 max_steps = 40
 check_every = 20
 walkers = 10
@@ -113,7 +114,7 @@ def test_process_pool_equals_separate_runs(library, pool_run, separate, capsys):
     r0 = rows[0]
     s0 = json.loads((pool_run / "setups" / "tool0" / "identify" / "summary.json").read_text())
     assert float(r0["k_xf_q50"]) == s0["parameters"]["k_xf"]["q50"]
-    assert r0["converged"] == "no"  # 40 steps: reported, not hidden
+    assert r0["converged"] == "no"  # a chain of 40 steps (sampler = "mcmc" in the manifest): reported, not hidden
     preds = json.loads((pool_run / "setups" / "tool0" / "predict" / "frequencies.json").read_text())["predictions"]
     assert float(r0["fn_30mm_x_q50_hz"]) == next(p["q50_hz"] for p in preds if p["dominant"] and p["direction"] == "x")
     html = (pool_run / "summary.html").read_text()

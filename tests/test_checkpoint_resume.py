@@ -26,8 +26,9 @@ from test_inference_support import bench, bench_model, contact_spec, quick_setti
 
 REPO = Path(__file__).resolve().parent.parent
 # --ess-min out of reach: every run goes to --max-steps, so runs are comparable step for step
-COMMON = ["--seed", "5", "--max-steps", "400", "--walkers", "14", "--ess-min", "1e12", "--no-plots", "--quiet",
-          "--lengths", "0.025,0.040", "--check-every", "400", "--checkpoint-interval", "1000"]
+# the chain (the default importance sampling keeps no checkpoint)
+COMMON = ["--seed", "5", "--sampler", "mcmc", "--max-steps", "400", "--walkers", "14", "--ess-min", "1e12",
+          "--no-plots", "--quiet", "--lengths", "0.025,0.040", "--check-every", "400", "--checkpoint-interval", "1000"]
 
 
 def _run(argv):
@@ -111,13 +112,13 @@ def test_resume_from_an_empty_checkpoint_equals_a_fresh_run(small_problem, tmp_p
     _, _, prob = small_problem
     settings = quick_settings(**SETTINGS)
     (tmp_path / "a").mkdir()
-    fresh = identify(prob, seed=3, settings=settings, checkpoint_path=tmp_path / "a" / "chain.h5")
+    fresh = identify(prob, sampler="mcmc", seed=3, settings=settings, checkpoint_path=tmp_path / "a" / "chain.h5")
     # a checkpoint killed right after the start-up stage: meta written, no step stored
     full = Checkpoint(tmp_path / "a" / "chain.h5").read()
     empty = Checkpoint(tmp_path / "b" / "chain.h5")
     (tmp_path / "b").mkdir()
     empty.create(full.chain.shape[1], full.chain.shape[2], full.meta)
-    resumed = identify(prob, seed=3, settings=settings, checkpoint_path=empty.path, resume=True)
+    resumed = identify(prob, sampler="mcmc", seed=3, settings=settings, checkpoint_path=empty.path, resume=True)
     np.testing.assert_array_equal(resumed.theta, fresh.theta)
     assert resumed.summary["timing"]["new_steps"] == 120
 
@@ -126,7 +127,7 @@ def test_resume_after_a_change_is_refused_naming_it_without_writing(small_proble
     cfg, camp, prob = small_problem
     settings = quick_settings(**SETTINGS)
     path = tmp_path / "chain.h5"
-    identify(prob, seed=3, settings=quick_settings(**{**SETTINGS, "max_steps": 1}), checkpoint_path=path)
+    identify(prob, sampler="mcmc", seed=3, settings=quick_settings(**{**SETTINGS, "max_steps": 1}), checkpoint_path=path)
     n_walkers = settings.walkers(prob.parameters.ndim)
     fp = run_fingerprint(prob, 3, settings, n_walkers)
     assert set(fp) >= {"geometry", "materials", "spindle", "data", "band", "likelihood", "parameter_model", "seed",
@@ -152,9 +153,9 @@ def test_resume_after_a_change_is_refused_naming_it_without_writing(small_proble
     before = sorted(p.name for p in tmp_path.iterdir())
     for what, changed in changes.items():
         with pytest.raises(SetupError, match=r"different run: .*" + what.replace("[", r"\[").replace("]", r"\]")) as exc:
-            identify(changed, seed=3, settings=settings, checkpoint_path=path, resume=True)
+            identify(changed, sampler="mcmc", seed=3, settings=settings, checkpoint_path=path, resume=True)
         assert "\n" not in str(exc.value)
         assert sorted(p.name for p in tmp_path.iterdir()) == before  # no chain.mirror.h5 written by a refusal
     assert not ck.mirror.exists()
     with pytest.raises(SetupError, match="--seed"):
-        identify(prob, seed=4, settings=settings, checkpoint_path=path, resume=True)
+        identify(prob, sampler="mcmc", seed=4, settings=settings, checkpoint_path=path, resume=True)

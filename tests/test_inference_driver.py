@@ -135,7 +135,7 @@ def test_identify_library_joint_and_stage2_sample_through_run_ensemble(problem, 
     calls: list = []
     for module in (identify_module, sampler_module, hierarchy):
         _counting(monkeypatch, module, calls)
-    identify_module.identify(problem, seed=1, settings=quick_settings(max_steps=20, check_every=10))
+    identify_module.identify(problem, seed=1, settings=quick_settings(max_steps=20, check_every=10), sampler="mcmc")
     assert calls == ["bayes_rcsa.inference.identify"]
 
     hyper = Hyperprior.from_box(("k_xf", "g_xf"), np.array([[4.0, 10.0], [0.0, 1.5]]), 1.5)

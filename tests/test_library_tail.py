@@ -77,14 +77,15 @@ def test_the_full_number_of_draws_follows_when_the_first_round_is_not_decisive()
 
 @pytest.fixture(scope="module")
 def stage1(tmp_path_factory):
-    """Two ER32 combinations of the synthetic library bench with short stage-1 chains, fitted by ``batch``."""
+    """Two ER32 combinations of the synthetic library bench with short stage-1 chains (the chain, not the default
+    importance sampling: the tail correction is about chains), fitted by ``batch``."""
     from bayes_rcsa.batch import load_manifest
     from bayes_rcsa.cli.main import main
     from bayes_rcsa.library.stage1 import run_stage1
     from bayes_rcsa.synthetic.library import LibrarySpec, generate_library, library_base_config, write_library
 
     spec = LibrarySpec(holder_types=("ER32",), per_type=2, clamping_lengths=(0.025, 0.045),
-                       identify={"max_steps": 60, "walkers": 14, "check_every": 30, "plots": False})
+                       identify={"max_steps": 60, "walkers": 14, "check_every": 30, "plots": False, "sampler": "mcmc"})
     lib = generate_library(spec, library_base_config(frequency_step=32.0, directions=("x",)), seed=4)
     manifest = write_library(lib, tmp_path_factory.mktemp("lib") / "library")
     jobs = load_manifest(manifest)
@@ -147,3 +148,17 @@ def _scale_first_modulus(text: str, factor: float) -> str:
 
     m = re.search(r"youngs_modulus\s*=\s*([0-9.eE+-]+)", text)
     return text[: m.start(1)] + repr(float(m.group(1)) * factor) + text[m.end(1):]
+
+
+def test_an_importance_sampled_stage1_posterior_is_taken_as_it_is(tmp_path):
+    """identify's default posterior (accepted importance sampling) holds exact draws: nothing to correct, and
+    nothing is rebuilt or re-evaluated for it (the job's setup file is never read: here it does not exist)."""
+    import json
+    from types import SimpleNamespace
+
+    from bayes_rcsa.library.stage1 import _tail_corrected
+
+    (tmp_path / "summary.json").write_text(json.dumps({"method": "multi", "sampler": {"mode": "importance"}}))
+    draws = object()
+    job = SimpleNamespace(name="s1", setup_file=tmp_path / "missing.toml")
+    assert _tail_corrected(job, tmp_path, draws, np.random.default_rng(0)) == (draws, None)

@@ -33,7 +33,9 @@ def fitted(tmp_path_factory):
     setup_path.write_text("[[measurement]]".join([head] + [b for b in blocks if 'direction = "x"' in b]))
     setup = load_setup(setup_path)
     problem = build_problem_from_setup(setup, IdentificationOptions(lengths=(0.025, 0.040)))
-    res = identify(problem, seed=2, settings=quick_settings(n_walkers=16, max_steps=200, check_every=200, ess_min=1e12))
+    # a chain stopped short: the posterior's not-converged status is what the tests below follow downstream
+    res = identify(problem, seed=2, sampler="mcmc",
+                   settings=quick_settings(n_walkers=16, max_steps=200, check_every=200, ess_min=1e12))
     out = tmp_path_factory.mktemp("fit")
     write_outputs(res, out, plots=False)
     return setup_path, out / "posterior.nc", problem.parameters

@@ -65,8 +65,8 @@ def tail_case(tmp_path_factory):
     problem = build_problem_from_setup(setup, IdentificationOptions.from_setup(setup.extra, method="multi",
                                                                               lengths=None, band=None))
     # a fixed 2,500 steps (converged by the rule at ~2,000-3,000; the verdicts, not the stopping rule, are tested)
-    result = identify(problem, seed=9101, settings=SamplerSettings(n_walkers=24, n_steps=2500, check_every=250,
-                                                                   progress=False))
+    result = identify(problem, seed=9101, sampler="mcmc",
+                      settings=SamplerSettings(n_walkers=24, n_steps=2500, check_every=250, progress=False))
     return problem, result
 
 

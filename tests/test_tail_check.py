@@ -55,8 +55,9 @@ def test_identify_tail_check_is_on_by_default_and_part_of_the_reported_convergen
     from bayes_rcsa.cli.main import main
 
     out = tmp_path / "fit"
+    # the check of a chain (an accepted importance-sampling posterior, the default, is its own check)
     rc = main(["identify", str(example), "--lengths", "0.025,0.040", "--out", str(out), "--quiet", "--max-steps", "300",
-               "--check-every", "100", "--walkers", "18", "--no-plots"])
+               "--check-every", "100", "--walkers", "18", "--no-plots", "--sampler", "mcmc"])
     assert rc == 0
     s = json.loads((out / "summary.json").read_text())
     tc = s["tail_check"]
@@ -73,7 +74,8 @@ def test_identify_tail_check_is_on_by_default_and_part_of_the_reported_convergen
     # on by default (with as many importance draws as the chain's evaluations, 2e4-1e5), off on request
     out2 = tmp_path / "fit2"
     assert main(["identify", str(example), "--lengths", "0.025,0.040", "--out", str(out2), "--quiet", "--max-steps",
-                 "300", "--check-every", "100", "--walkers", "18", "--no-plots", "--no-tail-check"]) == 0
+                 "300", "--check-every", "100", "--walkers", "18", "--no-plots", "--no-tail-check", "--sampler",
+                 "mcmc"]) == 0
     s2 = json.loads((out2 / "summary.json").read_text())
     assert "tail_check" not in s2 and s2["convergence"]["tail_check"]["verdict"] == "not run"
     assert s2["converged"] is s2["convergence"]["converged"] is s2["convergence"]["chain"]["converged"]

@@ -42,7 +42,8 @@ from ..io.tables import TableContext, did_you_mean, is_number, load_document
 __all__ = ["SetupJob", "load_manifest", "IDENTIFY_KEYS", "PREDICT_KEYS", "LOBES_KEYS"]
 
 #: Identification options of a setup (``bayes-rcsa identify`` options of the same name).
-IDENTIFY_KEYS = {"method", "seed", "lengths", "max_steps", "walkers", "check_every", "ess_min", "band", "plots"}
+IDENTIFY_KEYS = {"method", "seed", "lengths", "sampler", "max_steps", "walkers", "check_every", "ess_min", "band",
+                 "plots"}
 #: Keys of a ``predict`` table (``bayes-rcsa predict`` options); ``seed`` defaults to the setup's seed.
 PREDICT_KEYS = {"lengths", "directions", "tool", "freq", "max_draws", "seed", "plots"}
 #: Keys of a ``lobes`` table (``bayes-rcsa lobes`` options of the posterior mode); ``seed`` as for predict.

@@ -54,6 +54,10 @@ def register(subparsers) -> None:
                    help="walkers per fit (even; default max(32, 4 x parameters))")
     p.add_argument("--check-every", type=positive_int, default=None, metavar="N",
                    help="steps between convergence checks (default: [sampler] check_every or 250)")
+    p.add_argument("--sampler", choices=("auto", "importance", "mcmc"), default="auto",
+                   help="how every fit samples its posterior, as in identify (default auto: importance sampling "
+                        "where its diagnostics allow, else the emcee chain; --max-steps, --walkers and "
+                        "--check-every act on a chain only)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--no-posteriors", action="store_true", help="do not write each fit's posterior.nc and summary.json")
     p.add_argument("--quiet", action="store_true", help="no progress output on stderr")
@@ -67,7 +71,8 @@ def run(args: argparse.Namespace) -> Summary:
     lengths = parse_float_list(args.lengths, "--lengths", positive=True) if args.lengths is not None else None
     check_output_directory(args.out, args.force)  # before hours of sampling, not after (checked again on saving)
     result = identifiability(args.setup, lengths=lengths, seed=args.seed, max_steps=args.max_steps,
-                             walkers=args.walkers, check_every=args.check_every, progress=not args.quiet)
+                             walkers=args.walkers, check_every=args.check_every, progress=not args.quiet,
+                             sampler=args.sampler)
     result.save(args.out, force=args.force, plots=not args.no_plots, posteriors=not args.no_posteriors)
     if not args.quiet:
         for line in result.findings:

@@ -420,7 +420,7 @@ def identify(
     max_draws: int = MAX_DRAWS,
     spindle_samples=None,
     moves=None,
-    sampler: str = "mcmc",
+    sampler: str = "auto",
     importance_options: dict | None = None,
 ) -> IdentificationResult:
     """Run the identification.
@@ -450,8 +450,8 @@ def identify(
         Passed to :func:`.sampler.run_ensemble` (default: differential
         evolution with ``settings.snooker_fraction`` snooker moves).  Not part
         of the resume fingerprint: resume with the moves of the original run.
-    sampler : {"mcmc", "importance", "auto"}
-        :data:`SAMPLERS`.  With "importance" or "auto" the posterior is first importance-sampled around the
+    sampler : {"auto", "importance", "mcmc"}
+        :data:`SAMPLERS` (default "auto").  With "importance" or "auto" the posterior is first importance-sampled around the
         optimum (:func:`.importance.importance_posterior`); accepted draws (Pareto k <= 0.7, ESS >= 1000) become
         the result, refused ones give way to the chain (summary.json's ``sampler`` block says why).  A resume
         continues the chain ("auto") or is refused ("importance": there is no checkpoint to continue).
@@ -558,7 +558,9 @@ class _Run:
         return {"wall_time_s": wall, "sampling_time_s": self.importance.wall_time if chain is None else chain.wall_time,
                 "new_steps": None if chain is None else chain.n_new_steps, "log_posterior_evaluations": evals,
                 "evaluations_per_second": evals / wall if wall > 0 else None,
-                "min_ess_bulk_per_second": float(np.min(ess)) / wall if ess and wall > 0 else None}
+                "min_ess_bulk_per_second": float(np.min(ess)) / wall if ess and wall > 0 else None,
+                # the importance attempt's own time, also when the chain ran after it (a fall-back)
+                "importance_time_s": None if self.importance is None else float(self.importance.wall_time)}
 
 
 def _summarise(problem: Problem, seed: int, spindle_samples, rng_spindle, t_start: float, lp_full: LogPosterior,

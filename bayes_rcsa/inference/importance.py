@@ -131,11 +131,11 @@ class ImportanceResult:
     proposal: dict = field(default_factory=dict)
 
     def describe(self) -> dict:
-        """JSON-ready diagnostics (summary.json's ``sampler`` block)."""
+        """JSON-ready diagnostics (summary.json's ``sampler`` block; its time is in ``timing``, with the run's)."""
         k = None if not math.isfinite(self.pareto_k) else float(self.pareto_k)
         return {"pareto_k": k, "ess": float(self.ess), "n_proposals": int(self.n_proposals),
                 "n_inside_prior": int(self.n_inside), "n_unique_draws": int(self.n_unique),
-                "proposal": dict(self.proposal), "importance_time_s": float(self.wall_time), "rule": ACCEPTANCE_RULE}
+                "proposal": dict(self.proposal), "rule": ACCEPTANCE_RULE}
 
 
 class _T:

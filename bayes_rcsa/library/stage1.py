@@ -214,6 +214,8 @@ def _tail_corrected(job, folder: Path, draws, rng: np.random.Generator):
     from ..store import read_posterior
 
     summary = json.loads((folder / "summary.json").read_text())
+    if (summary.get("sampler") or {}).get("mode") == "importance":
+        return draws, None  # accepted importance sampling (identify's default): exact draws, no tail to miss
     setup = load_setup(job.setup_file)
     problem = build_problem_from_setup(setup, IdentificationOptions.from_setup(
         setup.extra, method=summary["method"], lengths=None, band=None))

@@ -142,14 +142,15 @@ def plan_fits(setup, lengths: Sequence[float] | None = None) -> list[FitSpec]:
     return fits
 
 
-def run_fit(setup, spec: FitSpec, settings, seed: int):
-    """Run one fit through the inference package; returns its IdentificationResult."""
+def run_fit(setup, spec: FitSpec, settings, seed: int, sampler: str = "auto"):
+    """Run one fit through the inference package (``sampler`` as :func:`bayes_rcsa.inference.identify.identify`);
+    returns its IdentificationResult."""
     from ..inference.identify import identify
     from ..inference.problem import IdentificationOptions, build_problem_from_setup
 
     options = IdentificationOptions.from_setup(setup.extra, method=spec.method, lengths=spec.lengths)
     problem = build_problem_from_setup(setup, options)
-    return identify(problem, seed=seed, settings=settings)
+    return identify(problem, seed=seed, settings=settings, sampler=sampler)
 
 
 def _targets(problem) -> list[PredictionTarget]:
@@ -276,7 +277,8 @@ def _findings(fits: Sequence[FitAnalysis]) -> tuple[dict, list[str]]:
     return comp, lines
 
 
-def run_study(setup, lengths: Sequence[float] | None, settings, seed: int = 0, verbose: bool = False) -> Study:
+def run_study(setup, lengths: Sequence[float] | None, settings, seed: int = 0, verbose: bool = False,
+              sampler: str = "auto") -> Study:
     """Run and analyse every fit of :func:`plan_fits`.
 
     Parameters
@@ -289,6 +291,8 @@ def run_study(setup, lengths: Sequence[float] | None, settings, seed: int = 0, v
         draw subsets of the analysis.
     verbose : bool
         One line per fit on stderr.
+    sampler : {"auto", "importance", "mcmc"}
+        How every fit samples its posterior (:func:`bayes_rcsa.inference.identify.identify`).
     """
     specs = plan_fits(setup, lengths)
     fits = []
@@ -296,7 +300,7 @@ def run_study(setup, lengths: Sequence[float] | None, settings, seed: int = 0, v
     for spec in specs:
         if verbose:
             print(f"identifiability: fitting {spec.name} ...", file=sys.stderr)
-        result = run_fit(setup, spec, settings, seed)
+        result = run_fit(setup, spec, settings, seed, sampler)
         fits.append(analyse_fit(spec, result, rng))
     return Study(tuple(fits), study_document(setup, fits, settings, seed))
 

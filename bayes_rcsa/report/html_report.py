@@ -81,14 +81,24 @@ def _identify_section(run: RunDir) -> dict:
                          "sd": num(p.get("sd"), 3)})
     corner = run.file("corner.png")
     trace = run.file("trace.png")
+    how = s.get("sampler") or {}
+    importance = None
+    if how.get("mode") == "importance":
+        importance = {"pareto_k": num(how.get("pareto_k"), 2), "ess": num(how.get("ess"), 4)}
+        sampler_words = "importance sampling of the exact posterior (accepted)"
+    elif how.get("fallback_reason"):
+        sampler_words = f"emcee chain (importance sampling refused: {in_words(str(how['fallback_reason']))})"
+    else:
+        sampler_words = "emcee chain"
     return {
         "path": str(run.path),
+        "importance": importance,
         "method": s.get("method"),
         "method_name": _identification_name(s),
         "converged": s.get("converged"),
         "converged_word": yes_no(s.get("converged")),
         "stop_reason": s.get("stop_reason"),
-        "facts": [("converged", yes_no(s.get("converged"))), ("steps", num(s.get("n_steps"), 6)),
+        "facts": [("sampler", sampler_words), ("converged", yes_no(s.get("converged"))), ("steps", num(s.get("n_steps"), 6)),
                   ("burn-in", num(s.get("burn_in"), 6)), ("thinning", num(s.get("thin"), 4)),
                   ("walkers", num(s.get("n_walkers"), 4)), ("draws", num(s.get("n_draws"), 6)),
                   ("acceptance fraction", num(s.get("acceptance_fraction"), 3)),

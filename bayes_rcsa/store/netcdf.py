@@ -17,7 +17,7 @@ import warnings
 from pathlib import Path
 from typing import Mapping
 
-from ..io.atomic import atomic_path
+from ..io.atomic import atomic_write_bytes
 
 __all__ = ["COMPRESSION", "LOG_LIKELIHOOD_DTYPE", "write_netcdf", "read_netcdf", "read_netcdf_arrays", "ArrayData",
            "ArrayGroup"]
@@ -54,15 +54,32 @@ def _encoding(group: str, dataset) -> dict:
 
 
 def _write_groups(groups: Mapping[str, object], root_attrs: Mapping[str, object], path: Path) -> Path:
-    """Write ``groups`` (name -> xarray.Dataset, in file order) and the root attributes atomically."""
-    import xarray as xr
+    """Write ``groups`` (name -> xarray.Dataset, in file order) and the root attributes atomically.
 
-    with atomic_path(path) as tmp:
-        xr.Dataset(attrs=dict(root_attrs)).to_netcdf(str(tmp), mode="w", engine="h5netcdf")
+    The file is built in memory (HDF5's core driver) and written to disk in one piece.  Why: HDF5 crashes the
+    process (a segmentation fault in h5py 3.x) when the disk fills while it creates a variable, where a plain
+    write raises the :class:`OSError` (ENOSPC) that the command line reports as one line; and xarray's
+    ``to_netcdf`` takes a Dask-cluster-wide lock named after its target inside a Dask worker, which a buffer
+    cannot name.  Writing through xarray's h5netcdf store keeps ArviZ's layout (one group per InferenceData
+    group) and the encodings of :func:`_encoding`.
+    """
+    import h5netcdf
+    import xarray as xr
+    from xarray.backends import H5NetCDFStore
+
+    f = h5netcdf.File(str(path), "w", driver="core", backing_store=False)
+    try:
+        xr.Dataset(attrs=dict(root_attrs)).dump_to_store(H5NetCDFStore(f, mode="a"))
         for group, ds in groups.items():
             if group == "log_likelihood":
                 ds = ds.assign_attrs(stored_dtype=LOG_LIKELIHOOD_DTYPE)
-            ds.to_netcdf(str(tmp), mode="a", group=group, engine="h5netcdf", encoding=_encoding(group, ds))
+            ds.dump_to_store(H5NetCDFStore(f, group=group, mode="a"), encoding=_encoding(group, ds))
+        f.flush()  # h5netcdf's dimension scales and attributes, then HDF5's own buffers, into the image
+        f._h5file.flush()
+        image = f._h5file.id.get_file_image()
+    finally:
+        f.close()
+    atomic_write_bytes(path, image)
     return path
 
 

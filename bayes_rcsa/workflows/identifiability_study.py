@@ -223,7 +223,7 @@ def _sampler_setting(setup, key: str, given, default):
 
 
 def identifiability(setup, *, lengths=None, seed: int = 0, max_steps: int | None = None, walkers: int | None = None,
-                    check_every: int | None = None, progress: bool = False) -> Identifiability:
+                    check_every: int | None = None, progress: bool = False, sampler: str = "auto") -> Identifiability:
     """Fit every selected measured clamping length alone and all of them together; analyse each posterior.
 
     Parameters
@@ -236,6 +236,8 @@ def identifiability(setup, *, lengths=None, seed: int = 0, max_steps: int | None
     walkers : int, optional; walkers per fit (even; default max(32, 4 x parameters))
     check_every : int, optional; steps between convergence checks (default ``[sampler] check_every`` or 250)
     progress : bool, one line per fit and the sampler's progress on stderr
+    sampler : {"auto", "importance", "mcmc"}, how every fit samples its posterior (as :func:`bayes_rcsa.identify`;
+        ``max_steps``, ``walkers`` and ``check_every`` act on a chain only)
 
     Returns
     -------
@@ -243,6 +245,9 @@ def identifiability(setup, *, lengths=None, seed: int = 0, max_steps: int | None
     """
     if isinstance(seed, bool) or int(seed) != seed or seed < 0:
         raise SetupError(f"--seed {seed}: expected an integer >= 0")
+    from ..inference.identify import check_sampler
+
+    check_sampler(sampler, False)
     with warning_log() as log:
         from ..inference.sampler import SamplerSettings
         from ..io.setup import Setup, load_setup
@@ -256,7 +261,7 @@ def identifiability(setup, *, lengths=None, seed: int = 0, max_steps: int | None
                                    max_steps=_sampler_setting(setup, "max_steps", max_steps, 20000),
                                    check_every=_sampler_setting(setup, "check_every", check_every, 250),
                                    progress=progress)
-        study = run_study(setup, lengths, settings, seed=seed, verbose=progress)
+        study = run_study(setup, lengths, settings, seed=seed, verbose=progress, sampler=sampler)
         warnings = tuple(log)
     from ..io.jsonable import to_jsonable
     from ..messages import merge_warnings

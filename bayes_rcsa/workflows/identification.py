@@ -335,7 +335,7 @@ def identify(setup, *, lengths: Sequence[float] | None = None, method: str = "mu
              ess_min: float = 400.0, checkpoint_interval: float = 2.0, band: tuple[float, float] | None = None,
              spindle_samples=None, allow_no_resonance: bool = False, tail_check: bool | None = None, library=None,
              no_taps: bool = False, cuts: CutTestOptions | dict | None = None, out=None, resume: bool = False,
-             force: bool = False, progress: bool = False, plots: bool = True, sampler: str = "mcmc") -> Posterior:
+             force: bool = False, progress: bool = False, plots: bool = True, sampler: str = "auto") -> Posterior:
     """Identify the tool-holder contact (k_xf, k_thetaM, ...) from the setup's measured tool-point FRFs.
 
     Parameters
@@ -371,12 +371,13 @@ def identify(setup, *, lengths: Sequence[float] | None = None, method: str = "mu
     progress : bool, progress lines on stderr while sampling
     plots : bool, write the PNG plots (with ``out``)
     sampler : {"mcmc", "importance", "auto"}
-        "mcmc" the emcee chain (default).  "importance" importance-samples the exact posterior around its optimum
-        and keeps the draws when the Pareto shape k <= 0.7 and the weights' ESS >= 1000, else runs the chain with a
-        warning naming why; "auto" the same with the fall-back as a note, not a warning (summary.json's
+        "auto" (default) importance-samples the exact posterior around its optimum and keeps the draws when the
+        Pareto shape k <= 0.7 and the weights' ESS >= 1000, else runs the emcee chain and notes why (summary.json's
         ``sampler`` block: mode, pareto_k, ess, n_proposals, fallback_reason; docs/identification.md, "Exact
-        posteriors by importance sampling").  ``resume`` continues a chain: refused with "importance", the
-        chain with "auto".  Bayesian methods only (ignored by "deterministic").
+        posteriors by importance sampling"); "importance" the same with the fall-back as a warning; "mcmc" always
+        the chain (``walkers``, ``max_steps``, ``check_every``, ``ess_min`` and ``checkpoint_interval`` act only on a
+        chain).  ``resume`` continues a chain: refused with "importance", the chain with "auto".  Bayesian methods
+        only (ignored by "deterministic").
 
     Returns
     -------
