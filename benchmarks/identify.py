@@ -145,7 +145,7 @@ def main() -> None:
     settings = SamplerSettings(ess_min=1000.0, progress=False)
     walls, eps, esss, conv = [], [], [], []
     for r in range(args.runs):
-        res = identify(problem, seed=100 + r, settings=settings)
+        res = identify(problem, seed=100 + r, settings=settings, sampler="mcmc")  # the chain's own figures
         s = res.summary
         min_ess = min(p["ess_bulk"] for p in s["parameters"].values())
         max_rhat = max(p["rhat"] for p in s["parameters"].values())
