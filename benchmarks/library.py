@@ -133,14 +133,15 @@ def stage1_diagnostics(diags: list[dict]) -> dict:
     rhat, ess, tau, conv, steps = [], [], [], 0, []
     for s in diags:
         conv += bool(s.get("converged"))
-        steps.append(s.get("n_steps", 0))
+        if s.get("n_steps") is not None:  # None: an importance-sampled fit (identify's default) has no chain
+            steps.append(s["n_steps"])
         t = s.get("tau") or {}
         tau.append(max(t.values()) if t else float("nan"))
         for p in (s.get("parameters") or {}).values():
             if isinstance(p, dict):
-                if "rhat" in p:
+                if p.get("rhat") is not None:
                     rhat.append(p["rhat"])
-                if "ess_bulk" in p:
+                if p.get("ess_bulk") is not None:
                     ess.append(p["ess_bulk"])
     return {"n": len(diags), "converged": conv, "steps_median": statistics.median(steps) if steps else 0,
             "tau_max_median": statistics.median(tau) if tau else float("nan"),
