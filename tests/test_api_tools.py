@@ -225,6 +225,7 @@ def test_identifiability_saves_the_command_files_and_round_trips(study, tmp_path
     assert back.to_dict() == doc and back.warnings == study.warnings and back.seed == 0
     assert back.summary_line() == study.summary_line() == f"1 fit(s), 1 NOT converged; results in {tmp_path / 'out'}"
     assert back.summary_data() == {"fits_not_converged": ["single_25mm"]}
+    assert doc["sampler"]["requested"] == "mcmc"  # what the fixture asked for, recorded
     np.testing.assert_array_equal(back.draws["single_25mm"].values["k_xf"], study.draws["single_25mm"].values["k_xf"])
     assert set(back.posteriors) == {"single_25mm"}
     study.save(tmp_path / "bare", plots=False, posteriors=False)

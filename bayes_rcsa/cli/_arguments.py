@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import SetupError
 from ._common import parse_float, parse_float_list, positive_int
 
-__all__ = ["DEFAULT_SPEED_POINTS", "KT_HELP", "KR_HELP", "add_cutting_arguments", "parse_speeds", "parse_fraction",
+__all__ = ["add_sampler_argument", "DEFAULT_SPEED_POINTS", "KT_HELP", "KR_HELP", "add_cutting_arguments", "parse_speeds", "parse_fraction",
            "parse_coefficient", "cutting_keywords", "parse_averages", "optional_float", "parse_directions",
            "boundary_width_numbers", "CUT_FLAGS", "add_cut_arguments", "cut_test_numbers", "join_negative_values",
            "check_lengths_in_metres", "MM_SUSPECT_M", "LENGTH_OPTIONS"]
@@ -289,3 +289,13 @@ def cut_test_numbers(args) -> dict | None:
     if args.cut_clamping_length is not None:
         out["clamping_length"] = parse_float(args.cut_clamping_length, "--cut-clamping-length", positive=True)
     return out
+
+
+def add_sampler_argument(p, chain_options: str) -> None:
+    """``--sampler`` of the commands that identify (identify, identifiability); ``chain_options`` names the
+    command's options that act on an emcee chain only."""
+    p.add_argument("--sampler", choices=("auto", "importance", "mcmc"), default="auto",
+                   help="auto (default): importance-sample the exact posterior around its optimum, kept when Pareto "
+                        "k <= 0.7 and ESS >= 1000, else the emcee chain runs and summary.json's sampler block says "
+                        "why; importance: the same, the fall-back also a warning; mcmc: always the emcee chain "
+                        f"({chain_options} act on a chain only)")

@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from ._arguments import add_sampler_argument
 from ._common import Summary, add_force_argument, check_output_directory, nonnegative_int, parse_float_list, positive_int
 
 __all__ = ["register", "run"]
@@ -54,10 +55,7 @@ def register(subparsers) -> None:
                    help="walkers per fit (even; default max(32, 4 x parameters))")
     p.add_argument("--check-every", type=positive_int, default=None, metavar="N",
                    help="steps between convergence checks (default: [sampler] check_every or 250)")
-    p.add_argument("--sampler", choices=("auto", "importance", "mcmc"), default="auto",
-                   help="how every fit samples its posterior, as in identify (default auto: importance sampling "
-                        "where its diagnostics allow, else the emcee chain; --max-steps, --walkers and "
-                        "--check-every act on a chain only)")
+    add_sampler_argument(p, "--max-steps, --walkers, --check-every")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--no-posteriors", action="store_true", help="do not write each fit's posterior.nc and summary.json")
     p.add_argument("--quiet", action="store_true", help="no progress output on stderr")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ._arguments import add_cut_arguments, cut_test_numbers
+from ._arguments import add_cut_arguments, add_sampler_argument, cut_test_numbers
 from ._common import Summary, add_force_argument, finite_float, nonnegative_int, positive_int
 
 __all__ = ["register", "run"]
@@ -70,11 +70,7 @@ def register(subparsers) -> None:
                         "(default: [sampler] max_steps or 20000)")
     p.add_argument("--resume", action="store_true", help="continue the run checkpointed in DIR/chain.h5 (an MCMC "
                    "chain: refused with --sampler importance)")
-    p.add_argument("--sampler", choices=("auto", "importance", "mcmc"), default="auto",
-                   help="auto (default): importance-sample the exact posterior around its optimum, kept when Pareto "
-                        "k <= 0.7 and ESS >= 1000, else the emcee chain runs and summary.json's sampler block says "
-                        "why; importance: the same, the fall-back also a warning; mcmc: always the emcee chain "
-                        "(--walkers, --max-steps, --check-every, --ess-min act on a chain only)")
+    add_sampler_argument(p, "--walkers, --max-steps, --check-every, --ess-min")
     add_force_argument(p, resumable=True)
     p.add_argument("--walkers", type=positive_int, default=None, metavar="N",
                    help="number of walkers (even; default max(32, 4 x parameters))")

@@ -302,17 +302,18 @@ def run_study(setup, lengths: Sequence[float] | None, settings, seed: int = 0, v
             print(f"identifiability: fitting {spec.name} ...", file=sys.stderr)
         result = run_fit(setup, spec, settings, seed, sampler)
         fits.append(analyse_fit(spec, result, rng))
-    return Study(tuple(fits), study_document(setup, fits, settings, seed))
+    return Study(tuple(fits), study_document(setup, fits, settings, seed, sampler))
 
 
-def study_document(setup, fits: Sequence[FitAnalysis], settings, seed: int) -> dict:
+def study_document(setup, fits: Sequence[FitAnalysis], settings, seed: int, sampler: str = "auto") -> dict:
     """Content of identifiability.json (without the plot numbers)."""
     comp, lines = _findings(fits)
     priors = fits[-1].result.problem.priors.describe() if fits else {}
     return {
         "setup": str(setup.path),
         "seed": int(seed),
-        "sampler": {"max_steps": settings.max_steps, "check_every": settings.check_every,
+        # "requested": how every fit sampled (each fit's summary.json says what ran: importance or the chain)
+        "sampler": {"requested": sampler, "max_steps": settings.max_steps, "check_every": settings.check_every,
                     "n_walkers": settings.n_walkers},
         "priors": priors,
         "verdict_rule": VERDICT_RULE,

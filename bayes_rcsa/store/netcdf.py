@@ -64,21 +64,22 @@ def _write_groups(groups: Mapping[str, object], root_attrs: Mapping[str, object]
     group) and the encodings of :func:`_encoding`.
     """
     import h5netcdf
+    import h5py
     import xarray as xr
     from xarray.backends import H5NetCDFStore
 
-    f = h5netcdf.File(str(path), "w", driver="core", backing_store=False)
-    try:
-        xr.Dataset(attrs=dict(root_attrs)).dump_to_store(H5NetCDFStore(f, mode="a"))
-        for group, ds in groups.items():
-            if group == "log_likelihood":
-                ds = ds.assign_attrs(stored_dtype=LOG_LIKELIHOOD_DTYPE)
-            ds.dump_to_store(H5NetCDFStore(f, group=group, mode="a"), encoding=_encoding(group, ds))
-        f.flush()  # h5netcdf's dimension scales and attributes, then HDF5's own buffers, into the image
-        f._h5file.flush()
-        image = f._h5file.id.get_file_image()
-    finally:
-        f.close()
+    # track_order: groups and attributes keep their creation order, as in files h5netcdf opens itself
+    with h5py.File(str(path), "w", driver="core", backing_store=False, track_order=True) as h5:
+        # h5netcdf writes its dimension scales and attributes when its wrapper closes; the wrapper leaves the
+        # h5py file open, whose image is then complete
+        with h5netcdf.File(h5, "w") as f:
+            xr.Dataset(attrs=dict(root_attrs)).dump_to_store(H5NetCDFStore(f, mode="a"))
+            for group, ds in groups.items():
+                if group == "log_likelihood":
+                    ds = ds.assign_attrs(stored_dtype=LOG_LIKELIHOOD_DTYPE)
+                ds.dump_to_store(H5NetCDFStore(f, group=group, mode="a"), encoding=_encoding(group, ds))
+        h5.flush()
+        image = h5.id.get_file_image()
     atomic_write_bytes(path, image)
     return path
 
