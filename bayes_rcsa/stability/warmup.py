@@ -15,7 +15,11 @@ lose its warnings for good: a filter saved inside a short ``simplefilter("ignore
 ``showwarning`` points at a finished :func:`bayes_rcsa.messages.warning_log`.  Importing scipy and matplotlib
 runs such blocks at module level, so :func:`start` imports those two packages on the calling thread first
 (about 0.2 s each when not yet loaded); what is left for the thread (numba, the kernels' cached code,
-``matplotlib.figure`` and the Agg backend) enters none (tests/test_stability_warmup.py watches it).
+``matplotlib.figure`` and the Agg backend) enters none.  Compiling does: numba enters such a block hundreds
+of times while it compiles a kernel, so the thread loads a kernel only when numba's on-disk cache holds its
+machine code for this source and this processor, and otherwise leaves it to the job, which compiles it on its
+own thread (the first run after an installation or an edit of the kernels, e.g. a fresh CI checkout).  Both
+cases are watched by tests/test_stability_warmup.py.
 """
 
 from __future__ import annotations
@@ -29,14 +33,32 @@ __all__ = ["start"]
 _CALLER_IMPORTS = {"kernels": ("scipy._lib._util",), "figure": ("matplotlib",)}
 
 
+def _cached(kernel) -> bool:
+    """Whether numba's on-disk cache holds machine code of ``kernel`` for this source file and this processor.
+
+    Numba has no public call for this; its cache index is read the way numba reads it (an index whose source
+    stamp differs from the file's is empty).  Any surprise in numba's internals counts as "not cached": the
+    warm-up is then skipped, which costs time, never correctness.
+    """
+    try:
+        magic = kernel.targetctx.codegen().magic_tuple()
+        index = kernel._cache._cache_file._load_index()
+        return any(key[1] == magic for key in index)
+    except Exception:  # numba's private layout changed: do not warm up rather than risk compiling here
+        return False
+
+
 def _load(kernels: bool, figure: bool) -> None:
     if kernels:
         import numpy as np
 
         from . import _zoa_kernel
 
+        if not all(_cached(k) for k in (_zoa_kernel.stable_fractions, _zoa_kernel.lower_envelope)):
+            kernels = False
+    if kernels:
         # calling each kernel once on tiny inputs loads its cached machine code (numba compiles nothing here:
-        # the signatures are those of the real call, float64/int64 arrays)
+        # the signatures are those of the real call, float64/int64 arrays, and _cached found them on disk)
         one = np.zeros((1, 1))
         _zoa_kernel.stable_fractions(np.ones((1, 1)), np.ones(1), np.zeros((1, 1)))
         _zoa_kernel.lower_envelope(np.full((1, 2, 2), np.inf), np.zeros((1, 2, 2)), np.ones(2), np.ones(2), 1, 1,
