@@ -87,6 +87,13 @@ def test_figures_and_notebook_view(posterior):
 
     figs = posterior.figures()
     assert set(figs) == {"trace", "corner", "frf"} and all(isinstance(f, Figure) for f in figs.values())
+    # the corner shows the model's parameters; the noise scales (one per measurement) are in the tables
+    pm = posterior.identification.problem.parameters
+    model = [n for n in pm.names if n not in pm.noise_names]
+    assert model and len(pm.noise_names) > 0
+    corner_labels = [ax.get_xlabel() for ax in figs["corner"].axes if ax.get_xlabel()]
+    assert len(figs["corner"].axes) == len(model) ** 2 and len(corner_labels) == len(model)
+    assert not any("noise" in lab for lab in corner_labels), corner_labels
     page = posterior._repr_html_()
     table = page.split("Warnings:")[0]  # the warnings below the table quote the sampler's own parameter names
     f = posterior.summary["natural_frequencies"][0]

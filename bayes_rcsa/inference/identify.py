@@ -136,6 +136,19 @@ def sampling_labels(parameters: ParameterModel) -> list[str]:
     return out
 
 
+def corner_columns(parameters: ParameterModel) -> list[int]:
+    """Sampling-coordinate columns a corner plot shows: every sampled parameter but the noise scales.
+
+    The noise scales (one per measurement; eight for the bundled example) are nuisance parameters, nearly
+    independent of the model's and summarised by their intervals in summary.json and the report; a corner of
+    all twelve coordinates of the example was a 25-inch grid of 144 panels, unreadable at screen size and
+    half of identify's run time.  When only noise scales are sampled, all of them are shown.
+    """
+    noise = set(parameters.noise_names)
+    cols = [i for i, n in enumerate(parameters.names) if n not in noise]
+    return cols or list(range(len(parameters.names)))
+
+
 # -- posterior transfer ----------------------------------------------------
 
 

@@ -14,7 +14,7 @@ import numpy as np
 from ..params.model import PARAMETER_MODEL_ATTR
 from . import results as R
 from .band import band_mask
-from .identify import IdentificationResult, predict_frf, sampling_labels
+from .identify import IdentificationResult, corner_columns, predict_frf, sampling_labels
 
 __all__ = ["write_outputs", "frf_panels"]
 
@@ -69,7 +69,8 @@ def write_outputs(result: IdentificationResult, out_dir, plots: bool = True) -> 
         if result.chain is not None:  # independent importance draws have no trace
             written.append(P.trace_plot(result.chain.chain, labels, result.chain.burn, out / "trace.png"))
         if result.bayesian:
-            written.append(P.corner_plot(result.flat_theta, labels, out / "corner.png"))
+            cols = corner_columns(problem.parameters)
+            written.append(P.corner_plot(result.flat_theta[:, cols], [labels[i] for i in cols], out / "corner.png"))
         written.append(P.frf_plot(frf_panels(result, np.random.default_rng(result.seed)), out / "frf.png"))
     R.write_summary(out / "summary.json", result.summary)
     written.append(out / "summary.json")

@@ -282,7 +282,7 @@ class Posterior(Result):
 
         ir = self.identification
         if ir is not None:
-            from ..inference.identify import sampling_labels
+            from ..inference.identify import corner_columns, sampling_labels
             from ..inference.outputs import frf_panels
 
             labels = sampling_labels(ir.problem.parameters)
@@ -290,12 +290,14 @@ class Posterior(Result):
             if ir.chain is not None:
                 out["trace"] = P.trace_figure(ir.chain.chain, labels, ir.chain.burn)
             if ir.bayesian:
-                out["corner"] = P.corner_figure(ir.flat_theta, labels)
+                cols = corner_columns(ir.problem.parameters)
+                out["corner"] = P.corner_figure(ir.flat_theta[:, cols], [labels[i] for i in cols])
             out["frf"] = P.frf_figure(frf_panels(ir, np.random.default_rng(ir.seed)))
             return out
         if self.draws is None:
             return {}
-        names = self.draws.sampled
+        noise = set(self.draws.parameters.noise_names)  # as corner_columns: the noise scales are in the tables
+        names = [n for n in self.draws.sampled if n not in noise] or list(self.draws.sampled)
         samples = np.column_stack([self.draws.values[n] for n in names])
         labels = [f"{n} [{self.draws.parameters.unit(n)}]" for n in names]
         return {"corner": P.corner_figure(samples, labels)}
