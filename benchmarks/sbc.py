@@ -1,7 +1,8 @@
 """Simulation-based calibration (SBC) of identify's posterior: prior -> simulated campaign -> emcee -> ranks.
 
 Run: ``OMP_NUM_THREADS=1 python3 benchmarks/sbc.py --config method2 --replicates 200 --workers 2``
-(``--config all`` runs every configuration; ``--out docs/sbc``).
+(``--config all`` runs every configuration; ``--out docs/sbc``; ``--sampler mcmc`` the chain alone, ``auto``,
+the default, identify's default: importance sampling, the chain only when it is refused).
 
 For every replicate ``r`` (seed sequence ``[--seed, configuration index, r]``):
 
@@ -16,10 +17,12 @@ For every replicate ``r`` (seed sequence ``[--seed, configuration index, r]``):
    only near anti-resonances);
 3. identify as ``identify`` does with a fixed tempering of 1 (exact Bayes: with no model discrepancy the
    residuals are white, and ``"auto"`` tempering would estimate a correlation length from noise): global
-   optimum, walkers around it, :func:`bayes_rcsa.inference.sampler.run_ensemble` in converge mode with
-   identify's default settings and moves (R-hat < 1.01, bulk ESS >= 400, chain > 50 tau);
-4. rank every truth among ``L = 99`` draws taken at random from the post-burn-in chain thinned by
-   ``ceil(max tau)`` (nearly independent draws).
+   optimum, then (``--sampler auto``) importance sampling with identify's acceptance rule (Pareto k <= 0.7,
+   ESS >= 1000), or (refused, or ``--sampler mcmc``) walkers around the optimum and
+   :func:`bayes_rcsa.inference.sampler.run_ensemble` in converge mode with identify's default settings and
+   moves (R-hat < 1.01, bulk ESS >= 400, chain > 50 tau);
+4. rank every truth among ``L = 99`` draws taken at random from the accepted importance draws, or from the
+   post-burn-in chain thinned by ``ceil(max tau)`` (nearly independent draws).
 
 Geometry: the bundled example's setup (ER32 collet, 7.94 mm end mill, its spindle files and priors), x
 direction, on a fixed band of 500-2500 Hz at 20 Hz spacing (101 lines per measurement; a fixed band keeps
@@ -32,7 +35,7 @@ Configurations:
 ``tip_mass`` one length (25 mm) with ``[model] terms = ["tip_mass"]``: k_xf, k_thetaM, tip_mass_kg,
              tip_mass_offset_m, sigma_0.
 
-Writes ``<out>/<config>.json`` (ranks, truths, convergence and time of every replicate) and
+Writes ``<out>/<config>.json`` (``<config>-auto.json`` for ``--sampler auto``) (ranks, truths, convergence and time of every replicate) and
 ``<out>/<config>.png`` (rank histograms and ECDF differences with their simultaneous bands); ``--table``
 prints the Markdown table of docs/calibration.md from the JSON files present.
 """
@@ -84,9 +87,9 @@ def run_replicate(args) -> dict:
     from bayes_rcsa.inference.sampler import SamplerSettings
     from bayes_rcsa.inference.sbc import sbc_replicate
 
-    config, seed, index = args
+    config, seed, index, sampler = args
     ss = np.random.SeedSequence([seed, list(CONFIGS).index(config), index])
-    row = sbc_replicate(_template(config), ss, SamplerSettings(progress=False), N_DRAWS).to_dict()
+    row = sbc_replicate(_template(config), ss, SamplerSettings(progress=False), N_DRAWS, sampler=sampler).to_dict()
     return {"index": index, **row}
 
 
@@ -99,19 +102,24 @@ def _template(config: str):
     return _TEMPLATES[config]
 
 
-def run_config(config: str, replicates: int, seed: int, workers: int, out: Path, time_limit: float = math.inf) -> dict:
+def _stem(config: str, sampler: str) -> str:
+    return config if sampler == "mcmc" else f"{config}-{sampler}"
+
+
+def run_config(config: str, replicates: int, seed: int, workers: int, out: Path, time_limit: float = math.inf,
+               sampler: str = "auto") -> dict:
     from bayes_rcsa.inference.diagnostics import chain_diagnostics
 
     names = list(_template(config).parameters.names)
     # import ArviZ and compile its numba kernels once, before the workers fork (about 10 s each otherwise)
     chain_diagnostics(np.random.default_rng(0).standard_normal((50, 8, len(names))))
-    tasks = [(config, seed, r) for r in range(replicates)]
+    tasks = [(config, seed, r, sampler) for r in range(replicates)]
     t0 = time.perf_counter()
     rows = []
-    path = out / f"{config}.json"
+    path = out / f"{_stem(config, sampler)}.json"
 
     def save() -> None:
-        doc = {"config": config, "seed": seed, "n_draws": N_DRAWS, "band_hz": list(BAND), "line_step": LINE_STEP,
+        doc = {"config": config, "sampler": sampler, "seed": seed, "n_draws": N_DRAWS, "band_hz": list(BAND), "line_step": LINE_STEP,
                "parameter_names": names, "replicates": sorted(rows, key=lambda r: r["index"]),
                "wall_time_s": time.perf_counter() - t0, "workers": workers,
                "replicates_requested": replicates}
@@ -149,30 +157,33 @@ def check_and_plot(doc: dict, out: Path, alpha: float = 0.01):
     names = doc["parameter_names"]
     rng = np.random.default_rng([doc["seed"], 7])
     check = sbc_check(ranks, doc["n_draws"], names, rng, alpha=alpha)
-    sbc_plot(ranks, doc["n_draws"], names, out / f"{doc['config']}.png", rng, alpha=alpha / len(names),
-             title=f"SBC {doc['config']}: {ranks.shape[0]} replicates, L = {doc['n_draws']}",
+    sampler = doc.get("sampler", "mcmc")
+    sbc_plot(ranks, doc["n_draws"], names, out / f"{_stem(doc['config'], sampler)}.png", rng, alpha=alpha / len(names),
+             title=f"SBC {doc['config']} ({sampler}): {ranks.shape[0]} replicates, L = {doc['n_draws']}",
              p_values=check.p_ecdf)
     return check
 
 
 def table(out: Path, alpha: float = 0.01) -> str:
-    lines = ["| configuration | parameter | replicates | ECDF p | Holm p | chi-square p (20 bins) | verdict at FWER 0.01 "
-             "| not converged | median s / replicate | wall time |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| configuration | sampler | parameter | replicates | ECDF p | Holm p | chi-square p (20 bins) "
+             "| verdict at FWER 0.01 | importance accepted | not converged | median s / replicate | wall time |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for config in CONFIGS:
-        path = out / f"{config}.json"
-        if not path.exists():
-            continue
-        doc = json.loads(path.read_text())
-        check = check_and_plot(doc, out, alpha)
-        reps = doc["replicates"]
-        nc = sum(not r["converged"] for r in reps)
-        med = float(np.median([r["time_s"] for r in reps]))
-        for j, name in enumerate(check.names):
-            lines.append(
-                f"| {config} | {name} | {check.n_replicates} | {check.p_ecdf[j]:.3f} | {check.p_holm[j]:.3f} | "
-                f"{check.p_chi2[j]:.3f} | {'pass' if check.passed[j] else '**fail**'} | {nc} | {med:.1f} | "
-                f"{doc['wall_time_s'] / 60:.0f} min ({doc['workers']} workers) |")
+        for sampler in ("mcmc", "auto"):
+            path = out / f"{_stem(config, sampler)}.json"
+            if not path.exists():
+                continue
+            doc = json.loads(path.read_text())
+            check = check_and_plot(doc, out, alpha)
+            reps = doc["replicates"]
+            nc = sum(not r["converged"] for r in reps)
+            accepted = f"{sum(r.get('sampler') == 'importance' for r in reps)}/{len(reps)}" if sampler == "auto" else "-"
+            med = float(np.median([r["time_s"] for r in reps]))
+            for j, name in enumerate(check.names):
+                lines.append(
+                    f"| {config} | {sampler} | {name} | {check.n_replicates} | {check.p_ecdf[j]:.3f} | "
+                    f"{check.p_holm[j]:.3f} | {check.p_chi2[j]:.3f} | {'pass' if check.passed[j] else '**fail**'} | "
+                    f"{accepted} | {nc} | {med:.1f} | {doc['wall_time_s'] / 60:.0f} min ({doc['workers']} workers) |")
     return "\n".join(lines)
 
 
@@ -185,13 +196,15 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("docs/sbc"))
     ap.add_argument("--time-limit", type=float, default=math.inf,
                     help="minutes per configuration after which no new replicate is started")
+    ap.add_argument("--sampler", default="auto", choices=["auto", "mcmc"],
+                    help="identify's default (importance sampling, the chain when refused) or the chain alone")
     ap.add_argument("--table", action="store_true", help="only print the table (and redraw the figures)")
     a = ap.parse_args()
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     a.out.mkdir(parents=True, exist_ok=True)
     if not a.table:
         for config in (CONFIGS if a.config == "all" else [a.config]):
-            run_config(config, a.replicates, a.seed, a.workers, a.out, 60 * a.time_limit)
+            run_config(config, a.replicates, a.seed, a.workers, a.out, 60 * a.time_limit, a.sampler)
     print(table(a.out))
 
 

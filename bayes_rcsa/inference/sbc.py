@@ -1,4 +1,4 @@
-"""Simulation-based calibration of an identification problem: prior draw -> simulated campaign -> emcee -> ranks.
+"""Simulation-based calibration of an identification problem: prior draw -> simulated campaign -> posterior -> ranks.
 
 The statistics (ranks, ECDF bands, tests) are in :mod:`bayes_rcsa.stats.sbc`;
 this module makes the replicates of a :class:`~.problem.Problem`:
@@ -13,9 +13,13 @@ this module makes the replicates of a :class:`~.problem.Problem`:
   needs a floor before the data exist).  The floor is ``eps = 1 %`` of the band
   maximum and matters only near anti-resonances.
 * :func:`sbc_replicate` draws the truth from ``problem.priors``, simulates,
-  samples the posterior as identify does (global optimum, walkers around it,
-  :func:`.sampler.run_ensemble`) and ranks the truth among nearly independent
-  draws (:func:`nearly_independent_draws`).
+  samples the posterior as identify does and ranks the truth among nearly
+  independent draws.  ``sampler="mcmc"``: global optimum, walkers around it,
+  :func:`.sampler.run_ensemble`, draws by :func:`nearly_independent_draws`;
+  ``sampler="auto"`` (identify's default): importance sampling around the
+  optimum (:func:`.importance.importance_posterior`, identify's acceptance rule
+  and draw count), the chain only when it is refused; the draws are a random
+  subset of the accepted equally weighted draws.
 """
 
 from __future__ import annotations
@@ -30,6 +34,9 @@ from ..stats.sbc import sbc_ranks
 from .likelihood import FRFLikelihood
 from .problem import Problem
 from .sampler import ChainResult, SamplerSettings, find_optimum, initial_ensemble, run_ensemble
+
+#: Equally weighted importance draws per replicate: identify's own count (``identify.MAX_DRAWS``)
+IMPORTANCE_DRAWS = 4000
 
 __all__ = ["simulate_problem", "nearly_independent_draws", "SbcReplicate", "sbc_replicate"]
 
@@ -95,8 +102,10 @@ class SbcReplicate:
     ranks : (ndim,) int in ``[0, n_draws]``
     converged : bool, the sampler's verdict
     steps : int, sampler steps run
-    max_tau : float, steps
+    max_tau : float, steps (NaN for accepted importance sampling)
     time_s : float, wall time of the replicate
+    sampler : str, what produced the draws: ``"mcmc"`` or ``"importance"``
+    pareto_k : float, the importance weights' Pareto k (NaN when no importance sampling was tried)
     """
 
     truth: np.ndarray
@@ -105,14 +114,18 @@ class SbcReplicate:
     steps: int
     max_tau: float
     time_s: float
+    sampler: str = "mcmc"
+    pareto_k: float = math.nan
 
     def to_dict(self) -> dict:
         return {"truth": self.truth.tolist(), "ranks": self.ranks.tolist(), "converged": self.converged,
-                "steps": self.steps, "max_tau": self.max_tau, "time_s": self.time_s}
+                "steps": self.steps, "max_tau": None if math.isnan(self.max_tau) else self.max_tau,
+                "time_s": self.time_s, "sampler": self.sampler,
+                "pareto_k": None if math.isnan(self.pareto_k) else self.pareto_k}
 
 
 def sbc_replicate(problem: Problem, seed_sequence: np.random.SeedSequence, settings: SamplerSettings,
-                  n_draws: int = 99, tempering: float = 1.0) -> SbcReplicate:
+                  n_draws: int = 99, tempering: float = 1.0, sampler: str = "mcmc") -> SbcReplicate:
     """Truth from the prior, a simulated campaign, identify's sampler, the ranks of the truth.
 
     Parameters
@@ -128,16 +141,32 @@ def sbc_replicate(problem: Problem, seed_sequence: np.random.SeedSequence, setti
     tempering : float in (0, 1]
         The FRF likelihood's exponent in the *sampled* posterior (1: exact Bayes; anything else is a
         deliberately miscalibrated posterior, e.g. for a test that SBC detects it).
+    sampler : {"mcmc", "auto"}
+        ``"auto"``: importance sampling as identify's default does, the chain only when it is refused.
     """
+    if sampler not in ("mcmc", "auto"):
+        raise ValueError(f"sampler {sampler!r}: expected 'mcmc' or 'auto'")
     t0 = time.perf_counter()
-    rng_truth, rng_noise, rng_init, rng_mcmc, rng_rank = (np.random.default_rng(s) for s in seed_sequence.spawn(5))
+    # five streams as before (mcmc replicates are unchanged); importance sampling takes a sixth
+    rng_truth, rng_noise, rng_init, rng_mcmc, rng_rank, rng_is = (
+        np.random.default_rng(s) for s in seed_sequence.spawn(6))
     truth = problem.priors.sample(rng_truth, 1)[0]
     lp = simulate_problem(problem, truth, rng_noise).log_posterior(tempering)
     optimum = find_optimum(lp)
+    k = math.nan
+    if sampler == "auto":
+        from .importance import importance_posterior
+
+        imp = importance_posterior(lp, optimum.x, problem.priors.optimisation_bounds(), rng_is, IMPORTANCE_DRAWS)
+        k = float(imp.pareto_k)
+        if imp.accepted:
+            draws = imp.theta[rng_rank.choice(imp.theta.shape[0], n_draws, replace=False)]
+            return SbcReplicate(truth, sbc_ranks(truth, draws, rng_rank), True, 0, math.nan,
+                                time.perf_counter() - t0, "importance", k)
     walkers = initial_ensemble(lp, optimum.x, rng_init, settings.walkers(lp.ndim))
     from .diagnostics import chain_diagnostics
 
     chain = run_ensemble(lp, settings, initial=walkers, rng=rng_mcmc, diagnose=chain_diagnostics)
     draws = nearly_independent_draws(chain, n_draws, rng_rank)
     return SbcReplicate(truth, sbc_ranks(truth, draws, rng_rank), bool(chain.converged), int(chain.steps_run),
-                        float(np.max(chain.tau)), time.perf_counter() - t0)
+                        float(np.max(chain.tau)), time.perf_counter() - t0, "mcmc", k)
