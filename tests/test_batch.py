@@ -184,6 +184,10 @@ def test_manifest_errors_are_one_line_before_anything_runs(library, tmp_path, ca
         ('[[setup]]\nname = "a/b"\nfile = "x"\n', "name = 'a/b'"),
         ('[[setup]]\nname = "a"\nfile = "x"\n[[setup]]\nname = "a"\nfile = "x"\n', "duplicate name"),
         ('[setups]\n', "did you mean 'setup'"),
+        # a misspelt word of identify's is refused before any setup runs, not when that setup's identify does
+        ('[defaults]\nsampler = "importance-sampling"\n[[setup]]\nname = "a"\nfile = "x"\n',
+         "sampler = 'importance-sampling': expected 'mcmc' or 'importance' or 'auto'"),
+        ('[[setup]]\nname = "a"\nfile = "x"\nmethod = "mult"\n', "method = 'mult': expected 'multi'"),
     ]
     shutil.copy(library.parent / "camp0" / "setup.toml", tmp_path / "x")
     for text, needle in cases:

@@ -37,6 +37,8 @@ import warnings
 from pathlib import Path
 
 from ..errors import DataWarning, SetupError
+from ..inference.identify import SAMPLERS
+from ..inference.problem import METHODS
 from ..io.tables import TableContext, did_you_mean, is_number, load_document
 
 __all__ = ["SetupJob", "load_manifest", "IDENTIFY_KEYS", "PREDICT_KEYS", "LOBES_KEYS"]
@@ -241,6 +243,11 @@ def load_manifest(path) -> tuple[SetupJob, ...]:
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
             raise ctx.bad(where, "seed", seed, "an integer >= 0")
         ident["seed"] = seed
+        # the words identify accepts, checked here so that a misspelt value stops the batch before any setup runs
+        # (it was refused only when that setup's identify step ran, after others had been computed)
+        for key, allowed in (("method", METHODS), ("sampler", SAMPLERS)):
+            if key in ident and ident[key] not in allowed:
+                raise ctx.bad(where, key, ident[key], " or ".join(repr(a) for a in allowed))
         method = ident.get("method", "multi")
         setup = str(setup_file)
         commands = [("identify", ("identify", setup, "--out", "{dir}/identify", "--quiet",
