@@ -175,23 +175,19 @@ def test_reduced_sbc_passes_for_the_sampler_and_fails_for_a_tempered_posterior(r
 
 
 @pytest.mark.slow
-def test_reduced_sbc_of_the_default_importance_sampler_passes_and_fails_for_a_tempered_posterior(reduced_problem):
-    """identify's default (``auto``: importance sampling, the chain only when refused) on the same reduced problem:
-    the exact posterior passes, a likelihood tempered by 0.01 fails.  Nearly every replicate must have been
-    importance sampled (here 39 of 40; the fall-back to the chain is part of the default), or this would test the
-    chain again."""
+def test_reduced_sbc_of_the_default_importance_sampler_passes(reduced_problem):
+    """identify's default (``auto``: importance sampling, the chain only when refused) on the same reduced problem
+    passes SBC.  Nearly every replicate must have been importance sampled (39 of 40 with these seeds; the fall-back
+    to the chain is part of the default), or this would test the chain again.  That the check fails for a
+    miscalibrated posterior is shown above (a tempered likelihood): the check does not depend on the sampler, and a
+    tempered posterior importance-sampled needs 20 replicates at tempering 0.01, half of them falling back to the
+    chain (8 s), to be told apart."""
     rng = np.random.default_rng(6)
     names = list(reduced_problem.parameters.names)
     ranks, used = _reduced_sbc(reduced_problem, 1.0, "auto", 40)
     assert used.count("importance") >= 36, used
     exact = sbc_check(ranks, N_DRAWS, names, rng, alpha=0.01)
     assert exact.all_passed, (exact.p_ecdf, exact.p_chi2)
-    ranks, used = _reduced_sbc(reduced_problem, 0.01, "auto", 20)
-    # a posterior 100 times too wide reaches the prior's bounds, where the t proposal fits worse: 13 of 20 were
-    # accepted with these seeds; most must be, or the failure below would be the chain's
-    assert used.count("importance") >= 10, used
-    broken = sbc_check(ranks, N_DRAWS, names, rng, alpha=0.01)
-    assert not broken.all_passed, (broken.p_ecdf, broken.p_chi2)
 
 
 def test_sbc_replicate_refuses_an_unknown_sampler(reduced_problem):
