@@ -11,6 +11,16 @@ Only the outermost log decides whether a warning is also shown the usual
 way: a script or notebook (``echo=True``, the default) sees it at once; the
 command line (``echo=False``) prints the collected lines itself when the
 command succeeds, and nothing but the error line when it fails.
+
+The package's own warnings are issued with :func:`warn`, which records the
+line in every open log *before* handing it to :func:`warnings.warn`.  The log
+learns of anything else (numpy, scipy) through :func:`warnings.showwarning`,
+which is process-global state: before Python 3.14 any other thread that
+enters :class:`warnings.catch_warnings` while a workflow runs (a user's
+thread, a library compiling in the background) can restore a previous
+``showwarning`` and so cut the log off from what follows.  Recording first
+keeps the package's own warnings in ``result.warnings`` and the JSON outputs
+whatever another thread does, and whatever filters the caller set.
 """
 
 from __future__ import annotations
@@ -19,10 +29,36 @@ import contextlib
 import warnings
 from typing import Iterable, Iterator
 
-__all__ = ["warning_log", "current_warnings", "merge_warnings", "one_line"]
+__all__ = ["warning_log", "current_warnings", "merge_warnings", "one_line", "warn"]
 
 #: The open logs, outermost first.
 _LOGS: list[list[str]] = []
+#: Lines :func:`warn` recorded that the echo of the outermost log has not shown yet.
+_UNSHOWN: set[str] = set()
+
+
+def _record(text: str) -> bool:
+    """Add ``text`` to every open log that lacks it; whether the outermost lacked it (only it decides the echo)."""
+    new = bool(_LOGS) and text not in _LOGS[0]
+    for log in _LOGS:
+        if text not in log:
+            log.append(text)
+    return new
+
+
+def warn(message, category: type[Warning] = UserWarning, stacklevel: int = 1) -> None:
+    """:func:`warnings.warn` for the package's own warnings, recorded in every open log first.
+
+    Parameters
+    ----------
+    message : str
+    category : Warning subclass (e.g. :class:`bayes_rcsa.errors.DataWarning`)
+    stacklevel : int, as for :func:`warnings.warn`, counted from the caller of this function
+    """
+    text = one_line(message)
+    if _LOGS and _record(text):
+        _UNSHOWN.add(text)
+    warnings.warn(message, category, stacklevel=stacklevel + 1)
 
 
 def one_line(message) -> str:
@@ -69,11 +105,8 @@ def warning_log(echo: bool = True) -> Iterator[list[str]]:
 
             def show(message, category, filename, lineno, file=None, line=None):
                 text = one_line(message)
-                new = False
-                for log in _LOGS:
-                    if text not in log:
-                        log.append(text)
-                        new = True
+                new = _record(text) or text in _UNSHOWN
+                _UNSHOWN.discard(text)
                 if echo and new:
                     previous(message, category, filename, lineno, file, line)
 
@@ -83,3 +116,5 @@ def warning_log(echo: bool = True) -> Iterator[list[str]]:
             yield buffer
     finally:
         _LOGS.pop()
+        if not _LOGS:
+            _UNSHOWN.clear()

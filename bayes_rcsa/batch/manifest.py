@@ -33,9 +33,9 @@ import dataclasses
 import hashlib
 import json
 import re
-import warnings
 from pathlib import Path
 
+from .. import messages
 from ..errors import DataWarning, SetupError
 from ..inference.identify import SAMPLERS
 from ..inference.problem import METHODS
@@ -234,7 +234,7 @@ def load_manifest(path) -> tuple[SetupJob, ...]:
             raise ctx.bad(where, "file", entry["file"], f"a setup file (TOML); {exc}") from None
         if not _inside(setup_file, path.absolute().parent):
             # policy (docs/scaling-out.md, "Setup files outside the manifest's folder"): allowed, with a warning
-            warnings.warn(f"{path}: {where} file = {entry['file']!r} lies outside the manifest's folder "
+            messages.warn(f"{path}: {where} file = {entry['file']!r} lies outside the manifest's folder "
                           f"({setup_file}); it is used, but moving or copying the library folder will not take it "
                           "along, and on a cluster every worker must see it under the same path", DataWarning,
                           stacklevel=2)

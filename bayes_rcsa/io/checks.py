@@ -23,11 +23,11 @@ of the identification) can name the same likely causes.
 from __future__ import annotations
 
 import math
-import warnings
 from typing import Iterable, Sequence
 
 import numpy as np
 
+from .. import messages
 from ..errors import DataError, DataWarning
 
 __all__ = [
@@ -262,7 +262,7 @@ def check_reciprocal(block, what: str) -> float:
             f"measurement noise stays far below {100 * RECIPROCITY_REFUSE:.0f} %){hint}; check the l_*/n_* columns"
         )
     if err > RECIPROCITY_WARN:
-        warnings.warn(
+        messages.warn(
             f"{what}: cross terms differ by {100 * err:.0f} % (||l - n|| / ||(l + n)/2||, reciprocal blocks have l = n); "
             "the rotational contact stiffness may absorb this", DataWarning, stacklevel=2)
     return err
@@ -674,7 +674,7 @@ def xy_pair_warnings(name_x: str, name_y: str, frequency_hz, values_x, values_y)
     return []
 
 
-def warn_all(messages: Iterable[str]) -> None:
-    """Issue each message as a :class:`DataWarning`."""
-    for msg in messages:
-        warnings.warn(msg, DataWarning, stacklevel=3)
+def warn_all(lines: Iterable[str]) -> None:
+    """Issue each line as a :class:`DataWarning` (recorded in the open warning logs first: :func:`messages.warn`)."""
+    for msg in lines:
+        messages.warn(msg, DataWarning, stacklevel=3)

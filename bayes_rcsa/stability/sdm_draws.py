@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import messages
 from ..errors import SetupError
 from .methods import STABILITY_METHODS, MethodResult
 from .zoa import zoa_lobes
@@ -212,7 +213,7 @@ def _surrogate(method, gx, gy, f, cutting, speeds, options, progress):
                       "SDM / ZOA at that speed; used when "
                       f"the leave-one-out relative error's 95 % point is <= {SURROGATE_TOLERANCE:g}")}
     if q95 > SURROGATE_TOLERANCE:
-        warnings.warn(f"SDM surrogate not accurate enough for these FRFs (leave-one-out error 95 % point "
+        messages.warn(f"SDM surrogate not accurate enough for these FRFs (leave-one-out error 95 % point "
                       f"{100 * q95:.1f} % > {100 * SURROGATE_TOLERANCE:g} %): every one of the {n_draws} draws is "
                       f"computed with SDM (about {_exact_seconds(n_draws, speeds.size, f.size):.0f} s)",
                       stacklevel=3)

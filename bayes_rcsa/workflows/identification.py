@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any, ClassVar, Sequence
 
 from ..errors import SetupError
-from ..messages import current_warnings, merge_warnings, warning_log
+from ..messages import current_warnings, merge_warnings, warn, warning_log
 from ..units import hz, length_mm, sci
 from ..vocabulary import identification_name, parameter_name
 from .result import Result, check_output_directory, saving
@@ -463,7 +463,7 @@ def _identify(setup, lengths, method, seed, walkers, max_steps, check_every, ess
 
         library_kw, lib_warnings = library_options(population, setup, np.random.default_rng(seed))
         for w in lib_warnings:
-            warnings.warn(w, DataWarning, stacklevel=2)
+            warn(w, DataWarning, stacklevel=2)
     options = IdentificationOptions.from_setup(setup.extra, method=method, lengths=lengths, band=band, **library_kw)
     problem = build_problem_from_setup(setup, options)
     _check_resonances(problem, allow_no_resonance)
@@ -698,7 +698,7 @@ def _check_resonances(problem, allow: bool) -> None:
             continue
         if not allow:
             raise DataError(f"{frf.source}: {why}; --allow-no-resonance proceeds anyway")
-        warnings.warn(f"{frf.source}: {why}; the posterior of the contact mostly restates its prior", DataWarning,
+        warn(f"{frf.source}: {why}; the posterior of the contact mostly restates its prior", DataWarning,
                       stacklevel=2)
 
 
@@ -742,7 +742,7 @@ def _zero_taps(setup, population, seed: int, out: Path | None, force: bool, libr
             posterior = Posterior.load(tmp, setup)
         posterior.path = posterior._folder = None
     for w in summary["warnings"]:
-        warnings.warn(w, DataWarning, stacklevel=2)
+        warn(w, DataWarning, stacklevel=2)
     posterior.setup = setup
     posterior.warnings = tuple(merge_warnings(current_warnings(), summary["warnings"]))
     return posterior

@@ -140,12 +140,12 @@ Parameters
 from __future__ import annotations
 
 import hashlib
-import warnings
 from dataclasses import dataclass
 from typing import Mapping
 
 import numpy as np
 
+from ... import messages
 from ...errors import ModelError
 from ..parameter import Parameter
 from ..priors import Uniform
@@ -276,7 +276,7 @@ def flange_modes(receptance, max_modes: int = MAX_MODES, n_modes: int | None = N
     ok = (h.imag <= 0) & (ia < 0)
     gamma = float(min(1.0, np.min(-h.imag[ok] / -ia[ok]))) if np.any(ok) else 1.0
     if gamma < GAMMA_WARN:
-        warnings.warn(f"{src}: the modal fit of h carries more damping than the file at some lines; its residues "
+        messages.warn(f"{src}: the modal fit of h carries more damping than the file at some lines; its residues "
                       f"are scaled by {gamma:.2f} to keep the reconstructed spindle block passive", stacklevel=2)
     for arr in (wr, z, a):
         arr.flags.writeable = False  # shared through the cache
