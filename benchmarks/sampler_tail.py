@@ -8,8 +8,9 @@ combinations per holder type; a 16-mm tool in an ER32 collet, taps at 25, 35 and
 contact stiffness ``k_thetaM`` is identified only from below: a stiffer joint changes the FRF less and less,
 so the posterior has a long right tail.  The script
 
-1. identifies it with ``bayes-rcsa identify`` (the default moves), with long chains
-   (``--max-steps 20000 --ess-min 10000``);
+1. identifies it with ``bayes-rcsa identify --sampler mcmc`` (the default moves), with long chains
+   (``--max-steps 20000 --ess-min 10000``), and ``--runs`` times with identify's default sampler (importance
+   sampling, the chain when refused; seeds 9201, ...);
 2. samples the same log posterior by importance sampling from a multivariate t (3 degrees of freedom, twice
    the draws' covariance), which needs no mixing, in ``--is-batches`` independent batches of 100,000 draws;
 3. runs emcee from the identify draws with each candidate move set (the old default: DE + emcee's
@@ -72,7 +73,7 @@ def main() -> None:
         out = root / "fit"
         t0 = time.perf_counter()
         subprocess.run([sys.executable, "-m", "bayes_rcsa", "identify", str(setup_file), "--out", str(out), "--quiet",
-                        "--method", "multi", "--seed", "9101", "--walkers", "24", "--max-steps", "20000",
+                        "--method", "multi", "--sampler", "mcmc", "--seed", "9101", "--walkers", "24", "--max-steps", "20000",
                         "--ess-min", "10000", "--check-every", "500", "--no-plots"], check=True)
         print(f"identify: {time.perf_counter() - t0:.0f} s")
         setup = load_setup(setup_file)
@@ -84,9 +85,23 @@ def main() -> None:
         post = az.from_netcdf(out / "posterior.nc")
         th = np.column_stack([np.asarray(problem.priors.priors[n].to_sampling(post.posterior[n].values.ravel()), float)
                               for n in names])
+        # identify as a user runs it (its default sampler: importance sampling, the chain when refused), --runs
+        # independent seeds: their spread is the Monte Carlo error of one run's quantiles
+        auto_q, auto_used = [], []
+        for r in range(a.runs):
+            o = root / f"auto{r}"
+            subprocess.run([sys.executable, "-m", "bayes_rcsa", "identify", str(setup_file), "--out", str(o), "--quiet",
+                            "--method", "multi", "--seed", str(9201 + r), "--no-plots"], check=True)
+            pa = az.from_netcdf(o / "posterior.nc")
+            x = np.asarray(problem.priors.priors["k_thetaM"].to_sampling(pa.posterior["k_thetaM"].values.ravel()), float)
+            auto_q.append(np.quantile(x, QUANTILES))
+            auto_used.append(json.loads((o / "summary.json").read_text())["sampler"]["mode"])
     ik = names.index("k_thetaM")
     rows = [("identify (default moves, 24 walkers, --ess-min 10000)", np.quantile(th[:, ik], QUANTILES), None,
              f"{summary['n_steps']} steps")]
+    auto_q = np.array(auto_q)
+    rows.append(("identify, default sampler (auto)", auto_q.mean(0), auto_q.std(0, ddof=1) / np.sqrt(len(auto_q)),
+                 f"{len(auto_q)} runs (seeds 9201+), sampler used: {', '.join(auto_used)}"))
     rng = np.random.default_rng(7)
     # reference 1: importance sampling, a.is_batches independent batches (their spread is the Monte Carlo error)
     prop = stats.multivariate_t(loc=th.mean(0), shape=2.0 * np.cov(th, rowvar=False), df=3, seed=rng)
