@@ -16,8 +16,8 @@ import numpy as np
 from ..errors import SetupError
 from ._common import parse_float, parse_float_list, positive_int
 
-__all__ = ["add_sampler_argument", "DEFAULT_SPEED_POINTS", "KT_HELP", "KR_HELP", "add_cutting_arguments", "parse_speeds", "parse_fraction",
-           "parse_coefficient", "cutting_keywords", "parse_averages", "optional_float", "parse_directions",
+__all__ = ["DEFAULT_SPEED_POINTS", "KT_HELP", "KR_HELP", "add_cutting_arguments", "parse_speeds", "parse_fraction",
+           "add_sampler_argument", "parse_coefficient", "cutting_keywords", "parse_averages", "optional_float", "parse_directions",
            "boundary_width_numbers", "CUT_FLAGS", "add_cut_arguments", "cut_test_numbers", "join_negative_values",
            "check_lengths_in_metres", "MM_SUSPECT_M", "LENGTH_OPTIONS"]
 

@@ -30,13 +30,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..errors import SetupError
 from ..stats.sbc import sbc_ranks
 from .likelihood import FRFLikelihood
 from .problem import Problem
+from .identify import MAX_DRAWS
 from .sampler import ChainResult, SamplerSettings, find_optimum, initial_ensemble, run_ensemble
-
-#: Equally weighted importance draws per replicate: identify's own count (``identify.MAX_DRAWS``)
-IMPORTANCE_DRAWS = 4000
 
 __all__ = ["simulate_problem", "nearly_independent_draws", "SbcReplicate", "sbc_replicate"]
 
@@ -145,7 +144,7 @@ def sbc_replicate(problem: Problem, seed_sequence: np.random.SeedSequence, setti
         ``"auto"``: importance sampling as identify's default does, the chain only when it is refused.
     """
     if sampler not in ("mcmc", "auto"):
-        raise ValueError(f"sampler {sampler!r}: expected 'mcmc' or 'auto'")
+        raise SetupError(f"sampler {sampler!r}: expected 'mcmc' or 'auto'")
     t0 = time.perf_counter()
     # five streams as before (mcmc replicates are unchanged); importance sampling takes a sixth
     rng_truth, rng_noise, rng_init, rng_mcmc, rng_rank, rng_is = (
@@ -157,7 +156,7 @@ def sbc_replicate(problem: Problem, seed_sequence: np.random.SeedSequence, setti
     if sampler == "auto":
         from .importance import importance_posterior
 
-        imp = importance_posterior(lp, optimum.x, problem.priors.optimisation_bounds(), rng_is, IMPORTANCE_DRAWS)
+        imp = importance_posterior(lp, optimum.x, problem.priors.optimisation_bounds(), rng_is, MAX_DRAWS)
         k = float(imp.pareto_k)
         if imp.accepted:
             draws = imp.theta[rng_rank.choice(imp.theta.shape[0], n_draws, replace=False)]

@@ -50,13 +50,12 @@ def _cached(kernel) -> bool:
 
 def _load(kernels: bool, figure: bool) -> None:
     if kernels:
-        import numpy as np
-
         from . import _zoa_kernel
 
-        if not all(_cached(k) for k in (_zoa_kernel.stable_fractions, _zoa_kernel.lower_envelope)):
-            kernels = False
+        kernels = all(_cached(k) for k in (_zoa_kernel.stable_fractions, _zoa_kernel.lower_envelope))
     if kernels:
+        import numpy as np
+
         # calling each kernel once on tiny inputs loads its cached machine code (numba compiles nothing here:
         # the signatures are those of the real call, float64/int64 arrays, and _cached found them on disk)
         one = np.zeros((1, 1))
