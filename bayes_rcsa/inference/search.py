@@ -97,7 +97,26 @@ def _length_maps(likelihood: FRFLikelihood, log_kx: np.ndarray, log_kt: np.ndarr
     ii, kk = np.meshgrid(np.arange(log_kx.size), np.arange(log_kt.size), indexing="ij")
     kx_all = 10.0 ** log_kx[ii.ravel()]
     kt_all = 10.0 ** log_kt[kk.ravel()]
-    q = np.empty((kx_all.size, len(obs_all)))
+    values = {n: np.full(kx_all.size, v) for n, v in held.items()}
+    values.update({"k_xf": kx_all, "k_thetaM": kt_all, "g_xf": np.zeros(kx_all.size), "g_thetaM": np.zeros(kx_all.size)})
+    # one configuration per observation in ``sub``, so the per-configuration sums are the per-measurement ones
+    q = forward.grid_sums(values, log_kx.size, log_kt.size, d, np.concatenate(weight))
+    if q is not None:
+        q = q.reshape(kx_all.size, len(obs_all))
+    else:
+        q = _chunked_sums(forward, kx_all, kt_all, held, d, w2, float_slices, chunk_sets)
+    with np.errstate(divide="ignore"):
+        ll = -np.asarray(n_used)[None, :] * np.log(q)  # (n_points, n_meas)
+    groups: dict[float, np.ndarray] = {}
+    for j, obs in enumerate(obs_all):
+        length = round(obs.configuration.clamping_length, 12)
+        groups[length] = groups.get(length, 0.0) + ll[:, j].reshape(log_kx.size, log_kt.size)
+    return groups
+
+
+def _chunked_sums(forward, kx_all, kt_all, held, d, w2, float_slices, chunk_sets) -> np.ndarray:
+    """The grid's sums through the full forward model (terms that are not a plain joint), chunk by chunk."""
+    q = np.empty((kx_all.size, len(float_slices)))
     for a in range(0, kx_all.size, chunk_sets):
         kx = kx_all[a : a + chunk_sets]
         values = {n: np.full(kx.size, v) for n, v in held.items()}
@@ -106,13 +125,7 @@ def _length_maps(likelihood: FRFLikelihood, log_kx: np.ndarray, log_kt: np.ndarr
         r = forward.frf(values)
         r -= d
         q[a : a + chunk_sets] = weighted_sums(r, w2, float_slices)
-    with np.errstate(divide="ignore"):
-        ll = -np.asarray(n_used)[None, :] * np.log(q)  # (n_points, n_meas)
-    groups: dict[float, np.ndarray] = {}
-    for j, obs in enumerate(obs_all):
-        length = round(obs.configuration.clamping_length, 12)
-        groups[length] = groups.get(length, 0.0) + ll[:, j].reshape(log_kx.size, log_kt.size)
-    return groups
+    return q
 
 
 def _interp_rows(m: np.ndarray, pos: np.ndarray, axis: int) -> np.ndarray:

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["pack_coefficients", "tool_point_kernel", "tool_point_kernel_batched", "tool_point_kernel_tip",
+__all__ = ["grid_sums_kernel", "pack_coefficients", "tool_point_kernel", "tool_point_kernel_batched", "tool_point_kernel_tip",
            "tip_coefficients"]
 
 _ORDER = ("t22", "e00", "e11", "g", "p", "q", "r")
@@ -83,3 +83,9 @@ def tool_point_kernel_tip(kx, kt, cx, ct, hx, ht, starts, omega, C, Z, out) -> N
     """Tool-point receptance with a diagonal dynamic stiffness ``Z`` attached at the tool tip (compiled; see
     :func:`._kernels_jit.tool_point_kernel_tip`)."""
     (_JIT or _jit()).tool_point_kernel_tip(kx, kt, cx, ct, hx, ht, starts, omega, C, Z, out)
+
+
+def grid_sums_kernel(kx, cx, hx, kt, ct, ht, starts, omega, C, d, w, q) -> None:
+    """Weighted squared residual sums on a separable contact grid, ``q`` (n_x, n_t, n_configs) (compiled; see
+    :func:`._kernels_jit.grid_sums_kernel`)."""
+    (_JIT or _jit()).grid_sums_kernel(kx, cx, hx, kt, ct, ht, starts, omega, C, d, w, q)

@@ -6,9 +6,10 @@ do not import numba (and scipy through it): :mod:`._kernels` loads this module w
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
-__all__ = ["tool_point_kernel", "tool_point_kernel_batched", "tool_point_kernel_tip"]
+__all__ = ["grid_sums_kernel", "tool_point_kernel", "tool_point_kernel_batched", "tool_point_kernel_tip"]
 
 @njit(cache=True, fastmath=False, nogil=True, inline="always")
 def _fill_set(kx, kt, cx, ct, hx, ht, starts, omega, C, out, s):  # pragma: no cover - compiled
@@ -124,3 +125,76 @@ def tool_point_kernel_tip(kx, kt, cx, ct, hx, ht, starts, omega, C, Z, out):  # 
                 inv = 1.0 / (den.real * den.real + den.imag * den.imag)
                 out[s, j] = complex((num.real * den.real + num.imag * den.imag) * inv,
                                     (num.imag * den.real - num.real * den.imag) * inv)
+
+
+@njit(cache=True, fastmath=False, nogil=True)
+def grid_sums_kernel(kx, cx, hx, kt, ct, ht, starts, omega, C, d, w, q):  # pragma: no cover - compiled
+    """Weighted squared residual sums on a separable contact grid, without forming the FRFs.
+
+    For one ``Kx`` the receptance is a Moebius map of ``Kt`` (:mod:`._kernels`):
+    ``h = t22 - (n0 + n1 Kt) / (d0 + d1 Kt)`` with ``n0 = p Kx``,
+    ``n1 = p Kx e11 + q (e00 Kx + 1) - r Kx``, ``d0 = e00 Kx + 1`` and
+    ``d1 = (e00 Kx + 1) e11 - g Kx``; so the per-line work that depends on
+    ``Kx`` alone is done once per ``Kx`` and each grid point costs two complex
+    multiply-adds, one division and the residual.
+
+    Parameters
+    ----------
+    kx, cx, hx : (n_x, n_configs) float64, stiffness N/m, viscous N s/m and loss N/m of every grid row
+    kt, ct, ht : (n_t, n_configs) float64, the same of every grid column (N m/rad, N m s/rad, N m/rad)
+    starts : (n_configs + 1,) int64
+    omega : (n_lines,) rad/s
+    C : (14, n_lines) packed coefficients
+    d : (2, n_lines) float64, real and imaginary part of the data, m/N
+    w : (n_lines,) float64, weight of every line's squared residual
+    q : (n_x, n_t, n_configs) float64, filled with ``sum_lines w |h - d|^2`` per configuration
+    """
+    n_x, n_cfg = kx.shape
+    n_t = kt.shape[0]
+    n_lines = omega.size
+    n0r = np.empty(n_lines)
+    n0i = np.empty(n_lines)
+    n1r = np.empty(n_lines)
+    n1i = np.empty(n_lines)
+    d0r = np.empty(n_lines)
+    d0i = np.empty(n_lines)
+    d1r = np.empty(n_lines)
+    d1i = np.empty(n_lines)
+    for a in range(n_x):
+        for c in range(n_cfg):
+            kxr = kx[a, c]
+            for j in range(starts[c], starts[c + 1]):
+                kxi = omega[j] * cx[a, c] + hx[a, c]
+                axr = C[2, j] * kxr - C[3, j] * kxi + 1.0  # e00 Kx + 1
+                axi = C[2, j] * kxi + C[3, j] * kxr
+                pkr = C[8, j] * kxr - C[9, j] * kxi  # p Kx
+                pki = C[8, j] * kxi + C[9, j] * kxr
+                n0r[j] = pkr
+                n0i[j] = pki
+                # n1 = p Kx e11 + q (e00 Kx + 1) - r Kx
+                n1r[j] = (pkr * C[4, j] - pki * C[5, j]) + (C[10, j] * axr - C[11, j] * axi) \
+                    - (C[12, j] * kxr - C[13, j] * kxi)
+                n1i[j] = (pkr * C[5, j] + pki * C[4, j]) + (C[10, j] * axi + C[11, j] * axr) \
+                    - (C[12, j] * kxi + C[13, j] * kxr)
+                d0r[j] = axr
+                d0i[j] = axi
+                # d1 = (e00 Kx + 1) e11 - g Kx
+                d1r[j] = (axr * C[4, j] - axi * C[5, j]) - (C[6, j] * kxr - C[7, j] * kxi)
+                d1i[j] = (axr * C[5, j] + axi * C[4, j]) - (C[6, j] * kxi + C[7, j] * kxr)
+        for b in range(n_t):
+            for c in range(n_cfg):
+                ktr = kt[b, c]
+                cts = ct[b, c]
+                hts = ht[b, c]
+                acc = 0.0
+                for j in range(starts[c], starts[c + 1]):
+                    kti = omega[j] * cts + hts
+                    numr = n0r[j] + n1r[j] * ktr - n1i[j] * kti
+                    numi = n0i[j] + n1r[j] * kti + n1i[j] * ktr
+                    denr = d0r[j] + d1r[j] * ktr - d1i[j] * kti
+                    deni = d0i[j] + d1r[j] * kti + d1i[j] * ktr
+                    inv = 1.0 / (denr * denr + deni * deni)
+                    rr = C[0, j] - d[0, j] - (numr * denr + numi * deni) * inv
+                    ri = C[1, j] - d[1, j] - (numi * denr - numr * deni) * inv
+                    acc += w[j] * (rr * rr + ri * ri)
+                q[a, b, c] = acc

@@ -28,8 +28,8 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..errors import SetupError
-from ._kernels import (pack_coefficients, tip_coefficients, tool_point_kernel, tool_point_kernel_batched,
-                       tool_point_kernel_tip)
+from ._kernels import (grid_sums_kernel, pack_coefficients, tip_coefficients, tool_point_kernel,
+                       tool_point_kernel_batched, tool_point_kernel_tip)
 from .coupling import attach, contact_compliance
 from .geometry import Holder, Tool, holder_segments, tool_overhang_segments
 from .receptance import PointReceptance
@@ -353,6 +353,41 @@ class ConfigurationStack:
         out = np.empty((n_sets, self.n_lines), dtype=complex)
         tool_point_kernel(kx, kt, cx, ct, hx, ht, self._starts, self.omega, self._packed, out)
         return out
+
+    def grid_sums(self, rows: Sequence[np.ndarray], columns: Sequence[np.ndarray], data: np.ndarray,
+                  weight: np.ndarray) -> np.ndarray:
+        """``sum_lines weight |H - data|^2`` per configuration on a grid of contacts, without forming ``H``.
+
+        Grid point ``(a, b)`` has the translational joint of row ``a`` and the
+        rotational joint of column ``b``.  Same arithmetic as :meth:`frf`
+        rearranged (the FRF is a Moebius map of the rotational stiffness for a
+        fixed translational one), so the sums agree with :meth:`frf` to
+        rounding; about four times faster than :meth:`frf` plus the sums.
+
+        Parameters
+        ----------
+        rows : (k_xf, c_xf, h_xf), each (n_x, n_configs)
+            N/m, N s/m, N/m.
+        columns : (k_thetaM, c_thetaM, h_thetaM), each (n_t, n_configs)
+            N m/rad, N m s/rad, N m/rad.
+        data : (n_lines,) complex, m/N
+        weight : (n_lines,) float
+
+        Returns
+        -------
+        (n_x, n_t, n_configs) float
+        """
+        n_cfg = len(self.caches)
+        rows = [np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), np.shape(rows[0]))) for v in rows]
+        columns = [np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), np.shape(columns[0])))
+                   for v in columns]
+        if rows[0].ndim != 2 or rows[0].shape[1] != n_cfg or columns[0].ndim != 2 or columns[0].shape[1] != n_cfg:
+            raise ValueError(f"grid rows and columns must be (n, {n_cfg}), got {rows[0].shape} and {columns[0].shape}")
+        d = np.ascontiguousarray(np.stack([np.real(data), np.imag(data)]), dtype=float)
+        q = np.empty((rows[0].shape[0], columns[0].shape[0], n_cfg))
+        grid_sums_kernel(*rows, *columns, self._starts, self.omega, self._packed, d,
+                         np.ascontiguousarray(weight, dtype=float), q)
+        return q
 
     def frf_numpy(self, k_xf, k_thetaM, c_xf=0.0, c_thetaM=0.0, h_xf=0.0, h_thetaM=0.0) -> np.ndarray:
         """Same as :meth:`frf` with plain numpy array operations (reference path)."""

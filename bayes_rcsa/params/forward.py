@@ -144,6 +144,46 @@ class ForwardModel:
             h = t.frf(values, h, self.context)
         return h
 
+    def grid_sums(self, values: Mapping[str, np.ndarray], n_x: int, n_t: int, data: np.ndarray,
+                  weight: np.ndarray) -> np.ndarray | None:
+        """``sum_lines weight |H - data|^2`` per configuration on a contact grid, or None where that is not separable.
+
+        Equal to :meth:`frf` followed by the sums (to rounding) without
+        forming the FRFs (:meth:`ConfigurationStack.grid_sums`): the grid
+        search's evaluation.
+
+        Parameters
+        ----------
+        values : mapping name -> (n_x * n_t,) physical values
+            Grid point ``(a, b)`` at index ``a * n_t + b``; the translational
+            joint must vary only with ``a`` and the rotational one only with ``b``.
+        n_x, n_t : int
+        data : (n_lines,) complex, m/N
+        weight : (n_lines,) float
+
+        Returns
+        -------
+        (n_x, n_t, n_configs) float, or None
+            None when a spindle, substructure or FRF term is active (the FRF
+            is then not the plain joint formula) or the joint terms make the
+            translational joint depend on the column or the rotational joint
+            on the row; then evaluate with :meth:`frf`.
+        """
+        if self._spindle_terms or self._substructure_terms or self._frf_terms:
+            return None
+        contact = self.contact(values)
+        n_cfg = self.lengths.size
+        shape = (n_x, n_t, n_cfg)
+        parts = [contact.k_xf, self._scalar_damping.get("c_xf", contact.c_xf), contact.h_xf,
+                 contact.k_thetaM, self._scalar_damping.get("c_thetaM", contact.c_thetaM), contact.h_thetaM]
+        grids = [np.broadcast_to(np.asarray(v, dtype=float), (n_x * n_t, n_cfg)).reshape(shape) for v in parts]
+        rows = [g[:, 0, :] for g in grids[:3]]
+        columns = [g[0, :, :] for g in grids[3:]]
+        if not (all(np.all(g == r[:, None, :]) for g, r in zip(grids[:3], rows))
+                and all(np.all(g == c[None, :, :]) for g, c in zip(grids[3:], columns))):
+            return None
+        return self.stack.grid_sums(rows, columns, data, weight)
+
     def frf_theta(self, theta: np.ndarray, spindle_sample: np.ndarray | None = None) -> np.ndarray:
         """:meth:`frf` for sampling coordinates ``theta`` (n, ndim)."""
         return self.frf(self.parameters.values(np.atleast_2d(theta)), spindle_sample)
