@@ -75,3 +75,26 @@ def test_bad_input_errors_import_no_heavy_library(case, tmp_path):
     lines = out["stderr"].strip().splitlines()
     assert out["status"] == 2 and len(lines) == 1 and "error:" in lines[0] and needle in lines[0], out["stderr"]
     assert out["heavy"] == []
+
+
+def test_an_importance_sampled_identify_imports_neither_arviz_nor_scipy_stats_nor_matplotlib(tmp_path):
+    # issue #42's cold-process target (the bundled example's two-length identification in <= 5 s): ArviZ,
+    # scipy.stats and matplotlib are ~3 s of imports together, more than the identification itself.  An
+    # accepted importance-sampled run without plots needs none of them (PSIS is the package's own; posterior.nc
+    # is written through xarray).  The written file is still ArviZ's InferenceData.
+    from bayes_rcsa.data import example_dir
+
+    argv = ["identify", str(example_dir() / "setup.toml"), "--lengths", "0.025,0.040", "--no-plots",
+            "--out", str(tmp_path / "out")]
+    proc = subprocess.run([sys.executable, "-c", _PROBE.replace("m.split('.')[0] for m", "m for m"), json.dumps(argv),
+                           json.dumps(["arviz", "scipy.stats", "matplotlib", "matplotlib.pyplot"])],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    assert out["status"] == 0 and out["heavy"] == [], out
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["sampler"]["mode"] == "importance"
+    import arviz
+
+    idata = arviz.from_netcdf(str(tmp_path / "out" / "posterior.nc"))
+    assert {"posterior", "log_likelihood", "sample_stats", "observed_data", "constant_data"} <= set(idata.groups())

@@ -91,6 +91,31 @@ def test_pareto_k_recovers_a_known_tail_and_separates_light_from_heavy_tails():
     assert not importance_reliable(0.1, MIN_ESS_INTERVAL_END - 1)
 
 
+def test_pareto_smoothing_equals_arviz_psislw():
+    # the package's PSIS is its own code (ArviZ's import costs seconds of start-up); it must be the published
+    # algorithm ArviZ implements: the same smoothed weights and shape on light, exponential, heavy and
+    # outlier-dominated weights and on sample sizes around the tail-length switch (n / 5 against 3 sqrt(n))
+    import warnings
+
+    import arviz as az
+
+    from bayes_rcsa.stats.weights import pareto_smoothed_log_weights
+
+    rng = np.random.default_rng(7)
+    cases = [rng.normal(0, 0.3, 4000), -np.log(rng.uniform(size=25_000)) / 0.8, 5 * rng.standard_t(2, 1000),
+             np.concatenate([rng.normal(size=197), [40.0, 55.0, 70.0]]), rng.normal(0, 2, 20), rng.normal(size=225)]
+    for lw in cases:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            want, k_want = az.psislw(lw.copy())
+        got, k = pareto_smoothed_log_weights(lw)
+        # the same operations up to the order of a few sums: agreement to rounding
+        np.testing.assert_allclose(np.exp(got), np.exp(np.asarray(want)), rtol=0, atol=1e-14)
+        assert k == pytest.approx(float(k_want), rel=1e-12, abs=1e-14)
+    tiny, k_tiny = pareto_smoothed_log_weights(np.array([0.0, 1.0, 2.0, 3.0]))  # no tail to fit
+    assert math.isinf(k_tiny) and np.isclose(np.exp(tiny).sum(), 1.0)
+
+
 def test_callers_use_the_shared_thresholds():
     from bayes_rcsa.cuts.update import DEFAULT_MIN_ESS
     from bayes_rcsa.design.estimators import ESS_MIN as DESIGN_ESS_MIN

@@ -397,3 +397,38 @@ def test_only_the_store_reads_or_writes_netcdf_files():
             continue
         found += netcdf_violations(f.read_text(), str(rel))
     assert not found, "\n".join(found)
+
+
+def test_groups_built_without_arviz_are_arviz_from_dict_s():
+    # build_inference_data lays the groups out itself (ArviZ's import costs seconds of identify's start-up); the
+    # written file must stay what arviz.from_dict + to_netcdf made: the same groups, variables (in the same order),
+    # dims, coordinates and attributes, with unnamed dims named <var>_dim_<i>
+    import warnings
+
+    import arviz
+    import xarray as xr
+
+    from bayes_rcsa.inference.diagnostics import _attr, build_inference_data
+
+    rng = np.random.default_rng(3)
+    post = {"k_xf": rng.normal(size=(3, 5)), "k_xf_at_length": rng.normal(size=(3, 5, 2)),
+            "unnamed": rng.normal(size=(3, 5, 4))}
+    args = (post, rng.normal(size=(3, 5)), rng.normal(size=(3, 5, 6)), rng.normal(size=6) + 1j,
+            {"frequency_hz": np.arange(6.0), "fit_clamping_length": np.array([0.025, 0.04])},
+            {"k_xf_at_length": ["clamping_length"], "frequency_hz": ["line"], "fit_clamping_length": ["fm"]},
+            {"clamping_length": [0.025, 0.04], "fm": ["a", "b"], "line": np.arange(6)},
+            {"method": "multi", "converged": True, "tempering": 0.5})
+    ours = build_inference_data(*args)
+    post_, lp, ll, obs, const, dims, coords, attrs = args
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        want = arviz.from_dict(posterior=post_, sample_stats={"lp": lp}, log_likelihood={"frf": ll},
+                               observed_data={"frf_real": obs.real, "frf_imag": obs.imag}, constant_data=const,
+                               dims={**dims, "frf": ["line"], "frf_real": ["line"], "frf_imag": ["line"]},
+                               coords=coords, attrs={k: _attr(v) for k, v in attrs.items()})
+    assert ours.groups() == want.groups() and dict(ours.attrs) == dict(want.attrs)
+    for g in want.groups():
+        a, b = getattr(ours, g), getattr(want, g)
+        assert list(a.variables) == list(b.variables), g
+        xr.testing.assert_identical(a.assign_attrs(created_at=""), b.assign_attrs(created_at=""))
+    assert isinstance(ours.to_inference_data(), arviz.InferenceData)

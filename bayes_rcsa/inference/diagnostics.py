@@ -18,7 +18,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["chain_diagnostics", "build_inference_data", "inference_data_from_dict"]
+__all__ = ["chain_diagnostics", "build_inference_data", "inference_data_from_dict", "InferenceGroups"]
 
 
 def _az():
@@ -71,6 +71,60 @@ def chain_diagnostics(chain: np.ndarray) -> dict[str, np.ndarray]:
     return {"rhat": get(rhat), "ess_bulk": get(bulk), "ess_tail": get(tail)}
 
 
+class InferenceGroups:
+    """The groups of an InferenceData as xarray Datasets, built without importing ArviZ.
+
+    What :func:`bayes_rcsa.store.write_posterior` needs (``groups()``, one attribute per group, ``attrs``) in
+    ArviZ's layout; :meth:`to_inference_data` makes the :class:`arviz.InferenceData` of the same groups.
+    Importing ArviZ costs 2-4 s of start-up (matplotlib, scipy.stats, a numba compilation), more than an
+    importance-sampled identification; writing ``posterior.nc`` does not need it.
+    """
+
+    def __init__(self, groups: Mapping[str, object], attrs: Mapping[str, object]):
+        self._groups = dict(groups)
+        self.attrs = dict(attrs)
+
+    def groups(self) -> list[str]:
+        return list(self._groups)
+
+    def __getattr__(self, name: str):
+        groups = self.__dict__.get("_groups", {})
+        if name in groups:
+            return groups[name]
+        raise AttributeError(name)
+
+    def to_inference_data(self):
+        """The :class:`arviz.InferenceData` of these groups (imports ArviZ)."""
+        return _az().InferenceData(attrs=dict(self.attrs), **self._groups)
+
+
+def _dataset(data: Mapping[str, np.ndarray], dims: Mapping[str, Sequence[str]], coords: Mapping[str, object],
+             sampled: bool, attrs: Mapping[str, object]):
+    """One group as ArviZ's ``from_dict`` lays it out: ``(chain, draw, ...)`` for sampled groups, named dims or
+    ``<var>_dim_<i>``, integer coordinates where none is given, ``created_at`` and ``arviz_version`` first."""
+    import datetime
+    from importlib.metadata import PackageNotFoundError, version
+
+    import xarray as xr
+
+    try:
+        az_version = version("arviz")
+    except PackageNotFoundError:  # pragma: no cover - arviz is a dependency
+        az_version = ""
+    arrays = {}
+    for name, values in data.items():
+        values = np.asarray(values)
+        base = ["chain", "draw"] if sampled else []
+        named = list(dims.get(name, ()))
+        names = base + named + [f"{name}_dim_{i}" for i in range(len(named), values.ndim - len(base))]
+        own = {d: (np.asarray(coords[d]) if d in coords else np.arange(values.shape[a])) for a, d in enumerate(names)}
+        # one DataArray per variable, as from_dict builds them: the file then lists each variable after the
+        # coordinates it brings, in ArviZ's order
+        arrays[name] = xr.DataArray(values, dims=names, coords=own)
+    head = {"created_at": datetime.datetime.now(datetime.timezone.utc).isoformat(), "arviz_version": az_version}
+    return xr.Dataset(arrays, attrs={**head, **attrs})
+
+
 def build_inference_data(
     posterior: Mapping[str, np.ndarray],
     log_prob: np.ndarray,
@@ -80,8 +134,8 @@ def build_inference_data(
     dims: Mapping[str, Sequence[str]],
     coords: Mapping[str, np.ndarray],
     attrs: Mapping[str, object],
-):
-    """Assemble an :class:`arviz.InferenceData`.
+) -> InferenceGroups:
+    """The InferenceData groups of a fit, in ArviZ's ``from_dict`` layout (:class:`InferenceGroups`).
 
     Parameters
     ----------
@@ -92,21 +146,20 @@ def build_inference_data(
     observed : (n_lines,) complex measured FRF on the band lines
     constant : {name: array} e.g. frequencies, clamping lengths
     dims, coords : ArviZ dims and coords of the named variables
-    attrs : attributes stored on every group (method, seed, ...)
+    attrs : attributes of the data groups and of the file (method, seed, ...), as ``from_dict`` places them
     """
-    az = _az()
     observed = np.asarray(observed)
-    with _walkers_as_chains():
-        return az.from_dict(
-            posterior=dict(posterior),
-            sample_stats={"lp": np.asarray(log_prob)},
-            log_likelihood={"frf": np.asarray(log_likelihood)},
-            observed_data={"frf_real": observed.real, "frf_imag": observed.imag},
-            constant_data=dict(constant),
-            dims={**dict(dims), "frf": ["line"], "frf_real": ["line"], "frf_imag": ["line"]},
-            coords=dict(coords),
-            attrs={k: _attr(v) for k, v in attrs.items()},
-        )
+    dims = {**dict(dims), "frf": ["line"], "frf_real": ["line"], "frf_imag": ["line"]}
+    coords = dict(coords)
+    attrs = {k: _attr(v) for k, v in attrs.items()}
+    groups = {
+        "posterior": _dataset(posterior, dims, coords, True, {}),
+        "log_likelihood": _dataset({"frf": np.asarray(log_likelihood)}, dims, coords, True, {}),
+        "sample_stats": _dataset({"lp": np.asarray(log_prob)}, dims, coords, True, {}),
+        "observed_data": _dataset({"frf_real": observed.real, "frf_imag": observed.imag}, dims, coords, False, attrs),
+        "constant_data": _dataset(dict(constant), dims, coords, False, attrs),
+    }
+    return InferenceGroups(groups, attrs)
 
 
 def inference_data_from_dict(**groups):

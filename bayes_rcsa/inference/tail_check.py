@@ -24,7 +24,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import stats
 
 from ..stats.weights import (MIN_ESS_COVARIANCE, MIN_ESS_INTERVAL_END, MIN_ESS_PER_DIMENSION, PARETO_K_MAX,
                              effective_sample_size, importance_reliable, normalise_log_weights,
@@ -84,6 +83,10 @@ def _importance(log_posterior, theta: np.ndarray, rng: np.random.Generator, n: i
     draws ``n_first`` (``None``: ``n``) from the refitted t; when its weights are not decisive
     (:data:`EARLY_ESS`) the rest of ``n`` follows from the same t and the weights are smoothed over all.
     """
+    # scipy.stats on use only: importing it costs ~1.5 s, and identify imports this module whether or not
+    # its run needs the check (an accepted importance-sampled posterior does not)
+    from scipy import stats
+
     first = n if n_first is None or n_first >= n else int(n_first)
     mu, cov = theta.mean(axis=0), np.atleast_2d(np.cov(theta, rowvar=False))
     m = max(first // 4, 2)
