@@ -143,3 +143,50 @@ def test_two_hidden_effects_at_once_are_both_named_on_the_rotor_bench(tmp_path):
     # four fitted modes (two lengths x two directions); a calibrated 90 % interval misses one of four in a
     # third of campaigns (1 - 0.9^4), so one miss is allowed, two (probability 5 %) are not
     assert total >= 4 and covered >= total - 1, (covered, total)
+
+
+@pytest.mark.slow
+def test_a_decisive_candidate_on_its_prior_edge_is_paired_not_dropped(tmp_path, monkeypatch):
+    """Issue #43 item 5: when the best single candidate fits only with a parameter on the bound of its prior (the
+    independent FE bench's stiffer-bearing spindle file: its mode-1 change piled up at the prior edge), it is not a
+    name alone but it is a first half of a pair.  The rotor bench with a tip mass and a stiffer-bearing spindle file
+    (8 Hz lines, seed 60), with the single spindle_error fit declared edge-bound: before, nothing was named (no
+    candidate was 'partial'); now the pair is tried and named because the pair passes the naming rule."""
+    from bayes_rcsa.synthetic import rotor
+
+    original = select.edge_parameters
+    marked = []
+
+    def spindle_error_alone_on_edge(fit, effect, rel=0.01):
+        out = original(fit, effect, rel)
+        if effect == "spindle_error" and [t.name for t in fit.problem.parameters.terms] == ["spindle_error"]:
+            marked.append(effect)
+            return out or ["spindle_mode3_stiffness_change"]
+        return out
+
+    monkeypatch.setattr(select, "edge_parameters", spindle_error_alone_on_edge)
+    cfg = rotor.rotor_bench_config(hidden_effects={"tip_mass": True, "spindle_error": True}, frequency_step=8.0)
+    path = rotor.write_rotor_campaign(rotor.generate_rotor_campaign(cfg, np.random.default_rng(60)), tmp_path / "r")
+    res = run_discrepancy(load_setup(path), DiscrepancyOptions(lengths=(0.025, 0.040), seed=60))
+    r = res.report
+    assert marked  # the single fit really was declared edge-bound
+    # it was no partial candidate (the old first halves of a pair): the pair came from the edge-bound list
+    assert "spindle_error" not in [p["effect"] for p in res.decision["partial"]]
+    assert {r["named_effect"], *r["also_named"]} == {"spindle_error", "tip_mass"}, (r["named_effect"], r["also_named"])
+    assert "bound of its prior alone" in res.second["reason"]
+    assert r["gap_after"] <= 0.5 * r["gap_before"] and r["usable_for_prediction"]
+
+
+def test_decide_lists_decisive_candidates_on_a_prior_edge_for_pairing(monkeypatch):
+    # a candidate decisive in every other respect but on a prior edge is no name, and is listed (with its edge
+    # parameters) as a first half of a pair; an implausible one is not
+    fits = {e: SimpleNamespace(effect=e) for e in ("a", "b", "c")}
+    refits = [SimpleNamespace(effect=e, criterion=c, gap=0.1, fit=fits[e], systematic={"gap": 0.5, "at_noise_floor": False})
+              for e, c in (("a", 12.0), ("b", 9.0), ("c", 2.0))]
+    monkeypatch.setattr(select, "edge_parameters", lambda fit, effect, rel=0.01: ["a_p"] if effect in ("a", "b") else [])
+    monkeypatch.setattr(select, "implausible_reasons", lambda fit, effect: ["no"] if effect == "b" else [])
+    monkeypatch.setattr(select, "range_limits_reached", lambda effect, edges: [])
+    monkeypatch.setattr(select, "stiffness_held_on_upper_bound", lambda r, base: [])
+    d = select.decide(refits, 1.0, {"gap": 1.0, "at_noise_floor": False})
+    assert d["named"] is None and d["partial"] == []
+    assert [(p["effect"], p["edge_parameters"]) for p in d["edge_bound"]] == [("a", ["a_p"])]

@@ -436,6 +436,12 @@ def decide(refits: list[Refit], gap_before: float, systematic_before: dict | Non
         q = ratio(r)
         return q is None or q <= 1 - MIN_SYSTEMATIC_REDUCTION or bool(r.systematic.get("at_noise_floor"))
 
+    # decisive in every other respect but with a parameter on a bound of its prior: no name alone, but a first half
+    # of a pair (a second effect may take the part that pushed it there; issue #43 item 5)
+    edge_bound = [{"effect": r.effect, "criterion": r.criterion, "systematic_gap_ratio": ratio(r),
+                   "edge_parameters": list(edges[r.effect])}
+                  for r in ranked if r.criterion > LN_BF_NAME and r.gap <= (1 - MIN_GAP_REDUCTION) * gap_before
+                  and edges[r.effect] and not implausible[r.effect] and not held[r.effect]]
     supported = [r for r in decisive if halved(r) and not held[r.effect]]
     partial = [{"effect": r.effect, "criterion": r.criterion, "systematic_gap_ratio": ratio(r)}
                | ({"contact_held_on_upper_bound": held[r.effect]} if held[r.effect] else {})
@@ -455,7 +461,7 @@ def decide(refits: list[Refit], gap_before: float, systematic_before: dict | Non
         return {"named": None, "runner_up": best.effect if best else None,
                 "margin": None, "confounded_with": [], "ranked": ranked, "edge_parameters": edges,
                 "implausible": implausible, "partial": partial, "contact_held_on_upper_bound": held,
-                "range_limits_reached": limits}
+                "range_limits_reached": limits, "edge_bound": edge_bound}
     win = supported[0]
     others = [r for r in ranked if r is not win]
     runner = others[0] if others else None
@@ -463,7 +469,8 @@ def decide(refits: list[Refit], gap_before: float, systematic_before: dict | Non
     return {"named": win.effect, "runner_up": runner.effect if runner else None,
             "margin": (win.criterion - runner.criterion) if runner else None,
             "confounded_with": confounded, "ranked": ranked, "edge_parameters": edges, "implausible": implausible,
-            "partial": partial, "contact_held_on_upper_bound": held, "range_limits_reached": limits}
+            "partial": partial, "contact_held_on_upper_bound": held, "range_limits_reached": limits,
+            "edge_bound": edge_bound}
 
 
 #: What separates two kinds of explanation (by the kinds of the two terms).

@@ -39,8 +39,9 @@ from .document import build_report
 from .evaluate import _all_stack, evaluate, held_out_transfer, matched_head
 from .fit import ModelFit, fit_baseline, fit_variant, with_robust_covariance
 from .screen import embed_baseline, score_test
-from .select import (LN_BF_NAME, MIN_SYSTEMATIC_REDUCTION, decide, fitted_systematic_gap, gap, outranked_key,
-                     pair_outranked, refit_candidate, stiffness_held_on_upper_bound, stiffness_on_upper_bound)
+from .select import (LN_BF_NAME, MIN_SYSTEMATIC_REDUCTION, decide, edge_parameters, fitted_systematic_gap, gap,
+                     outranked_key, pair_outranked, refit_candidate, stiffness_held_on_upper_bound,
+                     stiffness_on_upper_bound)
 
 __all__ = ["DiscrepancyOptions", "DiscrepancyResult", "run_discrepancy", "validate", "default_candidates",
            "remainder_terms", "REMAINDER_TERMS", "MIN_LINES_PER_PARAMETER"]
@@ -327,12 +328,17 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
             decision["named"] = named = None
             decision["confounded_with"] = []
     second: dict = {}
-    # a partial candidate that leaves the joint on its upper bound is no first half of a pair (select.py)
-    pair_first = [p for p in decision.get("partial", []) if not p.get("contact_held_on_upper_bound")]
-    if named is None and pair_first and not decision["partial"][0].get("held_out_gap_grew"):
+    # a partial candidate that leaves the joint on its upper bound is no first half of a pair (select.py); a
+    # decisive one that needs a parameter on a prior bound is (the second effect may take what pushed it there)
+    pair_first = sorted([p for p in decision.get("partial", []) if not p.get("contact_held_on_upper_bound")]
+                        + list(decision.get("edge_bound", [])), key=lambda p: -p["criterion"])
+    top_grew = bool(decision["partial"]) and decision["partial"][0].get("held_out_gap_grew")
+    if named is None and pair_first and not top_grew:
         # each known effect alone explains only part: do two together explain it?  (e.g. a tip mass and a
-        # spindle-file error; either alone removes less than half of the systematic gap)
+        # spindle-file error; either alone removes less than half of the systematic gap, or needs a parameter on
+        # the bound of its prior)
         part = pair_first[0]["effect"]
+        part_on_edge = bool(pair_first[0].get("edge_parameters"))
         first = next(r for r in refits if r.effect == part)
         second = _second_effect(setup, base_opts, first, cands, decision, options, say, require_misfit=False)
         joint = next((r for r in second["refits"] if r.effect == second["named"]), None)
@@ -357,6 +363,13 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
                                 "not named")
             second[key] = over
             joint = None
+        still_on_edge = edge_parameters(joint.fit, part) if joint is not None and part_on_edge else []
+        if still_on_edge:
+            say(f"{part} with {second['named']} keeps {', '.join(still_on_edge)} on the bound of its prior: not named")
+            second["reason"] = (f"{part} needs {', '.join(still_on_edge)} on the bound of its prior even with "
+                                f"{second['named']} in the model: the pair is no credible explanation either")
+            second["edge_parameters"] = still_on_edge
+            joint = None
         held = stiffness_held_on_upper_bound(joint, base_upper) if joint is not None else []
         if held:
             say(f"{part} with {second['named']} keeps {', '.join(held)} on the upper bound of its prior: not named")
@@ -373,9 +386,12 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
             others = [r for r in decision["ranked"] if r.effect != part]
             decision["runner_up"] = others[0].effect if others else None
             decision["margin"] = (first.criterion - others[0].criterion) if others else None
-            second["reason"] = (f"{part} alone removes less than half of the systematic gap; with "
+            alone = ("needs a parameter on the bound of its prior alone" if part_on_edge
+                     else "alone removes less than half of the systematic gap")
+            second["reason"] = (f"{part} {alone}; with "
                                 f"{second['named']} the two remove {100 * (1 - joint.systematic['gap'] / base_sys['gap']):.0f} %"
                                 if base_sys["gap"] > 0 else f"{part} and {second['named']} together")
+            decision["edge_bound"] = [p for p in decision.get("edge_bound", []) if p["effect"] != part]
             detection.adequate = False
         else:
             second = {**second, "named": None}
