@@ -79,15 +79,16 @@ def test_bad_input_errors_import_no_heavy_library(case, tmp_path):
 
 def test_an_importance_sampled_identify_imports_neither_arviz_nor_scipy_stats_nor_matplotlib(tmp_path):
     # issue #42's cold-process target (the bundled example's two-length identification in <= 5 s): ArviZ,
-    # scipy.stats and matplotlib are ~3 s of imports together, more than the identification itself.  An
-    # accepted importance-sampled run without plots needs none of them (PSIS is the package's own; posterior.nc
-    # is written through xarray).  The written file is still ArviZ's InferenceData.
+    # scipy.stats, matplotlib, xarray, pandas and dask.array are ~4 s of imports together, more than the
+    # identification itself.  An accepted importance-sampled run without plots needs none of them (PSIS is the
+    # package's own; posterior.nc is written with h5netcdf).  The written file is still ArviZ's InferenceData.
     from bayes_rcsa.data import example_dir
 
     argv = ["identify", str(example_dir() / "setup.toml"), "--lengths", "0.025,0.040", "--no-plots",
             "--out", str(tmp_path / "out")]
     proc = subprocess.run([sys.executable, "-c", _PROBE.replace("m.split('.')[0] for m", "m for m"), json.dumps(argv),
-                           json.dumps(["arviz", "scipy.stats", "matplotlib", "matplotlib.pyplot"])],
+                           json.dumps(["arviz", "scipy.stats", "matplotlib", "matplotlib.pyplot", "xarray", "pandas",
+                                       "dask.array"])],
                           cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     out = json.loads(proc.stdout)

@@ -72,57 +72,60 @@ def chain_diagnostics(chain: np.ndarray) -> dict[str, np.ndarray]:
 
 
 class InferenceGroups:
-    """The groups of an InferenceData as xarray Datasets, built without importing ArviZ.
+    """The groups of an InferenceData as plain arrays, built without importing ArviZ or xarray.
 
-    What :func:`bayes_rcsa.store.write_posterior` needs (``groups()``, one attribute per group, ``attrs``) in
-    ArviZ's layout; :meth:`to_inference_data` makes the :class:`arviz.InferenceData` of the same groups.
-    Importing ArviZ costs 2-4 s of start-up (matplotlib, scipy.stats, a numba compilation), more than an
-    importance-sampled identification; writing ``posterior.nc`` does not need it.
+    What :func:`bayes_rcsa.store.write_posterior` needs (``groups()``, ``contents``: group name ->
+    :class:`bayes_rcsa.store.netcdf.GroupContent`, ``attrs``) in ArviZ's layout; a group read as an attribute is
+    an ``xarray.Dataset``, and :meth:`to_inference_data` makes the :class:`arviz.InferenceData`.  Importing
+    ArviZ costs 2-4 s of start-up (matplotlib, scipy.stats, a numba compilation) and xarray another second
+    (pandas, dask.array), more than an importance-sampled identification; writing ``posterior.nc`` needs neither.
     """
 
-    def __init__(self, groups: Mapping[str, object], attrs: Mapping[str, object]):
-        self._groups = dict(groups)
+    def __init__(self, contents: Mapping[str, object], attrs: Mapping[str, object]):
+        self.contents = dict(contents)
         self.attrs = dict(attrs)
 
     def groups(self) -> list[str]:
-        return list(self._groups)
+        return list(self.contents)
 
     def __getattr__(self, name: str):
-        groups = self.__dict__.get("_groups", {})
-        if name in groups:
-            return groups[name]
+        contents = self.__dict__.get("contents", {})
+        if name in contents:
+            return contents[name].to_dataset()
         raise AttributeError(name)
 
     def to_inference_data(self):
         """The :class:`arviz.InferenceData` of these groups (imports ArviZ)."""
-        return _az().InferenceData(attrs=dict(self.attrs), **self._groups)
+        return _az().InferenceData(attrs=dict(self.attrs), **{g: c.to_dataset() for g, c in self.contents.items()})
 
 
 def _dataset(data: Mapping[str, np.ndarray], dims: Mapping[str, Sequence[str]], coords: Mapping[str, object],
              sampled: bool, attrs: Mapping[str, object]):
-    """One group as ArviZ's ``from_dict`` lays it out: ``(chain, draw, ...)`` for sampled groups, named dims or
-    ``<var>_dim_<i>``, integer coordinates where none is given, ``created_at`` and ``arviz_version`` first."""
+    """One group as ArviZ's ``from_dict`` lays it out (a :class:`~bayes_rcsa.store.netcdf.GroupContent`):
+    ``(chain, draw, ...)`` for sampled groups, named dims or ``<var>_dim_<i>``, integer coordinates where none
+    is given, each variable after the coordinates it brings, ``created_at`` and ``arviz_version`` first."""
     import datetime
     from importlib.metadata import PackageNotFoundError, version
 
-    import xarray as xr
+    from ..store.netcdf import GroupContent
 
     try:
         az_version = version("arviz")
     except PackageNotFoundError:  # pragma: no cover - arviz is a dependency
         az_version = ""
-    arrays = {}
+    variables = {}
     for name, values in data.items():
         values = np.asarray(values)
         base = ["chain", "draw"] if sampled else []
         named = list(dims.get(name, ()))
         names = base + named + [f"{name}_dim_{i}" for i in range(len(named), values.ndim - len(base))]
-        own = {d: (np.asarray(coords[d]) if d in coords else np.arange(values.shape[a])) for a, d in enumerate(names)}
-        # one DataArray per variable, as from_dict builds them: the file then lists each variable after the
-        # coordinates it brings, in ArviZ's order
-        arrays[name] = xr.DataArray(values, dims=names, coords=own)
+        for axis, dim in enumerate(names):
+            if dim not in variables:
+                variables[dim] = ((dim,), np.asarray(coords[dim]) if dim in coords else np.arange(values.shape[axis]),
+                                  {})
+        variables[name] = (tuple(names), values, {})
     head = {"created_at": datetime.datetime.now(datetime.timezone.utc).isoformat(), "arviz_version": az_version}
-    return xr.Dataset(arrays, attrs={**head, **attrs})
+    return GroupContent(variables, {**head, **attrs})
 
 
 def build_inference_data(

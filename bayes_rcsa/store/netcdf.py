@@ -19,7 +19,7 @@ from typing import Mapping
 
 from ..io.atomic import atomic_write_bytes
 
-__all__ = ["COMPRESSION", "LOG_LIKELIHOOD_DTYPE", "write_netcdf", "read_netcdf", "read_netcdf_arrays", "ArrayData",
+__all__ = ["COMPRESSION", "LOG_LIKELIHOOD_DTYPE", "GroupContent", "write_netcdf", "read_netcdf", "read_netcdf_arrays", "ArrayData",
            "ArrayGroup"]
 
 #: Compression of every numeric variable: zlib (lossless) after the byte shuffle, which groups the slowly
@@ -40,44 +40,102 @@ def _az():
     return arviz
 
 
-def _encoding(group: str, dataset) -> dict:
-    enc = {}
-    for name, var in dataset.variables.items():
-        kind = var.dtype.kind
-        if kind not in "fiub":
-            continue  # strings and objects (coordinate labels) are stored as they are
-        e = dict(COMPRESSION)
-        if group == "log_likelihood" and kind == "f" and name not in dataset.coords:
-            e["dtype"] = LOG_LIKELIHOOD_DTYPE
-        enc[name] = e
-    return enc
+class GroupContent:
+    """One netCDF group as plain arrays, in file order: what :func:`_write_groups` writes.
+
+    ``variables`` maps each name to ``(dims, values, attrs)`` (coordinates are the variables named after their one
+    dimension); ``attrs`` are the group's attributes.  Built from an ``xarray.Dataset`` by :meth:`from_dataset`,
+    or directly (identify's writer, which then never imports xarray).
+    """
+
+    __slots__ = ("variables", "attrs")
+
+    def __init__(self, variables: Mapping[str, tuple], attrs: Mapping[str, object]):
+        self.variables = dict(variables)
+        self.attrs = dict(attrs)
+
+    @classmethod
+    def from_dataset(cls, dataset) -> "GroupContent":
+        # xarray's own write order: the dataset's variables as stored (each coordinate where it was added)
+        return cls({n: (tuple(v.dims), v.values, dict(v.attrs)) for n, v in dataset.variables.items()},
+                   dataset.attrs)
+
+    def to_dataset(self):
+        """The ``xarray.Dataset`` of this group (imports xarray)."""
+        import xarray as xr
+
+        coords = {n: xr.Variable(d, v, a) for n, (d, v, a) in self.variables.items() if tuple(d) == (n,)}
+        # one DataArray per variable with the coordinates it uses: the Dataset then lists its variables in this
+        # content's order (each after the coordinates it brings), as ArviZ's from_dict builds them
+        data = {n: xr.DataArray(v, dims=d, coords={k: coords[k] for k in d if k in coords}, attrs=a)
+                for n, (d, v, a) in self.variables.items() if tuple(d) != (n,)}
+        ds = xr.Dataset(data, attrs=self.attrs)
+        unused = {k: c for k, c in coords.items() if k not in ds.variables}
+        return ds.assign_coords(unused) if unused else ds
+
+
+def _write_group(target, content: GroupContent, group: str) -> None:
+    """Write one group into an open ``h5netcdf`` group ``target`` as xarray's h5netcdf store does: attributes,
+    then the dimensions in order of first use, then each variable (numeric ones compressed as
+    :data:`COMPRESSION`, floats with a NaN ``_FillValue``, text as variable-length UTF-8)."""
+    import h5py
+    import numpy as np
+
+    for k, v in content.attrs.items():
+        target.attrs[k] = v
+    for dims, values, _ in content.variables.values():
+        for dim, size in zip(dims, np.shape(values)):
+            if dim not in target.dimensions:
+                target.dimensions[dim] = size
+    for name, (dims, values, attrs) in content.variables.items():
+        values = np.asarray(values)
+        kwargs = {}
+        kind = values.dtype.kind
+        if kind in "fiub":
+            if values.ndim:
+                kwargs = {"compression": "gzip", "compression_opts": COMPRESSION["complevel"],
+                          "shuffle": COMPRESSION["shuffle"]}
+            if group == "log_likelihood" and kind == "f" and tuple(dims) != (name,):
+                values = values.astype(LOG_LIKELIHOOD_DTYPE)
+            dtype = values.dtype
+            fill = dtype.type(np.nan) if kind == "f" else None
+        else:
+            dtype, fill = h5py.special_dtype(vlen=str), None
+            values = np.asarray(values, dtype=object)
+        var = target.create_variable(name, dimensions=tuple(dims), dtype=dtype, fillvalue=fill, **kwargs)
+        for k, v in attrs.items():
+            var.attrs[k] = v
+        var[...] = values
 
 
 def _write_groups(groups: Mapping[str, object], root_attrs: Mapping[str, object], path: Path) -> Path:
-    """Write ``groups`` (name -> xarray.Dataset, in file order) and the root attributes atomically.
+    """Write ``groups`` (name -> :class:`GroupContent` or xarray.Dataset, in file order) and the root attributes
+    atomically.
 
     The file is built in memory (HDF5's core driver) and written to disk in one piece.  Why: HDF5 crashes the
     process (a segmentation fault in h5py 3.x) when the disk fills while it creates a variable, where a plain
     write raises the :class:`OSError` (ENOSPC) that the command line reports as one line; and xarray's
     ``to_netcdf`` takes a Dask-cluster-wide lock named after its target inside a Dask worker, which a buffer
-    cannot name.  Writing through xarray's h5netcdf store keeps ArviZ's layout (one group per InferenceData
-    group) and the encodings of :func:`_encoding`.
+    cannot name.  Written with h5netcdf the way xarray's h5netcdf store writes (tests/test_store.py compares the
+    two files object by object), in ArviZ's layout (one group per InferenceData group), without importing
+    xarray, pandas and dask.array for it (about a second of a command's start-up).
     """
     import h5netcdf
     import h5py
-    import xarray as xr
-    from xarray.backends import H5NetCDFStore
 
     # track_order: groups and attributes keep their creation order, as in files h5netcdf opens itself
     with h5py.File(str(path), "w", driver="core", backing_store=False, track_order=True) as h5:
         # h5netcdf writes its dimension scales and attributes when its wrapper closes; the wrapper leaves the
         # h5py file open, whose image is then complete
         with h5netcdf.File(h5, "w") as f:
-            xr.Dataset(attrs=dict(root_attrs)).dump_to_store(H5NetCDFStore(f, mode="a"))
-            for group, ds in groups.items():
+            for k, v in root_attrs.items():
+                f.attrs[k] = v
+            for group, content in groups.items():
+                if not isinstance(content, GroupContent):
+                    content = GroupContent.from_dataset(content)
                 if group == "log_likelihood":
-                    ds = ds.assign_attrs(stored_dtype=LOG_LIKELIHOOD_DTYPE)
-                ds.dump_to_store(H5NetCDFStore(f, group=group, mode="a"), encoding=_encoding(group, ds))
+                    content = GroupContent(content.variables, {**content.attrs, "stored_dtype": LOG_LIKELIHOOD_DTYPE})
+                _write_group(f.create_group(group), content, group)
         h5.flush()
         image = h5.id.get_file_image()
     atomic_write_bytes(path, image)
@@ -85,7 +143,11 @@ def _write_groups(groups: Mapping[str, object], root_attrs: Mapping[str, object]
 
 
 def _groups(idata) -> dict:
-    """``{group name: xarray.Dataset}`` of an InferenceData, in its order."""
+    """``{group name: xarray.Dataset or GroupContent}`` of an InferenceData, in its order (the plain contents of
+    an object that has them, e.g. :class:`bayes_rcsa.inference.diagnostics.InferenceGroups`)."""
+    contents = getattr(idata, "contents", None)
+    if isinstance(contents, dict):
+        return dict(contents)
     return {g: getattr(idata, g) for g in idata.groups()}
 
 
