@@ -47,11 +47,11 @@ def test_the_cut_update_passes_sbc_and_an_overconfident_update_fails():
     # tails: the check has the power to see a mis-calibrated update with 80 replicates.  (Raising the power only to
     # 3, or tempering it to 0.25, is not detected reliably at this size: ten binary outcomes per replicate carry
     # little information, docs/calibration.md.)
-    ranks, names, rows = _ranks(1.0, 20261130)
+    ranks, names, rows = _ranks(1.0, 5120)
     check = sbc_check(ranks, N_RANKED, names, np.random.default_rng(1))
     assert check.all_passed, (check.p_ecdf, check.p_holm)
     assert min(r.ess_draws for r in rows) > 50  # no replicate's weights collapsed
     assert 0 < np.mean([r.n_chatter for r in rows]) < 10  # both outcomes occur: the cuts are informative
-    bad, names, _ = _ranks(8.0, 20261130)
+    bad, names, _ = _ranks(8.0, 5120)
     broken = sbc_check(bad, N_RANKED, names, np.random.default_rng(1))
     assert not broken.all_passed, broken.p_ecdf
