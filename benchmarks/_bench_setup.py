@@ -39,3 +39,11 @@ def median_time(fn, repeats: int = 7, number: int = 1) -> float:
             fn()
         times.append((time.perf_counter() - t0) / number)
     return statistics.median(times)
+
+
+def print_sbc_verdicts(names, check) -> None:
+    """One line per ranked quantity of an SBC check (ECDF, Holm and chi-square p-values, verdict), then the total."""
+    print(f"{'quantity':<18}{'ECDF p':>10}{'Holm p':>10}{'chi2 p':>10}  verdict")
+    for n, p, h, c, ok in zip(names, check.p_ecdf, check.p_holm, check.p_chi2, check.passed):
+        print(f"{n:<18}{p:>10.3f}{h:>10.3f}{c:>10.3f}  {'pass' if ok else 'FAIL'}")
+    print(f"all pass at family-wise 0.01: {check.all_passed}")

@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from _bench_setup import print_sbc_verdicts
+
 SPEEDS = np.linspace(6000.0, 20000.0, 16)
 CLAMPING_LENGTH = 0.030
 N_RANKED = 99
@@ -98,10 +100,7 @@ def main() -> None:
           f"{t_template:.1f} s; {len(rows)} replicates: {t_reps:.1f} s ({t_reps / len(rows):.2f} s each)")
     print(f"chattering cuts per replicate: mean {chatter.mean():.2f} of {depth.size}; ESS of the draws: min "
           f"{ess.min():.0f}, median {np.median(ess):.0f}, below 50 in {int(np.sum(ess < 50))}")
-    print(f"{'quantity':<18}{'ECDF p':>10}{'Holm p':>10}{'chi2 p':>10}  verdict")
-    for n, p, h, c, ok in zip(names, check.p_ecdf, check.p_holm, check.p_chi2, check.passed):
-        print(f"{n:<18}{p:>10.3f}{h:>10.3f}{c:>10.3f}  {'pass' if ok else 'FAIL'}")
-    print(f"all pass at family-wise 0.01: {check.all_passed}")
+    print_sbc_verdicts(names, check)
 
 
 if __name__ == "__main__":
