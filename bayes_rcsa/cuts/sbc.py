@@ -5,7 +5,7 @@ and the boundary-width prior; its likelihood is :class:`~.likelihood.CutLikeliho
 truth particle ``(d, u, node, w)`` from that prior, simulates the outcome of every cut from the likelihood
 (chatter with probability :func:`~.likelihood.chatter_probability` at the truth's limit), runs
 :func:`~.update.importance_update` on those outcomes, and ranks the truth's quantities among ``n_ranked``
-of the updated particles (:func:`bayes_rcsa.stats.sbc.sbc_ranks`).  Over replicates the ranks are uniform
+of the updated particles (:func:`bayes_rcsa.stats.sbc.rank_among_draws`).  Over replicates the ranks are uniform
 exactly when the update samples the posterior (Talts et al. 2018); :func:`bayes_rcsa.stats.sbc.sbc_check`
 tests it.
 
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SetupError
-from ..stats.sbc import sbc_ranks
+from ..stats.sbc import rank_among_draws
 from .coefficients import CoefficientPrior
 from .likelihood import DEFAULT_LABEL_ERROR, BoundaryWidth, CutLikelihood, chatter_probability
 from .update import UpdateSettings, importance_update
@@ -100,8 +100,7 @@ def cuts_sbc_replicate(inverse_limits: np.ndarray, depth_m: np.ndarray, draw_val
         truth.append(float(np.log(w[0])))
         post.append(np.log(res.width)[:, None])
     post = np.concatenate(post, axis=1)
-    pick = rng.choice(post.shape[0], size=n_ranked, replace=post.shape[0] < n_ranked)
-    ranks = sbc_ranks(np.array(truth), post[pick], rng)
+    ranks = rank_among_draws(np.array(truth), post, n_ranked, rng)
     return CutsSbcReplicate(ranks, np.array(truth), int(chatter.sum()), float(res.ess_draws))
 
 

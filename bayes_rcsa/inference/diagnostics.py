@@ -99,7 +99,7 @@ class InferenceGroups:
         return _az().InferenceData(attrs=dict(self.attrs), **{g: c.to_dataset() for g, c in self.contents.items()})
 
 
-def _dataset(data: Mapping[str, np.ndarray], dims: Mapping[str, Sequence[str]], coords: Mapping[str, object],
+def _group(data: Mapping[str, np.ndarray], dims: Mapping[str, Sequence[str]], coords: Mapping[str, object],
              sampled: bool, attrs: Mapping[str, object]):
     """One group as ArviZ's ``from_dict`` lays it out (a :class:`~bayes_rcsa.store.netcdf.GroupContent`):
     ``(chain, draw, ...)`` for sampled groups, named dims or ``<var>_dim_<i>``, integer coordinates where none
@@ -156,11 +156,11 @@ def build_inference_data(
     coords = dict(coords)
     attrs = {k: _attr(v) for k, v in attrs.items()}
     groups = {
-        "posterior": _dataset(posterior, dims, coords, True, {}),
-        "log_likelihood": _dataset({"frf": np.asarray(log_likelihood)}, dims, coords, True, {}),
-        "sample_stats": _dataset({"lp": np.asarray(log_prob)}, dims, coords, True, {}),
-        "observed_data": _dataset({"frf_real": observed.real, "frf_imag": observed.imag}, dims, coords, False, attrs),
-        "constant_data": _dataset(dict(constant), dims, coords, False, attrs),
+        "posterior": _group(posterior, dims, coords, True, {}),
+        "log_likelihood": _group({"frf": np.asarray(log_likelihood)}, dims, coords, True, {}),
+        "sample_stats": _group({"lp": np.asarray(log_prob)}, dims, coords, True, {}),
+        "observed_data": _group({"frf_real": observed.real, "frf_imag": observed.imag}, dims, coords, False, attrs),
+        "constant_data": _group(dict(constant), dims, coords, False, attrs),
     }
     return InferenceGroups(groups, attrs)
 

@@ -7,7 +7,7 @@ N(ls_mean, ls_sd)``, ``tau_s ~ HalfNormal(ts_scale)``, ``ln sigma_t ~ N(ln sigma
 combination's law ``z_s ~ N(a_t + b_t x_s, sigma_t^2)`` and its stage-1 surrogate mean ``m_s ~ N(z_s, C_s)``
 (the stage-1 posterior as stage 2 sees it), fits stage 2 (:func:`~.hierarchy.fit_hyper`, its default
 settings) and ranks the truth's ``a_t``, ``b_t``, ``sigma_t`` of every type and ``tau_b`` among ``n_ranked``
-randomly chosen kept draws (:func:`bayes_rcsa.stats.sbc.sbc_ranks`).  Every replicate counts, converged or not.
+randomly chosen kept draws (:func:`bayes_rcsa.stats.sbc.rank_among_draws`).  Every replicate counts, converged or not.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SetupError
-from ..stats.sbc import sbc_ranks
+from ..stats.sbc import rank_among_draws
 from .hierarchy import Group, Stage2Settings, fit_hyper
 from .population import Hyperprior
 
@@ -101,6 +101,5 @@ def stage2_sbc_replicate(hyper: Hyperprior, types, x, C, rng: np.random.Generato
     T = len(groups)
     fit = fit_hyper(groups, hyper, rng, settings)
     post = np.concatenate([fit.types[f"T{t}"].flat for t in range(T)] + [fit.tau_b], axis=1)
-    pick = rng.choice(post.shape[0], size=n_ranked, replace=post.shape[0] < n_ranked)
-    ranks = sbc_ranks(truth, post[pick], rng)
+    ranks = rank_among_draws(truth, post, n_ranked, rng)
     return Stage2SbcReplicate(ranks, truth, bool(fit.quality.converged), float(fit.quality.ess), list(fit.warnings))

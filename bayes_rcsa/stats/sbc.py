@@ -39,6 +39,7 @@ from ..errors import SetupError
 
 __all__ = [
     "sbc_ranks",
+    "rank_among_draws",
     "ecdf_difference",
     "null_statistics",
     "ecdf_statistic",
@@ -80,6 +81,18 @@ def sbc_ranks(truth: np.ndarray, draws: np.ndarray, rng: np.random.Generator) ->
     below = np.count_nonzero(draws < t, axis=-2)
     ties = np.count_nonzero(draws == t, axis=-2)
     return below + rng.integers(0, ties + 1)
+
+
+def rank_among_draws(truth: np.ndarray, draws: np.ndarray, n_ranked: int, rng: np.random.Generator) -> np.ndarray:
+    """Rank of ``truth`` (n_params,) among ``n_ranked`` rows of ``draws`` (n, n_params) chosen at random.
+
+    For posteriors given as many equally weighted draws (resampled particles, the kept draws of a converged
+    ensemble): a random subset is as good as thinning, and rows are reused only when there are fewer than
+    ``n_ranked``.  Ties are broken by :func:`sbc_ranks`.
+    """
+    draws = np.asarray(draws, dtype=float)
+    pick = rng.choice(draws.shape[0], size=n_ranked, replace=draws.shape[0] < n_ranked)
+    return sbc_ranks(np.asarray(truth, dtype=float), draws[pick], rng)
 
 
 def _points(n_draws: int, n_points: int | None) -> int:
