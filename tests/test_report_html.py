@@ -138,19 +138,34 @@ def _parse(text: str) -> _Tables:
     return p
 
 
+def _printed(cell: str) -> tuple[float, float, int]:
+    """The number a cell prints, the unit of its last printed digit and its count of significant digits."""
+    mantissa, _, power = cell.partition("×10")
+    decimals = len(mantissa.split(".")[1]) if "." in mantissa else 0
+    exponent = int(power.translate(str.maketrans("⁰¹²³⁴⁵⁶⁷⁸⁹⁻", "0123456789-"))) if power else 0
+    return parse(cell), 10.0 ** (exponent - decimals), len(mantissa.replace("-", "").replace(".", "").lstrip("0"))
+
+
+def _close_in_row(cell: str, value, ref, digits: int) -> bool:
+    """A cell equals ``value`` to half a unit of its last printed digit, and that digit is no coarser than the
+    ``digits``-th significant digit of the row's reference value ``ref`` (its median)."""
+    if value is None:
+        return cell == "—"
+    x, unit, _ = _printed(cell)
+    needed = 10.0 ** (np.floor(np.log10(abs(ref))) - digits + 1) if ref else unit
+    # a coarser last digit only where trailing zeros were dropped (0.120 -> 0.12): then it is exact to the needed one
+    return abs(x - value) <= 0.51 * unit and (unit <= needed * (1 + 1e-9) or abs(x - value) <= 0.51 * needed)
+
+
 def _close(cell: str, value, digits: int) -> bool:
     """A cell (the unit policy's form, ``2.34×10⁶`` included) equals ``value`` to half a unit of its last printed
     digit, and prints at least ``digits`` significant digits."""
     if value is None:
         return cell == "—"
-    x = parse(cell)
-    mantissa, _, power = cell.partition("×10")
-    decimals = len(mantissa.split(".")[1]) if "." in mantissa else 0
-    exponent = int(power.translate(str.maketrans("⁰¹²³⁴⁵⁶⁷⁸⁹⁻", "0123456789-"))) if power else 0
-    significant = len(mantissa.replace("-", "").replace(".", "").lstrip("0"))
+    x, unit, significant = _printed(cell)
     if not value:
         return x == 0
-    printed = abs(x - value) <= 0.51 * 10.0 ** (exponent - decimals)
+    printed = abs(x - value) <= 0.51 * unit
     # fewer digits than asked only where trailing zeros were dropped (87.00 -> 87): then it is exact to them
     return printed and (significant >= digits
                         or abs(x - value) <= 0.51 * 10 ** (np.floor(np.log10(abs(value))) - digits + 1))
@@ -169,7 +184,9 @@ def _check_tables(p: _Tables, runs) -> None:
     for name, e in s["parameters"].items():
         for col, key in ((2, "q05"), (3, "q50"), (4, "q95")):
             cell = par[printed[name]][col]
-            assert _close(cell, e[key], 3), (name, key, cell, e[key])
+            # a row prints its median and interval ends in one number of decimals (units.sci_parts): three
+            # significant digits of the median, so an end much nearer zero than the median shows fewer of its own
+            assert _close_in_row(cell, e[key], e["q50"], 3), (name, key, cell, e[key])
     facts = dict((r[0], r[1]) for r in p.tables["run-facts-1"])
     assert facts["converged"] == ("yes" if s["converged"] else "no")
     assert _close(facts["steps"], s["n_steps"], 6)

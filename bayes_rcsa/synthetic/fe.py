@@ -36,7 +36,7 @@ half-bandwidth (3 for a single chain, about 7 for two parallel chains).
 Solver
 ------
 :func:`receptance` factorises the banded ``Z(w)`` by Gaussian elimination
-without pivoting, vectorised over all frequency lines at once, and returns
+without pivoting, one compiled pass per frequency line, and returns
 the requested columns of ``Z^-1``.  The cost is ``O(n_freq n_dof p^2)`` with
 half-bandwidth ``p``, instead of ``O(n_freq n_dof^3)`` for a dense solve per
 line (:func:`dense_receptance`, kept as the reference).  Omitting pivoting is
@@ -412,8 +412,8 @@ def _band(a: np.ndarray, p: int) -> np.ndarray:
     return b
 
 
-def receptance(model: FEModel, omega, inputs: Sequence[int], outputs: Sequence[int], chunk: int = 1024) -> np.ndarray:
-    """Receptances between selected DOFs, by a banded solve vectorised over frequency.
+def receptance(model: FEModel, omega, inputs: Sequence[int], outputs: Sequence[int]) -> np.ndarray:
+    """Receptances between selected DOFs, by a banded solve per frequency line (compiled).
 
     Parameters
     ----------
@@ -423,54 +423,30 @@ def receptance(model: FEModel, omega, inputs: Sequence[int], outputs: Sequence[i
         DOFs where a unit force/moment is applied (one column each).
     outputs : sequence of int
         DOFs whose response is returned.
-    chunk : int
-        Frequency lines processed together (bounds memory to about
-        ``chunk * n_dof * (2p + 1) * 16`` bytes).
 
     Returns
     -------
     (n_freq, n_out, n_in) complex
         ``H[f, a, b]`` = response at ``outputs[a]`` per unit load at ``inputs[b]``.
+
+    Raises
+    ------
+    ModelError
+        A zero pivot (an unconstrained or undamped structure).
     """
+    # numba (and scipy through it) loads with the first solve, not with the package
+    from ._fe_kernel import banded_receptance
+
     w = _check_omega(omega)
-    n, p = model.n_dof, model.bandwidth
-    kb = _band(model.stiffness, p)
-    cb = _band(model.damping.astype(complex), p)
-    mb = _band(model.mass.astype(complex), p)
-    inputs = np.asarray(inputs, dtype=int)
-    outputs = np.asarray(outputs, dtype=int)
+    p = model.bandwidth
+    kb, cb, mb = (np.ascontiguousarray(_band(m.astype(complex), p))
+                  for m in (model.stiffness, model.damping, model.mass))
+    inputs = np.ascontiguousarray(inputs, dtype=np.int64)
+    outputs = np.ascontiguousarray(outputs, dtype=np.int64)
     out = np.empty((w.size, outputs.size, inputs.size), dtype=complex)
-    for s in range(0, w.size, chunk):
-        ww = w[s : s + chunk, None, None]
-        a = kb + 1j * ww * cb - ww * ww * mb  # (nf, n, 2p+1)
-        x = np.zeros((ww.shape[0], n, inputs.size), dtype=complex)
-        x[:, inputs, np.arange(inputs.size)] = 1.0
-        _banded_solve_inplace(a, x, p)
-        out[s : s + chunk] = x[:, outputs, :]
+    if banded_receptance(kb, cb, mb, np.ascontiguousarray(w, dtype=float), inputs, outputs, out):
+        raise ModelError("singular dynamic stiffness (zero pivot): is the structure constrained and damped?")
     return out
-
-
-def _banded_solve_inplace(a: np.ndarray, x: np.ndarray, p: int) -> None:
-    """Solve ``A X = B`` for a batch of banded matrices, without pivoting.
-
-    ``a`` (nf, n, 2p+1) band storage, overwritten by the factors; ``x``
-    (nf, n, n_rhs) holds B on entry and X on exit.
-    """
-    n = a.shape[1]
-    for k in range(n):
-        piv = a[:, k, p]
-        if np.any(piv == 0):
-            raise ModelError("singular dynamic stiffness (zero pivot): is the structure constrained and damped?")
-        upper = a[:, k, p:]  # row k, columns k .. k+p
-        for d in range(1, min(p, n - 1 - k) + 1):
-            f = a[:, k + d, p - d] / piv
-            a[:, k + d, p - d : 2 * p + 1 - d] -= f[:, None] * upper
-            x[:, k + d, :] -= f[:, None] * x[:, k, :]
-    for k in range(n - 1, -1, -1):
-        m = min(p, n - 1 - k)
-        if m:
-            x[:, k, :] -= np.einsum("fj,fjr->fr", a[:, k, p + 1 : p + 1 + m], x[:, k + 1 : k + 1 + m, :])
-        x[:, k, :] /= a[:, k, p][:, None]
 
 
 def dense_receptance(model: FEModel, omega, inputs: Sequence[int], outputs: Sequence[int]) -> np.ndarray:
