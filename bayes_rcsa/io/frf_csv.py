@@ -84,6 +84,20 @@ def _parse_number(text: str, path: Path, line: int, column: str) -> float:
         raise DataError(f"{path}: line {line}, column {column!r}: {text!r} is not a number") from None
 
 
+def _fast_columns(body: list[list[str]], n_fields: int, index: dict[str, int], numbered) -> dict | None:
+    """The columns of a well-formed table in one pass per column, or None for the row-by-row pass.
+
+    Accepts exactly what :func:`_parse_number` accepts (``float`` of the field, no ``_``): a repeated header
+    or any bad field fails ``float`` here, and the row-by-row pass then raises the message naming it.
+    """
+    if any(len(fields) != n_fields for fields in body) or any("_" in raw for _, raw in numbered[1:]):
+        return None
+    try:
+        return {name: np.array([float(fields[k]) for fields in body]) for name, k in index.items()}
+    except ValueError:
+        return None
+
+
 def read_csv_columns(
     path,
     required: Sequence[str],
@@ -155,6 +169,10 @@ def read_csv_columns(
     if not body:
         raise DataError(f"{path}: {what} has a header but no data rows")
     lines = np.array([ln for ln, _ in numbered[1:]], dtype=int)
+    fast = _fast_columns(body, len(header), index, numbered)
+    if fast is not None:
+        return fast, lines
+    # the row-by-row pass finds and names the first bad field
     columns = {name: np.empty(len(body)) for name in index}
     for r, (fields, line) in enumerate(zip(body, lines)):
         if [f.strip().lower() for f in fields] == header:
