@@ -202,15 +202,97 @@ def test_overlap_mask_keeps_x_lines_inside_both_bands():
     assert not overlap_mask(fx, np.array([200.0, 300.0])).any()
 
 
+# ---------------------------------------------------- chain convergence --
+
+
+def _ar1(rng, m, n, phi):
+    x = np.zeros((m, n))
+    e = rng.standard_normal((m, n))
+    for t in range(1, n):
+        x[:, t] = phi * x[:, t - 1] + e[:, t]
+    return x
+
+
+def test_rhat_and_ess_equal_arviz_on_correlated_tied_stuck_and_short_chains():
+    # the package's R-hat and ESS are its own code (ArviZ's import costs seconds of start-up in every MCMC run and
+    # process-pool worker); they must be the published estimators ArviZ implements.  Cases: white to strongly
+    # correlated AR(1) chains from 4 draws (the shortest allowed) to 1,000, an odd number of draws (split drops the
+    # middle one), rounded draws (ties share ranks), a stuck walker, a shifted walker (R-hat >> 1), a constant
+    # chain, rare indicator values (tail ESS of a nearly constant chain), a walker with 10x the spread (only the
+    # folded R-hat sees it), one chain (R-hat undefined) and 3 draws (nothing defined)
+    import warnings
+
+    import arviz as az
+
+    from bayes_rcsa.stats.convergence import convergence_diagnostics, ess_bulk, ess_tail, rank_rhat
+
+    rng = np.random.default_rng(11)
+    cases = [_ar1(rng, m, n, phi) for m, n in [(2, 4), (3, 5), (4, 6), (5, 7), (8, 9), (16, 50), (32, 301), (4, 1000)]
+             for phi in (0.0, 0.5, 0.95, 0.999)]
+    cases.append(np.round(_ar1(rng, 10, 200, 0.9), 1))
+    stuck = _ar1(rng, 10, 200, 0.5)
+    stuck[3] = stuck[3, 0]
+    shifted = _ar1(rng, 10, 200, 0.5)
+    shifted[5] += 5.0
+    cases += [stuck, shifted, np.ones((4, 50)), np.where(rng.random((6, 40)) < 0.03, 1.0, 0.0),
+              rng.standard_normal((6, 40)) * np.array([1, 1, 1, 1, 1, 10.0])[:, None], _ar1(rng, 1, 100, 0.5),
+              _ar1(rng, 3, 3, 0.5)]
+    want = []
+    for x in cases:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            ds = az.convert_to_dataset({"a": x})
+            want.append([float(az.rhat(ds)["a"]), float(az.ess(ds, method="bulk")["a"]),
+                         float(az.ess(ds, method="tail")["a"])])
+    assert any(w[0] > 1.5 for w in want) and any(math.isnan(w[0]) for w in want)  # the cases reach both ends
+    for x, w in zip(cases, want):
+        got = [float(rank_rhat(x[None])[0]), float(ess_bulk(x[None])[0]), float(ess_tail(x[None])[0])]
+        # the same operations up to the order of a few sums and the FFT length: agreement to rounding
+        np.testing.assert_allclose(got, w, rtol=1e-9, equal_nan=True, err_msg=str(x.shape))
+    # several quantities at once (leading axis) and the three at once give the same numbers
+    same = [c for c in cases if c.shape == (16, 50)]
+    stacked = np.stack(same)
+    both = convergence_diagnostics(stacked)
+    for k, x in enumerate(same):
+        np.testing.assert_array_equal([both["rhat"][k], both["ess_bulk"][k], both["ess_tail"][k]],
+                                      [rank_rhat(x[None])[0], ess_bulk(x[None])[0], ess_tail(x[None])[0]])
+
+
+def test_chain_diagnostics_take_walkers_as_chains_without_arviz():
+    # (n_steps, n_walkers, ndim) in, one number per coordinate out; a fresh interpreter that samples and judges a
+    # chain has not imported ArviZ (or xarray)
+    import subprocess
+    import sys
+
+    from bayes_rcsa.inference.diagnostics import chain_diagnostics
+    from bayes_rcsa.stats.convergence import convergence_diagnostics
+
+    rng = np.random.default_rng(12)
+    chain = rng.standard_normal((60, 8, 3))
+    chain[:, 0, 2] += 4.0  # one walker of coordinate 2 elsewhere
+    d = chain_diagnostics(chain)
+    ref = convergence_diagnostics(np.transpose(chain, (2, 1, 0)))
+    for k in ("rhat", "ess_bulk", "ess_tail"):
+        np.testing.assert_array_equal(d[k], ref[k])
+    assert d["rhat"][2] > 1.1 > max(d["rhat"][:2])
+    assert np.all(np.isnan(chain_diagnostics(chain[:3])["rhat"]))
+    code = ("import sys, numpy as np; from bayes_rcsa.inference.diagnostics import chain_diagnostics; "
+            "chain_diagnostics(np.random.default_rng(0).standard_normal((40, 6, 2))); "
+            "print(sorted(m for m in ('arviz', 'xarray', 'pandas', 'scipy.stats') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]", out
+
+
 # -------------------------------------------------------- architecture --
 
 #: The formulas that live in bayes_rcsa/stats only: the ESS 1 / sum w^2, the second and third differences of the
-#: noise estimate, and PSIS.
+#: noise estimate, PSIS, and R-hat/ESS of a chain.
 _OWNED = {
     "effective sample size 1 / sum w^2": re.compile(r"1(\.0)?\s*/\s*np\.sum\(\s*w"),
     "second differences of an FRF": re.compile(r"\[:-2\]\s*-\s*2(\.0)?\s*\*\s*\w+\[1:-1\]"),
     "third-difference stencil": re.compile(r"-?1(\.0)?,\s*3(\.0)?,\s*-3(\.0)?,\s*1(\.0)?\]"),
     "PSIS": re.compile(r"psislw"),
+    "R-hat / ESS": re.compile(r"\baz\.(rhat|ess)\(|\barviz\.(rhat|ess)\("),
     "relative noise from a median / ln 2": re.compile(r"median\(.*\)\s*/\s*(math|np)\.(sqrt\()?(math\.)?log\(2"),
 }
 
@@ -228,6 +310,7 @@ def test_weights_and_noise_formulas_live_in_stats_only():
                 "second differences of an FRF": "d2 = h[:-2] - 2.0 * h[1:-1] + h[2:]",
                 "third-difference stencil": "_C3 = np.array([-1.0, 3.0, -3.0, 1.0])",
                 "PSIS": "lw, k = _az().psislw(np.asarray(log_weights, dtype=float))",
+                "R-hat / ESS": "bulk = az.ess(ds, method=\"bulk\")",
                 "relative noise from a median / ln 2":
                     "return float(np.median(np.abs(d[ok]) / scale[ok]) / math.sqrt(math.log(2.0)))"}
     assert all(_OWNED[what].search(code) for what, code in replaced.items())

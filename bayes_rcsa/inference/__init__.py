@@ -9,7 +9,8 @@ Separate, small objects in the spirit of bilby:
 * :mod:`.search` -- global optimum (likelihood grid + polish);
 * :mod:`.sampler` -- walker start, the package's one emcee driver (convergence, fixed steps, checkpoint/resume);
 * :mod:`.deterministic` -- the reference paper's deterministic fit;
-* :mod:`.diagnostics` -- the only module that imports ArviZ (R-hat, ESS, InferenceData);
+* :mod:`.diagnostics` -- R-hat and ESS of a chain (:mod:`bayes_rcsa.stats.convergence`) and the InferenceData (the
+  only module that imports ArviZ, and only for an InferenceData);
 * :mod:`.results`, :mod:`.plots` -- summary.json and figures;
 * :mod:`.problem`, :mod:`.identify` -- assembling a problem and running it;
 * :mod:`.fingerprint` -- what a resumed run must share with its checkpoint;

@@ -1,10 +1,14 @@
-"""ArviZ's statistics and the InferenceData of a fit: R-hat/ESS, PSIS, :func:`build_inference_data`.
+"""Diagnostics and the InferenceData of a fit: R-hat/ESS of a chain, :func:`build_inference_data`.
 
 Together with :mod:`bayes_rcsa.store.netcdf` (which writes and reads the
 netCDF files) this is the only module of the package that imports
-:mod:`arviz` (its import is slow and its API moves between versions).
+:mod:`arviz` (its import is slow and its API moves between versions), and
+only where an :class:`arviz.InferenceData` is asked for.  R-hat and ESS are
+the package's own implementation of the same estimators
+(:mod:`bayes_rcsa.stats.convergence`), so that sampling and judging a chain
+never loads ArviZ.
 
-Walkers of the ensemble are treated as ArviZ *chains*.  They are not
+Walkers of the ensemble are treated as *chains*.  They are not
 independent chains, but after the burn-in they are exchangeable draws of
 the posterior, and the rank-normalised split R-hat across walkers detects
 walkers that have not mixed (e.g. stuck in a second mode).
@@ -17,6 +21,8 @@ import warnings
 from typing import Mapping, Sequence
 
 import numpy as np
+
+from ..stats.convergence import convergence_diagnostics
 
 __all__ = ["chain_diagnostics", "build_inference_data", "inference_data_from_dict", "InferenceGroups"]
 
@@ -43,7 +49,10 @@ def _walkers_as_chains():
 
 
 def chain_diagnostics(chain: np.ndarray) -> dict[str, np.ndarray]:
-    """Rank-normalised split R-hat, bulk and tail ESS of each coordinate.
+    """Rank-normalised split R-hat, bulk and tail ESS of each coordinate (walkers as chains).
+
+    :func:`bayes_rcsa.stats.convergence.convergence_diagnostics` (the estimators of ArviZ's ``rhat`` and ``ess``,
+    without importing it).
 
     Parameters
     ----------
@@ -51,24 +60,10 @@ def chain_diagnostics(chain: np.ndarray) -> dict[str, np.ndarray]:
 
     Returns
     -------
-    dict with ``"rhat"``, ``"ess_bulk"``, ``"ess_tail"``, each (ndim,)
+    dict with ``"rhat"``, ``"ess_bulk"``, ``"ess_tail"``, each (ndim,); NaN for fewer than 4 steps
     """
-    az = _az()
     chain = np.asarray(chain, dtype=float)
-    nd = chain.shape[2]
-    if chain.shape[0] < 4:
-        nan = np.full(nd, np.nan)
-        return {"rhat": nan, "ess_bulk": nan, "ess_tail": nan}
-    data = {f"p{j}": np.ascontiguousarray(chain[:, :, j].T) for j in range(nd)}
-    with _walkers_as_chains():
-        ds = az.convert_to_dataset(data)
-    with warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
-        warnings.simplefilter("ignore", RuntimeWarning)
-        rhat = az.rhat(ds)
-        bulk = az.ess(ds, method="bulk")
-        tail = az.ess(ds, method="tail")
-    get = lambda d: np.array([float(d[f"p{j}"].values) for j in range(nd)])  # noqa: E731
-    return {"rhat": get(rhat), "ess_bulk": get(bulk), "ess_tail": get(tail)}
+    return convergence_diagnostics(np.transpose(chain, (2, 1, 0)))
 
 
 class InferenceGroups:
