@@ -93,26 +93,15 @@ def rank_rhat(x) -> np.ndarray:
     if not ok.any():
         return out
     s = _split(x[ok])
-    folded = np.abs(s - np.median(s.reshape(s.shape[0], -1), axis=1)[:, None, None])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out[ok] = np.maximum(_split_rhat(_z_scale(s)), _split_rhat(_z_scale(folded)))
+    out[ok] = _rank_rhat_of_split(s, _z_scale(s))
     return out
 
 
-def _fast_length(n: int) -> int:
-    """Smallest 2^a 3^b 5^c >= n (an FFT length without a large prime factor)."""
-    best = 1 << max(n - 1, 0).bit_length()
-    p5 = 1
-    while p5 < best:
-        p35 = p5
-        while p35 < best:
-            m = p35
-            while m < n:
-                m *= 2
-            best = min(best, m)
-            p35 *= 3
-        p5 *= 5
-    return best
+def _rank_rhat_of_split(s: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """The larger split R-hat of the rank-normalised split chains ``z`` and of ``s`` folded about its median."""
+    folded = np.abs(s - np.median(s.reshape(s.shape[0], -1), axis=1)[:, None, None])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.maximum(_split_rhat(z), _split_rhat(_z_scale(folded)))
 
 
 def _ess(x: np.ndarray) -> np.ndarray:
@@ -126,7 +115,9 @@ def _ess(x: np.ndarray) -> np.ndarray:
     if not rows.any():
         return out
     y = x[rows]
-    length = _fast_length(2 * n)
+    from scipy.fft import next_fast_len
+
+    length = next_fast_len(2 * n)
     centred = y - y.mean(axis=2, keepdims=True)
     spec = np.fft.rfft(centred, n=length, axis=2)
     acov = np.fft.irfft(spec * np.conjugate(spec), n=length, axis=2)[..., :n] / n  # (k, m, n), biased
@@ -222,7 +213,5 @@ def convergence_diagnostics(x) -> dict[str, np.ndarray]:
     out["ess_bulk"][ok] = _ess(z)
     out["ess_tail"][ok] = _tail(x[ok])
     if x.shape[-2] >= 2:
-        folded = np.abs(s - np.median(s.reshape(s.shape[0], -1), axis=1)[:, None, None])
-        with np.errstate(invalid="ignore", divide="ignore"):
-            out["rhat"][ok] = np.maximum(_split_rhat(z), _split_rhat(_z_scale(folded)))
+        out["rhat"][ok] = _rank_rhat_of_split(s, z)
     return out
