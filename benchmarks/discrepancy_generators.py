@@ -84,6 +84,17 @@ CANONICAL = (
     # is the static flexibility of modes above the file band (bearing tilt), on the project's bench its in-band modes
     ("spindle_rotation_omitted (file without rotations)", "spindle_rotation_omitted",
      {"spindle_rotation_omitted": True}, {}),
+    # issue #43 item 2: a spindle file taken on another day (other preload or temperature); the rotor bench's
+    # front sets (front_1, front_2) x (1 + spindle_error), its rear set x (1 + spindle_error_rear), each set's
+    # damping x (1 + e)^0.5 (docs/synthetic.md, "bearing_sets"); the tool-point FRFs keep today's bearings
+    ("spindle file: front +20 %, rear -10 %", "spindle_error", {"spindle_error": 0.20},
+     {"rotor": {"spindle_error_kind": "bearing_sets", "spindle_error_rear": -0.10}}),
+    ("spindle file: both sets -25 %", "spindle_error", {"spindle_error": -0.25},
+     {"rotor": {"spindle_error_kind": "bearing_sets", "spindle_error_rear": -0.25}}),
+    ("spindle file: front -15 %, rear +25 %", "spindle_error", {"spindle_error": -0.15},
+     {"rotor": {"spindle_error_kind": "bearing_sets", "spindle_error_rear": 0.25}}),
+    ("spindle file: both sets +10 %", "spindle_error", {"spindle_error": 0.10},
+     {"rotor": {"spindle_error_kind": "bearing_sets", "spindle_error_rear": 0.10}}),
 )
 #: First seed of the naming rows from the eleventh on (the first ten take 1000-1099; 1100-1499 belong to the clean,
 #: out-of-library, two-effect and named-coverage rows).

@@ -32,11 +32,12 @@ import math
 
 import numpy as np
 
-from .config import BearingSet, RotorBenchConfig
+from .config import BearingSet, RotorBenchConfig, front_bearing_sets
 from .sections import BeamSection, FluteProfile, composite, flute_section, tube_section
 from .structure import Structure, mesh_points
 
-__all__ = ["true_contact", "build_structure", "tip_body", "ring_resonator", "fluted_truth", "stiffness_law_factor"]
+__all__ = ["true_contact", "build_structure", "tip_body", "ring_resonator", "fluted_truth", "stiffness_law_factor",
+           "exported_bearing_factors"]
 
 
 def stiffness_law_factor(config: RotorBenchConfig, clamping_length: float, growth: float) -> float:
@@ -162,12 +163,72 @@ def _bearing_scale(config: RotorBenchConfig, bearing: BearingSet, index: int, ex
         return 1.0 + m
     if kind == "one_bearing":
         return 1.0 + m if index == 0 else 1.0
+    if kind == "bearing_sets":
+        front = front_bearing_sets(config)[index]
+        rear = config.spindle_error_rear
+        return 1.0 + (m if front or rear is None else rear)
     rear = max(range(len(config.bearings)), key=lambda i: -config.bearings[i].position)
     return 1.0 + m if index == rear else 1.0
 
 
+def exported_bearing_factors(config: RotorBenchConfig) -> list[dict]:
+    """The exported spindle file's bearing sets relative to today's (true) ones.
+
+    A spindle file taken on another day, at another preload or temperature,
+    comes from bearings whose stiffness differs from today's, set by set and
+    not in proportion.  With ``spindle_error_kind = "bearing_sets"`` the front
+    sets (:func:`~bayes_rcsa.synthetic.rotor.config.front_bearing_sets`) have
+    stiffness × (1 + e_front), e_front = the ``spindle_error`` magnitude, the
+    rear sets × (1 + e_rear), e_rear = ``spindle_error_rear`` (None: e_front),
+    translational and rotational alike.  A preload change also alters the
+    rolling contacts' damping, and in the same direction: Gunduz, Dreyer and
+    Singh (Mech. Syst. Signal Process. 31 (2012) 176–195, "Effect of bearing
+    preloads on the modal characteristics of a shaft-bearing assembly")
+    measure modal changes under controlled preloads and compare a
+    preload-independent with a preload-dependent bearing damping.  Here the
+    damping follows the stiffness by a power law, each set's translational and
+    rotational damping × (1 + e)^β with β = ``spindle_error_damping_exponent``:
+    β = 0 is preload-independent damping, β = 1 damping proportional to
+    stiffness, the default β = 0.5 in between (the dashpot grows like √k, so
+    the bearing's own damping ratio c / (2 √(k m)) stays put: stiffer and
+    somewhat more damped).  The other kinds (``"preload"``, ``"one_bearing"``,
+    ``"rear"``) change the stiffness only.
+
+    Parameters
+    ----------
+    config : RotorBenchConfig
+
+    Returns
+    -------
+    list of dict
+        One per bearing set, in ``config.bearings`` order: ``name``,
+        ``position`` (m), ``group`` (``"front"`` or ``"rear"``),
+        ``stiffness_factor`` and ``rotational_stiffness_factor`` (exported /
+        true), ``damping_factor`` and ``rotational_damping_factor``
+        (exported / true), and the exported values ``stiffness`` (N/m),
+        ``rotational_stiffness`` (N m/rad), ``damping`` (N s/m),
+        ``rotational_damping`` (N m s/rad), all in the x direction (y
+        stiffness × ``y_stiffness_factor`` on both rotors).  Factors are 1
+        without ``spindle_error``.
+    """
+    front = front_bearing_sets(config)
+    beta = config.spindle_error_damping_exponent
+    damped = config.spindle_error_kind == "bearing_sets" and config.magnitude("spindle_error") is not None
+    out = []
+    for i, b in enumerate(config.bearings):
+        k = _bearing_scale(config, b, i, exported=True)
+        c = k ** beta if damped else 1.0
+        out.append({"name": b.name, "position": b.position, "group": "front" if front[i] else "rear",
+                    "stiffness_factor": k, "rotational_stiffness_factor": k,
+                    "damping_factor": c, "rotational_damping_factor": c,
+                    "stiffness": b.stiffness * k, "rotational_stiffness": b.rotational_stiffness * k,
+                    "damping": b.damping * c, "rotational_damping": b.rotational_damping * c})
+    return out
+
+
 def build_structure(config: RotorBenchConfig, direction: str, clamping_length: float | None = None, *,
-                    spindle_only: bool = False, exported: bool = False, rigid_contact: bool = False):
+                    spindle_only: bool = False, exported: bool = False, rigid_contact: bool = False,
+                    bearing_stiffness=None):
     """Finite-element model of the true structure.
 
     Parameters
@@ -180,10 +241,15 @@ def build_structure(config: RotorBenchConfig, direction: str, clamping_length: f
         Only the spindle substructure (shaft, bearings, housing, taper joint,
         holder taper up to the flange node at z = 0).
     exported : bool
-        Apply the ``spindle_error`` bearing change (the exported file's rotor).
+        Apply the ``spindle_error`` bearing change (the exported file's rotor;
+        :func:`exported_bearing_factors`).
     rigid_contact : bool
         Bond the tool base to the holder tip (shared node) instead of the
         contact springs (verification of the k → ∞ limit).
+    bearing_stiffness : sequence of float or None
+        Extra factor per bearing set on its stiffness (translational and
+        rotational; 0 removes the set's springs), for energy bookkeeping;
+        None: 1 for every set.
 
     Returns
     -------
@@ -224,12 +290,16 @@ def build_structure(config: RotorBenchConfig, direction: str, clamping_length: f
     st.add_rigid_body(hd, hs.mass, hs.rotary_inertia)
     st.add_spring([hd[0]], [1.0], hs.stiffness * hfac, hs.damping)
     st.add_spring([hd[1]], [1.0], hs.rotational_stiffness * hfac, hs.rotational_damping)
+    factors = exported_bearing_factors(config) if exported else None
     for i, b in enumerate(config.bearings):
         n = int(np.argmin(np.abs(z_sp - b.position)))
-        s = _bearing_scale(config, b, i, exported) * yfac
+        s = (factors[i]["stiffness_factor"] if exported else 1.0) * yfac
+        c = factors[i]["damping_factor"] if exported else 1.0
+        if bearing_stiffness is not None:
+            s *= bearing_stiffness[i]
         e = b.position - hs.position
-        st.add_spring([sp[n, 0], hd[0], hd[1]], [1.0, -1.0, -e], b.stiffness * s, b.damping)
-        st.add_spring([sp[n, 1], hd[1]], [1.0, -1.0], b.rotational_stiffness * s, b.rotational_damping)
+        st.add_spring([sp[n, 0], hd[0], hd[1]], [1.0, -1.0, -e], b.stiffness * s, b.damping * c)
+        st.add_spring([sp[n, 1], hd[1]], [1.0, -1.0], b.rotational_stiffness * s, b.rotational_damping * c)
 
     # --- holder: taper, then (unless spindle_only) the outside segments -------------------------
     hmat = mats[config.holder_material]

@@ -17,8 +17,16 @@ from scipy.optimize import minimize_scalar
 from ...model.assembly import Configuration
 from ...model.receptance import FRF, PointReceptance
 from ..campaign import TRUTH_FORMAT, Campaign, dominant_peak, spindle_file_name, tip_file_name, write_campaign
-from .build import build_structure, fluted_truth, ring_resonator, stiffness_law_factor, tip_body, true_contact
-from .config import ROTOR_EFFECTS, RotorBenchConfig
+from .build import (
+    build_structure,
+    exported_bearing_factors,
+    fluted_truth,
+    ring_resonator,
+    stiffness_law_factor,
+    tip_body,
+    true_contact,
+)
+from .config import ROTOR_EFFECTS, RotorBenchConfig, front_bearing_sets
 from .noise import hammer_average
 from .solver import ModalSolution, modal_solution
 
@@ -28,6 +36,7 @@ __all__ = [
     "true_modes",
     "true_spindle_receptance",
     "exported_spindle_receptance",
+    "spindle_file_modes",
     "generate_rotor_campaign",
     "write_rotor_campaign",
     "user_setup",
@@ -167,7 +176,8 @@ def exported_spindle_receptance(config: RotorBenchConfig, direction: str, freque
     """The flange block the user receives (``spindle_<d>.csv``).
 
     With ``spindle_error`` it comes from the rotor with changed bearings
-    (``spindle_error_kind``); with ``spindle_rotation_omitted`` its l, n, p
+    (``spindle_error_kind``; :func:`~bayes_rcsa.synthetic.rotor.build.exported_bearing_factors`),
+    while the tool-point FRFs keep today's bearings; with ``spindle_rotation_omitted`` its l, n, p
     are scaled by ``1 − magnitude``.  Never contains the holder-side
     resonator, tip body or any tool.
 
@@ -191,6 +201,82 @@ def exported_spindle_receptance(config: RotorBenchConfig, direction: str, freque
         block[:, 1, 0] *= keep
         block[:, 1, 1] *= keep
     return PointReceptance(f, block, source=spindle_file_name(direction))
+
+
+def spindle_file_modes(config: RotorBenchConfig, direction: str, n_modes: int = 6) -> list[dict]:
+    """The flange modes of today's (true) spindle rotor and of the exported file's rotor, side by side.
+
+    A diagnostic of ``spindle_error``, computed from the rotor model itself
+    (the complex modes of the spindle substructure that
+    :func:`~bayes_rcsa.synthetic.rotor.solver.modal_solution` expands the
+    files with, their shapes at every degree of freedom): each of
+    the true rotor's first ``n_modes`` modes is paired with the exported
+    rotor's mode of the largest mass-weighted MAC, ``|xᴴ M y|² / (xᴴ M x ·
+    yᴴ M y)``.  The share of a mode's strain energy ``Re(xᴴ K_G x) / Re(xᴴ K
+    x)`` stored in the front or rear bearing sets (``K_G``: their springs
+    alone, :func:`~bayes_rcsa.synthetic.rotor.config.front_bearing_sets`)
+    says which sets the mode rides on.
+
+    Parameters
+    ----------
+    config : RotorBenchConfig
+    direction : {"x", "y"}
+    n_modes : int
+        How many of the lowest modes (all are listed, in or out of the band).
+
+    Returns
+    -------
+    list of dict
+        Per mode: ``true`` and ``exported``, each with ``eigenfrequency_hz``
+        (|λ|/2π, Hz), ``damping_ratio`` (−Re λ/|λ|), ``flange_modal_peak``
+        (|residue of h at the flange| / |Re λ|, m/N), ``front_energy`` and
+        ``rear_energy`` (shares of the modal strain energy); ``mac``;
+        ``frequency_change`` and ``damping_ratio_change`` (exported / true
+        − 1); ``dominant_sets``: ``"front"`` or ``"rear"`` when that group
+        holds ≥ 20 % of the true mode's strain energy and more than twice the
+        other's, else ``"neither"`` (housing or shaft modes).
+    """
+    direction = _direction(direction)
+    front = np.array(front_bearing_sets(config))
+
+    def rotor(exported):
+        st, dofs = build_structure(config, direction, spindle_only=True, exported=exported)
+        sol = modal_solution(st, np.arange(st.n_dof), config.mode_cutoff_hz)
+        keep = np.flatnonzero(sol.poles.imag > 0)
+        keep = keep[np.argsort(np.abs(sol.poles[keep]))]
+        lam, X = sol.poles[keep], sol.shapes[:, keep]      # residue of mode r between i and j: X[i, r] X[j, r]
+        shares = {}
+        for name, group in (("front_energy", front), ("rear_energy", ~front)):
+            without, _ = build_structure(config, direction, spindle_only=True, exported=exported,
+                                         bearing_stiffness=np.where(group, 0.0, 1.0))
+            KG = st.K - without.K
+            shares[name] = np.real(np.einsum("ir,ij,jr->r", X.conj(), KG, X)) / \
+                np.real(np.einsum("ir,ij,jr->r", X.conj(), st.K, X))
+        peak = np.abs(X[dofs["flange"][0]] ** 2) / np.abs(lam.real)
+        return st, lam, X, shares, peak
+
+    st0, lam0, X0, sh0, pk0 = rotor(False)
+    st1, lam1, X1, sh1, pk1 = rotor(True)
+    MX0, MX1 = st0.M @ X0, st1.M @ X1
+    cross = np.abs(X0.conj().T @ MX1) ** 2 / np.outer(np.real(np.einsum("ir,ir->r", X0.conj(), MX0)),
+                                                    np.real(np.einsum("ir,ir->r", X1.conj(), MX1)))
+
+    def describe(lam, shares, peak, r):
+        return {"eigenfrequency_hz": float(abs(lam[r]) / (2 * np.pi)), "damping_ratio": float(-lam[r].real / abs(lam[r])),
+                "flange_modal_peak": float(peak[r]), "front_energy": float(shares["front_energy"][r]),
+                "rear_energy": float(shares["rear_energy"][r])}
+
+    out = []
+    for r in range(min(n_modes, lam0.size)):
+        j = int(np.argmax(cross[r]))
+        t, e = describe(lam0, sh0, pk0, r), describe(lam1, sh1, pk1, j)
+        fe, re = t["front_energy"], t["rear_energy"]
+        dominant = "front" if fe >= 0.2 and fe > 2 * re else "rear" if re >= 0.2 and re > 2 * fe else "neither"
+        out.append({"true": t, "exported": e, "mac": float(cross[r, j]),
+                    "frequency_change": e["eigenfrequency_hz"] / t["eigenfrequency_hz"] - 1.0,
+                    "damping_ratio_change": e["damping_ratio"] / t["damping_ratio"] - 1.0,
+                    "dominant_sets": dominant})
+    return out
 
 
 def user_setup(config: RotorBenchConfig, files, configurations) -> dict:
@@ -263,8 +349,20 @@ def _effect_details(config: RotorBenchConfig) -> dict:
                                  for cl in config.clamping_lengths},
         }
     if "spindle_error" in eff:
-        details["spindle_error"] = {"kind": config.spindle_error_kind,
-                                    "exported_bearing_stiffness_scale": 1.0 + eff["spindle_error"]}
+        kind = config.spindle_error_kind
+        details["spindle_error"] = {"kind": kind}
+        if kind == "bearing_sets":
+            rear = config.spindle_error_rear
+            details["spindle_error"].update({
+                "front_stiffness_change": eff["spindle_error"],
+                "rear_stiffness_change": eff["spindle_error"] if rear is None else float(rear),
+                "damping_law": "c_exported = c_true (1 + e)^beta per set (translational and rotational)",
+                "damping_exponent": float(config.spindle_error_damping_exponent),
+                "front_sets": "bearing sets in the front half of the shaft (position > -shaft length / 2)"})
+        else:
+            details["spindle_error"]["exported_bearing_stiffness_scale"] = 1.0 + eff["spindle_error"]
+        details["spindle_error"]["exported_bearings"] = exported_bearing_factors(config)
+        details["spindle_error"]["flange_modes"] = {d: spindle_file_modes(config, d) for d in config.directions}
     if "spindle_rotation_omitted" in eff:
         details["spindle_rotation_omitted"] = {"kept_fraction": 1.0 - eff["spindle_rotation_omitted"]}
     if "tool_modulus" in eff:

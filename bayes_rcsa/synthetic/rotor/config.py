@@ -20,7 +20,7 @@ from .sections import FluteProfile, RotorMaterial
 __all__ = [
     "HolderSegment", "ShaftSegment", "BearingSet", "Housing", "HolderTaper",
     "RotorBenchConfig", "rotor_bench_config", "EffectInfo", "ROTOR_EFFECTS", "CANONICAL_EFFECTS",
-    "OUT_OF_LIBRARY_EFFECTS",
+    "OUT_OF_LIBRARY_EFFECTS", "front_bearing_sets", "SPINDLE_ERROR_LIMIT",
 ]
 
 
@@ -52,7 +52,8 @@ ROTOR_EFFECTS: dict[str, EffectInfo] = {
         "contact stiffness saturates (or steps at a collet slot) with clamping length", 1.0, 6.0),
     "spindle_error": EffectInfo(
         0.15, "relative bearing stiffness change", "the exported spindle file comes from the rotor with "
-        "changed bearing stiffness (spindle_error_kind)", -0.3, 0.3),
+        "changed bearing stiffness (spindle_error_kind; 'bearing_sets': the front sets' change, the rear sets' "
+        "is spindle_error_rear)", -0.3, 0.3),
     "spindle_rotation_omitted": EffectInfo(
         1.0, "fraction removed", "the exported spindle file's l, n, p are scaled by (1 - magnitude)", 0.2, 1.0),
     "tool_modulus": EffectInfo(
@@ -189,6 +190,16 @@ class RotorBenchConfig:
     Geometry, lengths in m; stiffness N/m and N m/rad; damping N s/m and
     N m s/rad; frequencies Hz.  ``hidden_effects`` maps canonical effect
     names to magnitudes (see :data:`ROTOR_EFFECTS`).
+
+    The exported spindle file's bearings (``spindle_error``) follow
+    ``spindle_error_kind``: ``"preload"`` (every set's stiffness × (1 + m)),
+    ``"one_bearing"`` (front_1 only), ``"rear"`` (the rearmost set only) or
+    ``"bearing_sets"``: the front sets (:func:`front_bearing_sets`) stiffer by
+    (1 + m), the rear sets by (1 + ``spindle_error_rear``) (None: the same
+    m), translational and rotational alike, and each set's translational and
+    rotational damping × (1 + e)^``spindle_error_damping_exponent`` (default
+    0.5; dimensionless) with e its own set's change; |m|, |e| ≤ 0.5.  The
+    first three kinds leave the bearing damping unchanged.
     """
 
     name: str = "ER32 collet + 7.94 mm 4-flute carbide end mill (rotor bench)"
@@ -249,6 +260,8 @@ class RotorBenchConfig:
     mode_cutoff_hz: float = 40e3
     hidden_effects: dict = field(default_factory=dict)
     spindle_error_kind: str = "preload"
+    spindle_error_rear: float | None = None
+    spindle_error_damping_exponent: float = 0.5
     stiffness_law_kind: str = "saturating"
     step_position: float = 0.0325
     tip_body_diameter: float = 0.0065
@@ -296,6 +309,66 @@ def _normalise_effects(effects) -> dict:
     return out
 
 
+#: Largest plausible relative bearing-set stiffness change of a spindle file taken on another day
+#: (kind ``"bearing_sets"``): preload and temperature move a set's stiffness by 10-30 %, never by half.
+SPINDLE_ERROR_LIMIT = 0.5
+#: Plausible exponents of the bearing damping law ``c' = c (1 + e)^beta`` (0: preload-independent damping,
+#: 1: damping proportional to stiffness).
+SPINDLE_DAMPING_EXPONENT_RANGE = (0.0, 2.0)
+
+
+def front_bearing_sets(config: RotorBenchConfig) -> tuple[bool, ...]:
+    """Which bearing sets are front sets (the kind ``"bearing_sets"`` of ``spindle_error``).
+
+    A set is at the front when it sits in the front half of the shaft, nearer the spindle nose (the flange,
+    z = 0) than the shaft's rear end: ``position > −L_shaft / 2`` with ``L_shaft`` the summed length of
+    ``spindle_segments`` (m).  Defaults: front_1 (−75 mm) and front_2 (−125 mm) are front, rear (−330 mm)
+    is rear (boundary −195 mm).
+
+    Parameters
+    ----------
+    config : RotorBenchConfig
+
+    Returns
+    -------
+    tuple of bool
+        One per entry of ``config.bearings``, True for a front set.
+    """
+    half = 0.5 * sum(s.length for s in config.spindle_segments)
+    return tuple(b.position > -half for b in config.bearings)
+
+
+def _check_spindle_error(config: RotorBenchConfig) -> None:
+    kind = config.spindle_error_kind
+    if kind not in ("preload", "one_bearing", "rear", "bearing_sets"):
+        raise SetupError(f"spindle_error_kind = {kind!r}: "
+                         "expected 'preload', 'one_bearing', 'rear' or 'bearing_sets'")
+    rear = config.spindle_error_rear
+    if rear is not None:
+        if kind != "bearing_sets":
+            raise SetupError(f"spindle_error_rear = {rear!r}: only used with spindle_error_kind = 'bearing_sets' "
+                             f"(got {kind!r}); expected None")
+        if isinstance(rear, bool) or not isinstance(rear, (int, float)) or not math.isfinite(rear) \
+                or abs(rear) > SPINDLE_ERROR_LIMIT:
+            raise SetupError(f"spindle_error_rear = {rear!r}: expected a relative stiffness change with "
+                             f"|e| <= {SPINDLE_ERROR_LIMIT} (10-30 % is typical)")
+    beta = config.spindle_error_damping_exponent
+    lo, hi = SPINDLE_DAMPING_EXPONENT_RANGE
+    if isinstance(beta, bool) or not isinstance(beta, (int, float)) or not (lo <= beta <= hi):
+        raise SetupError(f"spindle_error_damping_exponent = {beta!r}: expected a number in [{lo:g}, {hi:g}]")
+    if kind != "bearing_sets":
+        return
+    m = config.magnitude("spindle_error")
+    if m is not None and abs(m) > SPINDLE_ERROR_LIMIT:
+        raise SetupError(f"hidden_effects.spindle_error = {m!r}: with spindle_error_kind = 'bearing_sets' it is the "
+                         f"front sets' relative stiffness change; expected |e| <= {SPINDLE_ERROR_LIMIT}")
+    front = front_bearing_sets(config)
+    if all(front) or not any(front):
+        raise SetupError(f"bearings: positions {[b.position for b in config.bearings]!r} m put "
+                         f"{'every' if all(front) else 'no'} set in the front half of the shaft; "
+                         "spindle_error_kind = 'bearing_sets' expects front and rear sets")
+
+
 def _check(config: RotorBenchConfig) -> None:
     def positive(key, value):
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
@@ -329,9 +402,7 @@ def _check(config: RotorBenchConfig) -> None:
         raise SetupError(f"contact_model = {config.contact_model!r}: expected 'lumped' or 'distributed'")
     if config.fluted_declared not in ("effective", "solid"):
         raise SetupError(f"fluted_declared = {config.fluted_declared!r}: expected 'effective' or 'solid'")
-    if config.spindle_error_kind not in ("preload", "one_bearing", "rear"):
-        raise SetupError(f"spindle_error_kind = {config.spindle_error_kind!r}: "
-                         "expected 'preload', 'one_bearing' or 'rear'")
+    _check_spindle_error(config)
     if config.stiffness_law_kind not in ("saturating", "step"):
         raise SetupError(f"stiffness_law_kind = {config.stiffness_law_kind!r}: expected 'saturating' or 'step'")
     for name in (config.holder_material, config.tool_material, config.spindle_material):
