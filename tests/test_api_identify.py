@@ -75,6 +75,30 @@ def test_save_writes_the_command_line_files_and_load_round_trips(posterior, cli_
         posterior.save(out)
 
 
+def test_load_decodes_the_inference_data_only_when_used_and_from_the_file_as_loaded(cli_run, tmp_path):
+    import shutil
+    import subprocess
+    import sys
+
+    folder = tmp_path / "copy"
+    shutil.copytree(cli_run, folder)
+    # a fresh interpreter: loading and reading the draws import no ArviZ/xarray (a batch worker or predict never
+    # decodes the InferenceData); the first use of inference_data does
+    probe = ("import sys, bayes_rcsa; p = bayes_rcsa.Posterior.load(sys.argv[1]); p.draws.values['k_xf'].sum(); "
+             "before = 'arviz' in sys.modules or 'xarray' in sys.modules; "
+             "p.inference_data.posterior; print(before, 'arviz' in sys.modules)")
+    proc = subprocess.run([sys.executable, "-c", probe, str(folder)], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split() == ["False", "True"]
+    # the content is the file as it was loaded: replaced or removed afterwards, the loaded posterior is unchanged
+    loaded = bayes_rcsa.Posterior.load(folder)
+    expected = bayes_rcsa.Posterior.load(cli_run).inference_data.posterior["k_xf"].values
+    (folder / "posterior.nc").write_bytes(b"not a netCDF file")
+    np.testing.assert_array_equal(loaded.inference_data.posterior["k_xf"].values, expected)
+    (folder / "posterior.nc").unlink()
+    np.testing.assert_array_equal(loaded.inference_data.posterior["k_xf"].values, expected)
+
+
 def test_warnings_reach_the_result_and_the_json(posterior, cli_run):
     assert not posterior.converged
     assert any(w.startswith("not converged") for w in posterior.warnings)

@@ -16,6 +16,6 @@ import bayes_rcsa.batch.run  # noqa: E402,F401  (numpy, the I/O layer)
 import bayes_rcsa.inference.identify  # noqa: E402,F401  (emcee, the likelihood)
 import bayes_rcsa.posterior.prediction_outputs  # noqa: E402,F401  (predict)
 import bayes_rcsa.stability.probabilistic  # noqa: E402,F401  (lobes)
-import bayes_rcsa.inference.diagnostics as _diagnostics  # noqa: E402
-
-_diagnostics._az()  # arviz and xarray: the slowest import of all
+import matplotlib  # noqa: E402  (the figures of every step: matplotlib's own start-up, once)
+import matplotlib.backends.backend_agg  # noqa: E402,F401
+import matplotlib.figure  # noqa: E402,F401

@@ -40,7 +40,7 @@ class PosteriorParts:
     ----------
     path : str, path-like or None, the posterior.nc as given (None for a posterior held in memory only)
     draws : PosteriorDraws or None
-    inference_data : arviz.InferenceData or None
+    inference_data : arviz.InferenceData, :class:`bayes_rcsa.store.netcdf.ArrayData` or None, the file's content
     summary : dict or None, the fit's summary.json document, passed on only when there is no file beside it
     """
 
@@ -65,5 +65,9 @@ def posterior_parts(posterior) -> PosteriorParts:
         raise SetupError("the posterior holds no draws (identified with method 'deterministic'); predictions and "
                          "lobes need posterior draws")
     path = getattr(posterior, "path", None)
-    return PosteriorParts(None if path is None else Path(path), draws, getattr(posterior, "inference_data", None),
+    idata = getattr(posterior, "inference_data", None)
+    # the numbers of the file as h5py read them (what the callee would read itself), so that no ArviZ decode is
+    # forced; an InferenceData built in a script is passed on as it is
+    idata = getattr(idata, "array_data", idata)
+    return PosteriorParts(None if path is None else Path(path), draws, idata,
                           None if path is not None else getattr(posterior, "summary", None))

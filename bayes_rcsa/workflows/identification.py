@@ -261,12 +261,12 @@ class Posterior(Result):
                 raise DataError(f"{summary_path}: not valid JSON ({exc})") from None
         idata = draws = None
         if nc.is_file() or summary.get("method", "multi") != "deterministic":
-            from ..posterior.draws import load_posterior, posterior_attributes, read_posterior
+            from ..posterior.draws import posterior_attributes
 
-            idata = _loaded(read_posterior(nc))
-            draws = load_posterior(nc, setup)
+            idata = _InferenceDataOnFirstUse.snapshot(nc, "--posterior")
+            draws = _draws_of(idata, setup)
             if not summary:  # a posterior.nc alone: its attributes say what summary.json would
-                attrs = posterior_attributes(idata)
+                attrs = posterior_attributes(idata.array_data)
                 summary = {"method": str(attrs.get("method", "multi")),
                            "converged": bool(int(attrs.get("converged", 0)))}
         return cls(summary=summary, draws=draws, inference_data=idata, setup=setup,
@@ -491,11 +491,9 @@ def _identify(setup, lengths, method, seed, walkers, max_steps, check_every, ess
         posterior = _fit(**run, checkpoint=ckpt if bayesian else None)
         posterior._write(out, plots)
     if posterior.path is not None:
-        from ..posterior.draws import load_posterior
-
         # the draws as predict/lobes read them (h5py, no ArviZ); the InferenceData only when a script asks for it
         posterior.inference_data = _InferenceDataOnFirstUse(posterior.path)
-        posterior.draws = load_posterior(posterior.path, setup)
+        posterior.draws = _draws_of(posterior.inference_data, setup)
     else:
         posterior.inference_data = None
     return posterior
@@ -525,23 +523,63 @@ def _run_folder(out: Path, force: bool, resume: bool, bayesian: bool):
 
 
 class _InferenceDataOnFirstUse:
-    """The ``arviz.InferenceData`` of a written posterior.nc, read on first use and kept.
+    """The ``arviz.InferenceData`` of a posterior.nc, decoded on first use and kept.
 
     identify returned the file read back with ArviZ (importing ArviZ and xarray and decoding every group: seconds
-    per run, paid by every command-line run, which never looks at it); a script that uses
-    ``posterior.inference_data`` pays once, on its first attribute, item or group access.  The file must then
-    still be where identify wrote it (``posterior.path``).
+    per run, paid by every command-line run and every batch worker, which never look at it); a script that uses
+    ``posterior.inference_data`` pays once, on its first attribute, item or group access.  The numbers the package
+    itself needs (draws, attributes, cut coefficients) come from :attr:`array_data` (h5py, read once).
+
+    Made by identify, the file must still be where identify wrote it; made by :meth:`snapshot` (``Posterior.load``
+    and runs kept in memory), the file's bytes are held, so it may be replaced or removed afterwards.
     """
 
-    __slots__ = ("_path", "_idata")
+    __slots__ = ("_path", "_idata", "_content", "_arrays")
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, content: bytes | None = None):
         self._path = Path(path)
         self._idata = None
+        self._content = content
+        self._arrays = None
+
+    @classmethod
+    def snapshot(cls, path: Path, option: str | None = None) -> "_InferenceDataOnFirstUse":
+        """The file as it is now: its numbers read (and checked) at once, its bytes kept for a later decode.
+
+        ``option`` names the file in the message of a missing file, as in :func:`bayes_rcsa.store.read_posterior`.
+
+        Raises
+        ------
+        DataError, SetupError
+            As :func:`bayes_rcsa.store.read_posterior` (missing, unreadable, newer schema).
+        """
+        from ..posterior.draws import read_posterior
+
+        out = cls(path)
+        out._arrays = read_posterior(path, option=option, arrays=True)
+        out._content = Path(path).read_bytes()
+        return out
+
+    @property
+    def array_data(self):
+        """The file's numbers and attributes (:class:`bayes_rcsa.store.netcdf.ArrayData`), without ArviZ."""
+        if self._arrays is None:
+            from ..posterior.draws import read_posterior
+
+            self._arrays = read_posterior(self._path, option=None, arrays=True)
+        return self._arrays
 
     def _data(self):
         if self._idata is None:
-            self._idata = _read_idata(self._path)
+            if self._content is None:
+                self._idata = _read_idata(self._path)
+            else:
+                # ArviZ reads files by name: the kept bytes go through a private temporary copy
+                with tempfile.TemporaryDirectory(prefix="bayes_rcsa_posterior_") as tmp:
+                    copy = Path(tmp) / "posterior.nc"
+                    copy.write_bytes(self._content)
+                    self._idata = _read_idata(copy)
+                self._content = None
         return self._idata
 
     def __getattr__(self, name: str):
@@ -565,6 +603,13 @@ class _InferenceDataOnFirstUse:
         return self._data()._repr_html_()
 
 
+def _draws_of(idata: _InferenceDataOnFirstUse, setup):
+    """The posterior draws of ``idata``'s file, from its numbers (no ArviZ)."""
+    from ..posterior.draws import load_posterior
+
+    return load_posterior(idata._path, setup, inference_data=idata.array_data)
+
+
 def _read_idata(path: Path):
     from ..posterior.draws import read_posterior
 
@@ -581,7 +626,7 @@ def _in_memory(posterior: Posterior) -> Posterior:
     posterior.draws = draws_from_result(ir)
     with tempfile.TemporaryDirectory(prefix="bayes_rcsa_identify_") as tmp:
         _write_identification(ir, Path(tmp), False, posterior.cut_draws, posterior.summary)
-        posterior.inference_data = _read_idata(Path(tmp) / "posterior.nc")
+        posterior.inference_data = _InferenceDataOnFirstUse.snapshot(Path(tmp) / "posterior.nc")
     return posterior
 
 
