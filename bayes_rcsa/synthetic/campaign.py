@@ -182,7 +182,7 @@ def user_setup(config: BenchConfig, files, configurations) -> dict:
                 "poisson_ratio": m.poisson_ratio, "loss_factor": m.loss_factor}
 
     tool_segments = []
-    for s in config.tool_segments:
+    for s in config.declared_tool_segments:  # one cylinder when ``tool_declared = "one_cylinder"``
         seg = {"length": s.length, "diameter": s.diameter}
         if s.diameter_ratio != 1.0:
             seg["diameter_ratio"] = s.diameter_ratio
@@ -232,6 +232,14 @@ def truth_record(config: BenchConfig, peaks: list[dict]) -> dict:
             "assumed_diameter_ratio": [s.diameter_ratio for s in config.tool_segments],
             "true_diameter_ratio": [s.diameter_ratio for s in true_tool(config).segments],
         }
+    if config.tool_declared == "one_cylinder" and len(config.tool_segments) > 1:
+        # the tool's fluted tip is itself hidden: the setup has one cylinder of the shank's diameter
+        details.setdefault("fluted_section", {}).update(
+            declared="one_cylinder",
+            declared_segments=[{"length": s.length, "diameter": s.diameter} for s in config.declared_tool_segments],
+            true_flute_length=sum(s.length for s in true_tool(config).segments if s.diameter_ratio < 1),
+            true_segments=[{"length": s.length, "diameter": s.diameter, "diameter_ratio": s.diameter_ratio}
+                           for s in true_tool(config).segments])
     if "nonlinear_stiffness_law" in effects:
         details["nonlinear_stiffness_law"] = {"kind": config.stiffness_law_kind,
                                               "saturation" if config.stiffness_law_kind == "saturating" else "ramp_jump":
@@ -250,6 +258,7 @@ def truth_record(config: BenchConfig, peaks: list[dict]) -> dict:
         "format": TRUTH_FORMAT,
         "name": config.name,
         "contact_model": config.contact_model,
+        "tool_declared": config.tool_declared,
         "law": {
             "kind": config.stiffness_law_kind if saturation else "linear",
             "k_xf_at_la": config.k_xf,

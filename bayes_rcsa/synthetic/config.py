@@ -35,12 +35,16 @@ from ..model.materials import Material
 from .effects import normalise_effects
 from .spindle import Bearing, ShaftSegment, SpindleModel
 
-__all__ = ["BenchConfig", "default_bench_config", "load_bench_config", "CONTACT_MODELS", "EXTRA_MODE_LOCATIONS"]
+__all__ = ["BenchConfig", "default_bench_config", "load_bench_config", "CONTACT_MODELS", "EXTRA_MODE_LOCATIONS",
+           "TOOL_DECLARATIONS"]
 
 CONTACT_MODELS = ("lumped", "distributed")
 #: Forms of the ``nonlinear_stiffness_law`` effect (BenchConfig.stiffness_law_kind).
 STIFFNESS_LAW_KINDS = ("saturating", "ramp")
 EXTRA_MODE_LOCATIONS = ("flange", "holder_tip")
+#: How the user's setup declares the tool (BenchConfig.tool_declared): its segments as configured, or one cylinder
+#: of the shank's (nominal) diameter and the total length, its flutes undeclared (the usual first try).
+TOOL_DECLARATIONS = ("segments", "one_cylinder")
 _DIRECTIONS = ("x", "y")
 
 
@@ -89,6 +93,10 @@ class BenchConfig:
     tool_material : str
     tool_total_length : float, m
     tool_segments : tuple of ToolSegment, tip -> shank end
+        The true tool (before the ``fluted_section`` effect).
+    tool_declared : {"segments", "one_cylinder"}
+        What the user's setup says about the tool: ``tool_segments`` as they are, or one cylinder of the
+        shank's diameter over ``tool_total_length`` (no flute declared; the truth keeps its fluted tip).
     spindle : SpindleModel
 
     True contact (what the data are made of)
@@ -165,6 +173,7 @@ class BenchConfig:
         ToolSegment(0.030, 0.00794, 0.80),
         ToolSegment(0.0716, 0.00794, 1.0),
     )
+    tool_declared: str = "segments"
     spindle: SpindleModel = field(default_factory=_default_spindle)
     k_xf: float = 1.8e6
     k_thetaM: float = 4.5e5
@@ -245,6 +254,8 @@ class BenchConfig:
                              f"{list(self.clamping_range)!r}")
         if self.contact_model not in CONTACT_MODELS:
             raise SetupError(f"contact_model = {self.contact_model!r}: expected one of {CONTACT_MODELS}")
+        if self.tool_declared not in TOOL_DECLARATIONS:
+            raise SetupError(f"tool_declared = {self.tool_declared!r}: expected one of {TOOL_DECLARATIONS}")
         if self.extra_mode_location not in EXTRA_MODE_LOCATIONS:
             raise SetupError(
                 f"extra_mode_location = {self.extra_mode_location!r}: expected one of {EXTRA_MODE_LOCATIONS}"
@@ -290,8 +301,15 @@ class BenchConfig:
 
     @property
     def tool(self) -> Tool:
-        """The tool as the user describes it (no hidden effect)."""
+        """The configured tool, ``tool_segments`` (no hidden effect); the setup declares ``declared_tool_segments``."""
         return Tool(self.materials[self.tool_material], self.tool_total_length, self.tool_segments, name="tool")
+
+    @property
+    def declared_tool_segments(self) -> tuple[ToolSegment, ...]:
+        """The tool segments the user's setup declares (``tool_declared``), tip -> shank end."""
+        if self.tool_declared == "one_cylinder":
+            return (ToolSegment(self.tool_total_length, self.tool_segments[-1].diameter),)
+        return self.tool_segments
 
     @property
     def frequency_hz(self) -> np.ndarray:
@@ -428,7 +446,9 @@ def _from_dict(doc: dict[str, Any]) -> BenchConfig:
             )
     if "tool" in doc:
         t = doc["tool"]
-        _known(t, {"material", "total_length", "segments"}, "tool")
+        _known(t, {"material", "total_length", "segments", "declared"}, "tool")
+        if "declared" in t:
+            kw["tool_declared"] = _string(t["declared"], "tool.declared")
         if "material" in t:
             kw["tool_material"] = _string(t["material"], "tool.material")
         if "total_length" in t:

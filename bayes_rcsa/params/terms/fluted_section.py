@@ -11,11 +11,53 @@ Which segments
 --------------
 Per tool: its segments with ``diameter_ratio < 1`` (declared fluted); if it
 has none but two or more segments, its tip segment (the first one, a flute
-declared solid).  A tool with a single segment has nothing to act on; if no
-tool of the setup has such a segment, :meth:`FlutedSection.parameters`
-raises :class:`~bayes_rcsa.errors.ModelError` (the discrepancy workflow
-reads this as "not applicable").  Acted segments that reach into the holder
-are refused when evaluated (the holder two-port would change too).
+declared solid); if it is declared as one cylinder (a single segment of
+ratio 1), a fluted tip of unknown length (below).  A single segment declared
+with a ratio below 1 is acted on whole and refused when evaluated, since it
+reaches into the holder.  If no tool of the setup offers anything to act on,
+:meth:`FlutedSection.parameters` raises :class:`~bayes_rcsa.errors.ModelError`
+(the discrepancy workflow reads this as "not applicable").  Acted segments
+that reach into the holder are refused when evaluated (the holder two-port
+would change too).
+
+A flute the user did not declare
+--------------------------------
+The usual first try with a catalogue tool is one cylinder: its nominal
+diameter over its total length.  Such a tool is still fluted at its tip, over
+a length the setup does not give.  For every tool declared as one cylinder
+the term adds the fluted length ``L / D`` (:data:`FLUTE_LENGTH`, in tool
+diameters) as a parameter and acts on the last ``L`` of the overhang (a
+plain base and a fluted tip, both lengths per parameter set).  Its prior is
+uniform over catalogue lengths of cut, :data:`FLUTE_LENGTH_RANGE` = 1-6
+diameters: stub end mills about 1-1.5 D, the standard proportion about
+1.5 D, "long flute" types 3-5 D (AMG Carbide Tool, "The relationship between
+end mill diameter and length", amgcarbidetool.com); Dormer's inch catalogue
+lists a 3/8-inch end mill with 7/8 inch of cut (2.3 D, "medium"), a 5/8-inch
+one with 2 1/4 inch (3.6 D, "long") and a 1/2-inch one with 3 inch (6 D,
+"extra long") (Dormer Pramet S134, S236, S237).  The benches' 7.94-mm end
+mills have 30 mm (3.78 D).  The flutes are never clamped: the upper end is
+lowered to what stays outside the holder when the tool is clamped as deep as
+the bore that grips its shank goes (:func:`grip_depth`: the holder segments
+at its tip whose bore is the shank's within :data:`GRIP_CLEARANCE`; a wider
+bore behind them, for a retention knob, does not clamp), and a tool too
+short for even one diameter of flute there is refused with a
+:class:`~bayes_rcsa.errors.ModelError` naming it.  A configuration clamped
+deeper still (the model accepts any length inside the bore) with a set's
+flute reaching into the holder is refused when evaluated, naming the
+fluted length.  All such tools share one ``L / D`` (a tool library's end
+mills of one series share their proportions rather than their lengths).
+
+The area and inertia ratios keep their meaning, as ratios to the declared
+circle, here the nominal diameter (``r = 1``): their priors are then the
+profile ranges themselves, [0.40, 1] and [0.25, 1], which already cover
+every flute profile, and the plausibility check is unchanged.  At ``a = i =
+1`` the term vanishes whatever the fluted length (bit for bit); the fluted
+length's baseline, the middle of its prior, only says where a fit starts
+(the discrepancy screen grids it over its prior, since it has no effect at
+the baseline).  A fit with the fluted length on a bound of its prior is not
+named (:func:`bayes_rcsa.discrepancy.select.edge_parameters`): the term
+would stand in for an effect spread over a longer or shorter part of the
+tool than any catalogue flute.
 
 Physics
 -------
@@ -84,6 +126,10 @@ Parameters
     inertia).  Prior uniform on ``[0.25 / r^4, max(0.97 / r^4, 1)]``;
     baseline 1.  At both baselines the declared tool two-port is returned
     unchanged (bit for bit).
+``flute_length_per_diameter`` (1; only when a tool is declared as one cylinder)
+    Fluted length (length of cut) in tool diameters.  Prior uniform on
+    ``[1, min(6, (total_length - grip_depth) / D)]`` (the smallest upper end
+    over such tools); baseline the prior's middle (no effect at unit ratios).
 
 Validation
 ----------
@@ -112,8 +158,11 @@ an effective circle or as solid.
 Cannot represent: a change of the shear coefficient with the profile (kappa
 is kept; shear is a small part of a tool's compliance), the x/y anisotropy
 of a two-flute section (one ``I`` for both directions), helix-induced
-coupling of the bending planes, a flute length other than declared, and
-fluted parts inside the holder.
+coupling of the bending planes, a flute length other than declared on a tool
+declared in segments (only a one-cylinder tool's fluted length is a
+parameter), a neck or a shank of another diameter on a one-cylinder tool,
+different proportions of several one-cylinder tools, and fluted parts inside
+the holder.
 """
 
 from __future__ import annotations
@@ -130,8 +179,9 @@ from ..priors import Uniform
 from . import register_term
 from .base import ModelTerm, Substructures
 
-__all__ = ["FlutedSection", "batched_segment_stiffness", "batched_free_free", "acted_segments", "AREA_RANGE",
-           "INERTIA_RANGE", "MIN_EXCESS"]
+__all__ = ["FlutedSection", "batched_segment_stiffness", "batched_free_free", "acted_segments", "undeclared_flute",
+           "grip_depth", "flute_length_bounds", "AREA_RANGE", "INERTIA_RANGE", "MIN_EXCESS", "FLUTE_LENGTH",
+           "FLUTE_LENGTH_RANGE", "GRIP_CLEARANCE"]
 
 #: Physical range of A / A_solid of fluted sections (2-6 flutes, core ratio 0.5-0.8), widened.
 AREA_RANGE = (0.40, 0.92)
@@ -141,13 +191,23 @@ INERTIA_RANGE = (0.25, 0.97)
 #: moment for its area); 0.95 leaves room for the fit's scatter around an effective circle (noise-free fits of the
 #: bench's circles gave 0.998-1.04).
 MIN_EXCESS = 0.95
+#: Name of the fluted length of a tool declared as one cylinder, in tool diameters.
+FLUTE_LENGTH = "flute_length_per_diameter"
+#: Catalogue lengths of cut of end mills, in tool diameters: stub about 1-1.5, regular 2-3, long 3-5, extra long up
+#: to 6 (module docstring, "A flute the user did not declare").
+FLUTE_LENGTH_RANGE = (1.0, 6.0)
+#: A holder bore grips the shank when its inner diameter is at most this much (relative) above the shank's: a collet
+#: or shrink-fit bore is the shank's size (a collet closes over about 1 mm); a wider bore behind it (a retention-knob
+#: or coolant bore) does not clamp, and the tool cannot be clamped deeper than the gripping bore.
+GRIP_CLEARANCE = 0.10
 
-def batched_segment_stiffness(length: float, EI, kGA, rhoA, rhoI, omega) -> np.ndarray:
+def batched_segment_stiffness(length, EI, kGA, rhoA, rhoI, omega) -> np.ndarray:
     """Exact dynamic stiffness of a uniform Timoshenko segment for batches of sections.
 
     Parameters
     ----------
-    length : float, m
+    length : float or (B,) array, m, > 0
+        One length for the batch, or one per batch member (a fluted length that varies per parameter set).
     EI : (B, 1) complex N m^2;  kGA : (B, 1) complex N;  rhoA : (B, 1) kg/m;  rhoI : (B, 1) kg m
     omega : (n,) rad/s, > 0
 
@@ -176,6 +236,8 @@ def batched_segment_stiffness(length: float, EI, kGA, rhoA, rhoI, omega) -> np.n
     kGA_, EI_, rhoA_ = kGA[..., None], EI[..., None], rhoA[..., None]
     psi = (kGA_ * lam**2 + rhoA_ * w2[..., None]) / (kGA_ * lam)
     grows = lam.real >= 0
+    if np.ndim(length):  # one length per batch member, against lam's (B, n, 4)
+        length = np.asarray(length, dtype=float).reshape(-1, 1, 1)
     decay = np.exp(np.where(grows, -lam, lam) * length)
     phi0 = np.where(grows, decay, 1.0)
     phiL = np.where(grows, 1.0, decay)
@@ -193,7 +255,7 @@ def batched_free_free(pieces: Sequence[tuple[float, tuple]], omega) -> TwoPort:
     Parameters
     ----------
     pieces : sequence of (length, (EI, kGA, rhoA, rhoI)), end 1 to end 2;
-        each property a (B, 1) array (or broadcastable).
+        each property a (B, 1) array (or broadcastable); each length a float or a (B,) array, m.
     omega : (n,) rad/s
 
     Returns
@@ -221,6 +283,71 @@ def acted_segments(tool) -> list[bool]:
     if len(tool.segments) >= 2:
         return [True] + [False] * (len(tool.segments) - 1)
     return [False]
+
+
+def undeclared_flute(tool) -> bool:
+    """Whether ``tool`` is declared as one cylinder (one segment, ``diameter_ratio`` 1): its flutes undeclared."""
+    return len(tool.segments) == 1 and tool.segments[0].diameter_ratio == 1.0
+
+
+def grip_depth(holder, tool) -> float:
+    """Depth (m, from the holder tip) of the bore that grips ``tool``'s shank: the longest clamping length.
+
+    The trailing holder segments whose inner diameter is the shank's within :data:`GRIP_CLEARANCE`; when the bore
+    at the holder tip is wider than that, the model's own limit, the whole bore depth (``holder.bore_depth``).
+    """
+    d = tool.segments[-1].diameter
+    depth = 0.0
+    for seg in reversed(holder.segments):
+        if not d * (1 - 1e-6) <= seg.inner_diameter <= d * (1 + GRIP_CLEARANCE):
+            break
+        depth += seg.length
+    return depth if depth > 0 else holder.bore_depth
+
+
+def flute_length_bounds(holder, tool) -> tuple[float, float]:
+    """Prior bounds of the fluted length of a tool declared as one cylinder, in its diameters.
+
+    The catalogue range :data:`FLUTE_LENGTH_RANGE`, its upper end lowered to what stays outside the holder at
+    the deepest clamping (``(total_length - grip_depth) / diameter``): the flutes are never clamped.
+
+    Raises
+    ------
+    ModelError
+        When even the shortest catalogue flute would reach into the holder at that clamping (the message names
+        the tool, its length and diameter and the grip depth).
+    """
+    d = tool.segments[0].diameter
+    grip = grip_depth(holder, tool)
+    outside = (tool.total_length - grip) / d
+    lo, hi = FLUTE_LENGTH_RANGE[0], min(FLUTE_LENGTH_RANGE[1], outside)
+    if hi <= lo:
+        raise ModelError(
+            f"fluted_section: tool {tool.name!r} (total_length {tool.total_length * 1e3:g} mm, diameter "
+            f"{d * 1e3:g} mm) leaves {outside:.3g} diameters outside a {grip * 1e3:g}-mm clamping bore, less than "
+            f"the shortest catalogue fluted length of {lo:g} diameter: an undeclared flute of this tool would reach "
+            "into the holder")
+    return lo, hi
+
+
+def _undeclared_pieces(tool, clamping_length: float, flute_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lengths (m, each (n_sets,)) of the plain base and the fluted tip of a one-cylinder tool's overhang.
+
+    Raises
+    ------
+    ModelError
+        When a set's fluted length reaches into the holder (or leaves no plain shank outside it) at this
+        clamping length; the message names the value.
+    """
+    overhang = tool.total_length - clamping_length
+    flute = np.asarray(flute_d, dtype=float) * tool.segments[0].diameter
+    if np.any(flute >= overhang * (1 - 1e-9)):
+        worst = float(flute_d[int(np.argmax(flute))])
+        raise ModelError(
+            f"fluted_section: {FLUTE_LENGTH} = {worst:.4g} ({worst * tool.segments[0].diameter * 1e3:.4g} mm) "
+            f"reaches into the holder of tool {tool.name!r} at clamping length {clamping_length * 1e3:g} mm "
+            f"(overhang {overhang * 1e3:.4g} mm); expected a fluted length shorter than the overhang")
+    return overhang - flute, flute
 
 
 def _fluted_flags(tool, clamping_length: float) -> list[bool]:
@@ -256,13 +383,16 @@ class FlutedSection(ModelTerm):
     def parameters(self, model) -> tuple[Parameter, ...]:
         ratios = [seg.diameter_ratio for t in model.tools.values()
                   for seg, on in zip(t.segments, acted_segments(t)) if on]
+        one_cylinder = [t for t in model.tools.values() if undeclared_flute(t)]
+        # a tool declared as one cylinder is declared at its nominal diameter: ratio 1
+        ratios += [1.0] * len(one_cylinder)
         if not ratios:
-            raise ModelError("fluted_section: no tool of the setup has a fluted segment (diameter_ratio < 1) or a "
-                             "tip segment of its own; a single-segment tool has no flute to act on")
+            raise ModelError("fluted_section: no tool of the setup has a fluted segment (diameter_ratio < 1), a "
+                             "tip segment of its own, or is declared as one cylinder; nothing to act on")
         r_lo, r_hi = min(ratios), max(ratios)
         a = (AREA_RANGE[0] / r_hi**2, max(AREA_RANGE[1] / r_lo**2, 1.0))
         i = (INERTIA_RANGE[0] / r_hi**4, max(INERTIA_RANGE[1] / r_lo**4, 1.0))
-        return (
+        out = (
             Parameter("flute_area_ratio", unit="1", role="term", prior=Uniform(*a), label="fluted area ratio",
                       baseline=1.0, term=self.name,
                       description="true / declared cross-section area of the fluted segments (mass, shear)"),
@@ -270,6 +400,18 @@ class FlutedSection(ModelTerm):
                       label="fluted second-moment ratio", baseline=1.0, term=self.name,
                       description="true / declared second moment of area of the fluted segments (bending "
                                   "stiffness, rotary inertia)"),
+        )
+        if not one_cylinder:
+            return out
+        bounds = [flute_length_bounds(model.holder, t) for t in one_cylinder]
+        lo, hi = max(b[0] for b in bounds), min(b[1] for b in bounds)
+        # the term vanishes at unit ratios whatever the fluted length: its baseline only says where a fit starts
+        # (the discrepancy screen grids it over the prior), the middle of the catalogue range
+        return out + (
+            Parameter(FLUTE_LENGTH, unit="1", role="term", prior=Uniform(lo, hi),
+                      label="fluted length in tool diameters", baseline=0.5 * (lo + hi), term=self.name,
+                      description="length of the fluted tip (length of cut) of a tool declared as one cylinder, in "
+                                  "tool diameters"),
         )
 
     def implausible(self, values: Mapping[str, float]) -> list[str]:
@@ -300,25 +442,33 @@ class FlutedSection(ModelTerm):
         tool = subs.tool
         out = {k: np.array(np.broadcast_to(getattr(tool, k), (n_sets,) + getattr(tool, k).shape[1:]))
                for k in ("r11", "r12", "r21", "r22")}
+        one = np.ones((1, 1))
         for j, cfg in enumerate(ctx.configurations):  # a few configurations, each batched over sets and lines
             lines = np.flatnonzero(ctx.line_config == j)
             if lines.size == 0:
                 continue
             t = ctx.model.tool(cfg.tool)
             segs = tool_overhang_segments(ctx.model.holder, t, cfg.clamping_length)
-            flags = _fluted_flags(t, cfg.clamping_length)
-            if len(flags) != len(segs):
-                raise ModelError(f"fluted_section: could not match the overhang segments of tool {t.name!r}")
-            if not any(flags):
-                continue
-            pieces = []
-            for seg, fluted in zip(segs, flags):
-                p = seg.section
-                if fluted:
-                    pieces.append((seg.length, (p.EI * ri1, p.kGA * ra1, p.rhoA * ra1, p.rhoI * ri1)))
-                else:
-                    one = np.ones((1, 1))
-                    pieces.append((seg.length, (p.EI * one, p.kGA * one, p.rhoA * one, p.rhoI * one)))
+            if undeclared_flute(t):
+                # one cylinder: a plain base and a fluted tip whose lengths vary per set, both (n_sets,)
+                base, flute = _undeclared_pieces(t, cfg.clamping_length,
+                                                 np.broadcast_to(np.asarray(values[FLUTE_LENGTH], dtype=float), ra.shape))
+                p = segs[0].section
+                pieces = [(base, (p.EI * one, p.kGA * one, p.rhoA * one, p.rhoI * one)),
+                          (flute, (p.EI * ri1, p.kGA * ra1, p.rhoA * ra1, p.rhoI * ri1))]
+            else:
+                flags = _fluted_flags(t, cfg.clamping_length)
+                if len(flags) != len(segs):
+                    raise ModelError(f"fluted_section: could not match the overhang segments of tool {t.name!r}")
+                if not any(flags):
+                    continue
+                pieces = []
+                for seg, fluted in zip(segs, flags):
+                    p = seg.section
+                    if fluted:
+                        pieces.append((seg.length, (p.EI * ri1, p.kGA * ra1, p.rhoA * ra1, p.rhoI * ri1)))
+                    else:
+                        pieces.append((seg.length, (p.EI * one, p.kGA * one, p.rhoA * one, p.rhoI * one)))
             tp = batched_free_free(pieces, ctx.omega[lines])
             for k in out:
                 new = np.broadcast_to(getattr(tp, k), (n_sets, lines.size, 2, 2))

@@ -292,6 +292,13 @@ def user_setup(config: RotorBenchConfig, files, configurations) -> dict:
                 "poisson_ratio": m.poisson_ratio, "loss_factor": m.loss_factor}
 
     ratio = config.diameter_ratio if config.fluted_declared == "effective" else 1.0
+    if config.fluted_declared == "undeclared":  # one cylinder: nominal diameter over the total length, no flute
+        segments = [{"length": config.tool_total_length, "diameter": config.tool_diameter}]
+    else:
+        segments = [
+            {"length": config.flute_length, "diameter": config.tool_diameter, "diameter_ratio": ratio},
+            {"length": round(config.tool_total_length - config.flute_length, 12), "diameter": config.tool_diameter},
+        ]
     return {
         "name": config.name,
         "materials": {config.holder_material: material(config.holder_material),
@@ -305,10 +312,7 @@ def user_setup(config: RotorBenchConfig, files, configurations) -> dict:
         "tool": {
             "material": config.tool_material,
             "total_length": config.tool_total_length,
-            "segments": [
-                {"length": config.flute_length, "diameter": config.tool_diameter, "diameter_ratio": ratio},
-                {"length": round(config.tool_total_length - config.flute_length, 12), "diameter": config.tool_diameter},
-            ],
+            "segments": segments,
         },
         "contact": {
             "translational_stiffness": list(config.prior_k_xf),
@@ -335,6 +339,10 @@ def _effect_details(config: RotorBenchConfig) -> dict:
         details["fluted_section"] = {"declared": config.fluted_declared,
                                      "declared_diameter_ratio": config.diameter_ratio
                                      if config.fluted_declared == "effective" else 1.0,
+                                     # one cylinder: the setup gives no flute length; the true one is here
+                                     "declared_flute_length": None if config.fluted_declared == "undeclared"
+                                     else config.flute_length,
+                                     "true_flute_length": config.flute_length,
                                      **{k: (float(v) if not isinstance(v, str) else v) for k, v in geo.items()}}
     if "extra_mode" in eff:
         details["extra_mode"] = {k: float(v) for k, v in ring_resonator(config).items()}

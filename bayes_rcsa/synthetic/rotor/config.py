@@ -66,6 +66,11 @@ ROTOR_EFFECTS: dict[str, EffectInfo] = {
         "mass x (1 - m/4)", 0.05, 0.25),
 }
 
+#: How the user's setup declares the fluted tip (``fluted_declared``): a separate tip segment at the effective
+#: diameter ratio, a separate tip segment declared solid (ratio 1), or not at all: the tool written as one cylinder of
+#: the nominal diameter over its total length (the usual first try with a catalogue tool).
+FLUTE_DECLARATIONS = ("effective", "solid", "undeclared")
+
 #: Names shared with the model terms of the setup's ``[model] terms`` (data-formats.md).
 CANONICAL_EFFECTS = ("contact_damping", "tip_mass", "fluted_section", "extra_mode",
                      "nonlinear_stiffness_law", "spindle_error", "spindle_rotation_omitted")
@@ -400,8 +405,8 @@ def _check(config: RotorBenchConfig) -> None:
                              "(collet bore and shank length)")
     if config.contact_model not in ("lumped", "distributed"):
         raise SetupError(f"contact_model = {config.contact_model!r}: expected 'lumped' or 'distributed'")
-    if config.fluted_declared not in ("effective", "solid"):
-        raise SetupError(f"fluted_declared = {config.fluted_declared!r}: expected 'effective' or 'solid'")
+    if config.fluted_declared not in FLUTE_DECLARATIONS:
+        raise SetupError(f"fluted_declared = {config.fluted_declared!r}: expected one of {FLUTE_DECLARATIONS}")
     _check_spindle_error(config)
     if config.stiffness_law_kind not in ("saturating", "step"):
         raise SetupError(f"stiffness_law_kind = {config.stiffness_law_kind!r}: expected 'saturating' or 'step'")
