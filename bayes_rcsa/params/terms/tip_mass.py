@@ -81,7 +81,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...model.coupling import add_end_impedance
+from ...model.coupling import add_end_impedance, inv2, matmul2
 from ...model.timoshenko import TwoPort
 from ..parameter import Parameter
 from ..priors import Uniform
@@ -114,10 +114,14 @@ def add_end_dynamic_stiffness(tool: TwoPort, z00, z01, z11) -> TwoPort:
     r22 = tool.r22
     z = np.empty(np.broadcast_shapes(np.shape(z00), np.shape(z01), np.shape(z11)) + (2, 2), dtype=complex)
     z[..., 0, 0], z[..., 0, 1], z[..., 1, 0], z[..., 1, 1] = z00, z01, z01, z11
-    w = z @ np.linalg.inv(np.eye(2) + r22 @ z)  # W = Z (I + R22 Z)^-1
-    w_r21, w_r22 = w @ tool.r21, w @ r22
-    return TwoPort(r11=tool.r11 - tool.r12 @ w_r21, r12=tool.r12 - tool.r12 @ w_r22,
-                   r21=tool.r21 - r22 @ w_r21, r22=r22 - r22 @ w_r22)
+    # W = Z (I + R22 Z)^-1, written out per 2x2 block (numpy's batched inv/matmul cost far more on tiny matrices)
+    m = matmul2(r22, z)
+    m[..., 0, 0] += 1.0
+    m[..., 1, 1] += 1.0
+    w = matmul2(z, inv2(m))
+    w_r21, w_r22 = matmul2(w, tool.r21), matmul2(w, r22)
+    return TwoPort(r11=tool.r11 - matmul2(tool.r12, w_r21), r12=tool.r12 - matmul2(tool.r12, w_r22),
+                   r21=tool.r21 - matmul2(r22, w_r21), r22=r22 - matmul2(r22, w_r22))
 
 
 @register_term
