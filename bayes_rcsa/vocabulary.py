@@ -39,9 +39,10 @@ EFFECTS = {
     "spindle_error": ("spindle file off the real spindle",
                       "The spindle file comes from a spindle with stiffer or softer bearings than the real one "
                       "(another day, preload, temperature, identification error)."),
-    "fluted_section": ("fluted part stiffer or softer than declared",
+    "fluted_section": ("fluted part not as declared",
                        "The fluted part of the tool has another cross-section area and bending stiffness than its "
-                       "declared diameter gives."),
+                       "declared diameter gives, or the tool was declared as one cylinder and its flutes are "
+                       "missing from the setup."),
     "contact_damping": ("joint damping off the assumed value",
                         "The tool-holder joint damps more or less than assumed."),
     "joint_loss_factor": ("friction loss in the tool-holder joint",
