@@ -100,6 +100,11 @@ CANONICAL = (
     # (no further hidden effect), the rotor bench's 30-mm four-flute profile
     ("fluted_section (undeclared)", "fluted_section", {"fe": {}, "rotor": {"fluted_section": True}},
      {"fe": {"tool_declared": "one_cylinder"}, "rotor": {"fluted_declared": "undeclared"}}),
+    # issue #43 item 2 on the project's bench: every bearing of the exported spindle (1 + magnitude) times stiffer
+    # (synthetic/effects.py); the bench refuses magnitudes <= 0 (normalise_effects), so a softer file (-10 %, -25 %)
+    # has no row here and is run on the rotor bench only
+    ("spindle file: all bearings +10 % (fe)", "spindle_error", {"fe": {"spindle_error": 0.10}}, {"fe": {}}),
+    ("spindle file: all bearings +30 % (fe)", "spindle_error", {"fe": {"spindle_error": 0.30}}, {"fe": {}}),
 )
 #: First seed of the naming rows from the eleventh on (the first ten take 1000-1099; 1100-1499 belong to the clean,
 #: out-of-library, two-effect and named-coverage rows).
