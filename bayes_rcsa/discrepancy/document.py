@@ -45,6 +45,10 @@ def _second_round_report(second: dict) -> dict:
             out[key] = second[key]
     if "contact_held_on_upper_bound" in second:
         out["contact_held_on_upper_bound"] = second["contact_held_on_upper_bound"]
+    if "first" in second:  # a pair tried with nothing named in the first round: its first half
+        out["first"] = second["first"]
+    if "pairs_tried" in second:  # every pair that did not pass: first half, best second half, why not
+        out["pairs_tried"] = list(second["pairs_tried"])
     if second["ran"]:
         dec = second["decision"]
         out.update({"candidates": [{"effect": r.effect, "score": r.score.statistic, "criterion": r.criterion,

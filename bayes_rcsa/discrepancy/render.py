@@ -90,6 +90,7 @@ def summary_markdown(report: dict) -> str:
             elif ratio is not None:
                 lines.append(f"- {effect_name(part['effect'])} improves the fit decisively but removes only "
                              f"{100 * (1 - ratio):.0f} % of the systematic mismatch: at most part of the explanation")
+        lines += pair_lines(report)
         if report.get("mode_bias", {}).get("applied"):
             n_fit = len({round(m["clamping_length"], 9) for m in report.get("measurements_after", []) if m["fitted"]})
             if n_fit < 2:
@@ -190,6 +191,13 @@ def summary_markdown(report: dict) -> str:
         lines.append(f"| {k} | {sci(q['q50'], 3, q['q05'], q['q95'], 'N/m')} | "
                      f"{sci(qa['q50'], 3, qa['q05'], qa['q95'], 'N/m')} |")
     return "\n".join(lines) + "\n"
+
+
+def pair_lines(report: dict) -> list[str]:
+    """One bullet per pair of known effects tried together that did not explain the mismatch either."""
+    return [f"- {effect_name(pair['first'])} together with {effect_name(pair['second'])} was tried as a pair and "
+            "does not explain the mismatch either (why: discrepancy.json, second_round.pairs_tried)"
+            for pair in (report.get("second_round") or {}).get("pairs_tried", []) if pair.get("second")]
 
 
 def _hz(q: dict, median: bool = True) -> str:

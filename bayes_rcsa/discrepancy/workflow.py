@@ -256,6 +256,92 @@ def _second_effect(setup, base_opts, first, cands, decision, options, say, requi
                                    "lines", "scores": scores, "refits": refits, "decision": dec, "named": dec["named"]}
 
 
+#: First halves of a pair tried at most, best criterion first (each try is a second round of screening and refits).
+MAX_PAIR_FIRST_HALVES = 3
+
+
+def first_passing_pair(pair_first: list, attempt) -> tuple:
+    """Try the first halves of a pair in turn (at most :data:`MAX_PAIR_FIRST_HALVES`, in the given order).
+
+    Parameters
+    ----------
+    pair_first : list of dict, candidates (``effect``, ``criterion``, ...) best first
+    attempt : callable(entry) -> (second-round dict, joint refit or None)
+
+    Returns
+    -------
+    (entry, second, joint, tried): the first entry whose pair passes, its second round and joint refit (all None
+    when none passes), and the second-round dicts of the pairs tried before it that did not pass.
+    """
+    tried = []
+    for entry in pair_first[:MAX_PAIR_FIRST_HALVES]:
+        second, joint = attempt(entry)
+        if joint is not None:
+            return entry, second, joint, tried
+        tried.append(second)
+    return None, None, None, tried
+
+
+def _pair_attempt(entry: dict, refits, baseline, base_upper, base_sys: dict, decision: dict, second_round, say):
+    """One pair: ``entry``'s effect (partial or edge-bound) with the best second effect.
+
+    Returns
+    -------
+    (dict, joint): the second round's dict with ``first``, ``candidate_second`` and, when the pair fails, its
+    ``named`` set to None and the ``reason``; ``joint`` the pair's refit when it passes every rule, else None.
+    """
+    part = entry["effect"]
+    part_on_edge = bool(entry.get("edge_parameters"))
+    first = next(r for r in refits if r.effect == part)
+    second = second_round(first)
+    second["first"] = part
+    second["candidate_second"] = second.get("named")
+    joint = next((r for r in second["refits"] if r.effect == second["named"]), None)
+    # the outranking rule of decide(), for the pair: a possible pair that does not clearly beat a physically
+    # impossible single fit (by ln 10) cannot be told from the effect outside the library that the impossible
+    # fit stands in for (a tool modulus below the declared one, fitted at three lengths, mimicked by a
+    # spindle term plus a thinner flute)
+    over = joint and pair_outranked(decision["ranked"], decision["implausible"],
+                                    joint.fit.log_evidence - baseline.log_evidence,
+                                    decision["range_limits_reached"])
+    if over:
+        key = outranked_key(over, decision["implausible"])
+        what = ("the physically impossible" if key == "outranked_by_implausible"
+                else "the edge-bound (a parameter on the bound of its physical range)")
+        say(f"{part} with {second['named']} is outranked by {what} {over}: nothing named")
+        for q in decision["partial"]:
+            if "outranked_by_implausible" not in q and "outranked_by_edge" not in q:
+                q[key] = over
+        second["reason"] = (f"{part} with {second['named']} does not explain the data clearly better (by ln 10) "
+                            f"than {what} {over}: an effect outside the library (or beyond that term's range), "
+                            "not named")
+        second[key] = over
+        joint = None
+    still_on_edge = edge_parameters(joint.fit, part) if joint is not None and part_on_edge else []
+    if still_on_edge:
+        say(f"{part} with {second['named']} keeps {', '.join(still_on_edge)} on the bound of its prior: not named")
+        second["reason"] = (f"{part} needs {', '.join(still_on_edge)} on the bound of its prior even with "
+                            f"{second['named']} in the model: the pair is no credible explanation either")
+        second["edge_parameters"] = still_on_edge
+        joint = None
+    held = stiffness_held_on_upper_bound(joint, base_upper) if joint is not None else []
+    if held:
+        say(f"{part} with {second['named']} keeps {', '.join(held)} on the upper bound of its prior: not named")
+        second["reason"] = (f"{part} with {second['named']} keeps {', '.join(held)} on the upper bound of its "
+                            "prior, as the baseline did, and leaves a systematic misfit: the measured structure is "
+                            "stiffer than the declared one allows, which neither term explains")
+        second["contact_held_on_upper_bound"] = held
+        joint = None
+    if joint is not None and joint.fit.log_evidence - baseline.log_evidence > LN_BF_NAME and (
+            base_sys["at_noise_floor"] or joint.systematic["gap"] <= (1 - MIN_SYSTEMATIC_REDUCTION) * base_sys["gap"]):
+        return second, joint
+    second = {**second, "named": None}
+    if second.get("ran") and not ({"outranked_by_implausible", "outranked_by_edge",
+                                   "contact_held_on_upper_bound"} & set(second)):
+        second["reason"] = f"{part} with a second known effect does not halve the systematic gap either"
+    return second, None
+
+
 def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), progress=None) -> DiscrepancyResult:
     """Run the whole loop on a loaded setup (measurements loaded).
 
@@ -336,68 +422,42 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
     if named is None and pair_first and not top_grew:
         # each known effect alone explains only part: do two together explain it?  (e.g. a tip mass and a
         # spindle-file error; either alone removes less than half of the systematic gap, or needs a parameter on
-        # the bound of its prior)
-        part = pair_first[0]["effect"]
-        part_on_edge = bool(pair_first[0].get("edge_parameters"))
-        first = next(r for r in refits if r.effect == part)
-        second = _second_effect(setup, base_opts, first, cands, decision, options, say, require_misfit=False)
-        joint = next((r for r in second["refits"] if r.effect == second["named"]), None)
+        # the bound of its prior).  The first halves are tried in turn, best criterion first, until a pair passes:
+        # the best alone need not be part of the pair (a resonator on its damping bound standing in for a
+        # spindle file beats the spindle term alone, and with the tip mass it explains nothing)
         base_sys = fitted_systematic_gap(baseline)
-        # the outranking rule of decide(), for the pair: a possible pair that does not clearly beat a physically
-        # impossible single fit (by ln 10) cannot be told from the effect outside the library that the impossible
-        # fit stands in for (a tool modulus below the declared one, fitted at three lengths, mimicked by a
-        # spindle term plus a thinner flute)
-        over = joint and pair_outranked(decision["ranked"], decision["implausible"],
-                                        joint.fit.log_evidence - baseline.log_evidence,
-                                        decision["range_limits_reached"])
-        if over:
-            key = outranked_key(over, decision["implausible"])
-            what = ("the physically impossible" if key == "outranked_by_implausible"
-                    else "the edge-bound (a parameter on the bound of its physical range)")
-            say(f"{part} with {second['named']} is outranked by {what} {over}: nothing named")
-            for q in decision["partial"]:
-                if "outranked_by_implausible" not in q and "outranked_by_edge" not in q:
-                    q[key] = over
-            second["reason"] = (f"{part} with {second['named']} does not explain the data clearly better (by ln 10) "
-                                f"than {what} {over}: an effect outside the library (or beyond that term's range), "
-                                "not named")
-            second[key] = over
-            joint = None
-        still_on_edge = edge_parameters(joint.fit, part) if joint is not None and part_on_edge else []
-        if still_on_edge:
-            say(f"{part} with {second['named']} keeps {', '.join(still_on_edge)} on the bound of its prior: not named")
-            second["reason"] = (f"{part} needs {', '.join(still_on_edge)} on the bound of its prior even with "
-                                f"{second['named']} in the model: the pair is no credible explanation either")
-            second["edge_parameters"] = still_on_edge
-            joint = None
-        held = stiffness_held_on_upper_bound(joint, base_upper) if joint is not None else []
-        if held:
-            say(f"{part} with {second['named']} keeps {', '.join(held)} on the upper bound of its prior: not named")
-            second["reason"] = (f"{part} with {second['named']} keeps {', '.join(held)} on the upper bound of its "
-                                "prior, as the baseline did, and leaves a systematic misfit: the measured structure is "
-                                "stiffer than the declared one allows, which neither term explains")
-            second["contact_held_on_upper_bound"] = held
-            joint = None
-        if joint is not None and joint.fit.log_evidence - baseline.log_evidence > LN_BF_NAME and (
-                base_sys["at_noise_floor"] or joint.systematic["gap"] <= (1 - MIN_SYSTEMATIC_REDUCTION) * base_sys["gap"]):
+        marks = ("outranked_by_implausible", "outranked_by_edge")
+        marked_before = {id(q): {k for k in marks if k in q} for q in decision["partial"]}
+        entry, attempt, joint, tried = first_passing_pair(
+            pair_first, lambda e: _pair_attempt(e, refits, baseline, base_upper, base_sys, decision,
+                                                lambda first: _second_effect(setup, base_opts, first, cands, decision,
+                                                                             options, say, require_misfit=False), say))
+        if joint is not None:
+            part, second = entry["effect"], attempt
+            first = next(r for r in refits if r.effect == part)
             named = part
             decision["named"] = part
             decision["partial"] = [p for p in decision["partial"] if p["effect"] != part]
             others = [r for r in decision["ranked"] if r.effect != part]
             decision["runner_up"] = others[0].effect if others else None
             decision["margin"] = (first.criterion - others[0].criterion) if others else None
-            alone = ("needs a parameter on the bound of its prior alone" if part_on_edge
+            alone = ("needs a parameter on the bound of its prior alone" if entry.get("edge_parameters")
                      else "alone removes less than half of the systematic gap")
             second["reason"] = (f"{part} {alone}; with "
                                 f"{second['named']} the two remove {100 * (1 - joint.systematic['gap'] / base_sys['gap']):.0f} %"
                                 if base_sys["gap"] > 0 else f"{part} and {second['named']} together")
             decision["edge_bound"] = [p for p in decision.get("edge_bound", []) if p["effect"] != part]
             detection.adequate = False
-        else:
-            second = {**second, "named": None}
-            if second.get("ran") and not ({"outranked_by_implausible", "outranked_by_edge",
-                                           "contact_held_on_upper_bound"} & set(second)):
-                second["reason"] = f"{part} with a second known effect does not halve the systematic gap either"
+            # an earlier pair's outranking says nothing against the pair that passed
+            for q in decision["partial"]:
+                for k in set(marks) - marked_before.get(id(q), set()):
+                    q.pop(k, None)
+        if tried:
+            # the pairs that did not pass, best first half first (the first one is reported as before)
+            if named is None:
+                second = tried[0]
+            second["pairs_tried"] = [{"first": a["first"], "second": a.get("candidate_second"),
+                                      "reason": a.get("reason")} for a in tried]
     if named is not None:
         first = next(r for r in refits if r.effect == named)
         if not second:
