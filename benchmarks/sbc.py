@@ -36,10 +36,24 @@ Configurations:
              tip_mass_offset_m, sigma_0.
 ``single_noise03``, ``method2_noise03``  as ``single`` and ``method2`` with the noise scales' prior
              [1e-4, 0.3] (``[likelihood] noise_scale``) instead of the default [1e-4, 10].
+``statistical_discrepancy``  the discrepancy workflow's remainder model on one length (25 mm): ``[model] terms =
+             ["statistical_discrepancy"]`` (the smooth multiplicative Chebyshev discrepancy, six coefficients
+             Normal(0, 0.05), drawn from that prior and active in the simulation), noise prior [1e-4, 0.3]: k_xf,
+             k_thetaM, discrepancy_{re,im}_{0,1,2}, sigma_0.  One length because with one fitted length the
+             workflow adds this term alone (``law_shape_uncertainty`` needs two); tempering 1, not the
+             workflow's ``1 / tau_r`` of its baseline fit (docs/calibration.md says why).
+
+Negative control (``--fit-prior-sd-factor F``, F != 1): the truths are still drawn from the stated prior, but the
+sampled posterior's prior of every ``discrepancy_*`` coefficient has sd ``F x 0.05`` (an extra log-likelihood term
+adds ``ln N(c; 0, F sd) - ln N(c; 0, sd)``, :class:`PriorSdError`): the term's prior mis-specified by ``1/F`` in the
+fit against the simulation.  Its files are ``<config>-<sampler>-priorsd<F>.*``.
 
 Writes ``<out>/<config>.json`` (``<config>-auto.json`` for ``--sampler auto``) (ranks, truths, convergence and time of every replicate) and
 ``<out>/<config>.png`` (rank histograms and ECDF differences with their simultaneous bands); ``--table``
-prints the Markdown table of docs/calibration.md from the JSON files present.
+prints the Markdown table of docs/calibration.md from the JSON files present (of ``--config`` only when it is
+given; a run prints and redraws only its own configuration's), and a run prints on stderr a summary of its sampler
+paths (importance sampling accepted or the chain, time, Pareto k, chain length and an ESS estimate,
+:func:`sampler_summary`).
 """
 
 from __future__ import annotations
@@ -63,14 +77,38 @@ CONFIGS = {
     # longer the generative model (docs/calibration.md)
     "single_noise03": {"lengths": (0.025,), "model": {}, "noise_scale": (1e-4, 0.3)},
     "method2_noise03": {"lengths": (0.025, 0.04), "model": {}, "noise_scale": (1e-4, 0.3)},
+    # the discrepancy workflow's remainder model at one fitted length (its only remainder term there), under the
+    # realistic noise prior so that the known floor failure of the default one does not mask the term
+    "statistical_discrepancy": {"lengths": (0.025,), "model": {"terms": ["statistical_discrepancy"]},
+                                "noise_scale": (1e-4, 0.3)},
 }
 N_DRAWS = 99  # posterior draws per replicate: ranks 0..99, 100 ECDF points
 BAND = (500.0, 2500.0)  # Hz
 LINE_STEP = 10  # every 10th line of the example's 2-Hz grid
 
 
-def template_problem(config: str):
-    """The configuration's problem on the bundled example's measured FRFs (replaced by simulated ones later)."""
+class PriorSdError:
+    """Negative control: an extra log-likelihood term that turns the ``discrepancy_*`` coefficients' stated prior
+    Normal(0, sd) into Normal(0, ``factor`` sd) in the sampled posterior (the truths keep the stated prior)."""
+
+    name = "prior_sd_error"
+
+    def __init__(self, problem, factor: float):
+        names = problem.parameters.names
+        self.columns = [j for j, n in enumerate(names) if n.startswith("discrepancy_")]
+        if not self.columns:
+            raise SystemExit("--fit-prior-sd-factor: the configuration has no discrepancy coefficients")
+        self.sd = np.array([problem.priors[names[j]].sigma for j in self.columns])
+        self.factor = float(factor)
+
+    def __call__(self, theta: np.ndarray) -> np.ndarray:
+        c = np.atleast_2d(theta)[:, self.columns] / self.sd
+        return -0.5 * (1.0 / self.factor**2 - 1.0) * np.sum(c * c, axis=1)  # constants cancel in the posterior
+
+
+def template_problem(config: str, prior_sd_factor: float = 1.0):
+    """The configuration's problem on the bundled example's measured FRFs (replaced by simulated ones later);
+    ``prior_sd_factor != 1``: with the negative control's :class:`PriorSdError` term."""
     from bayes_rcsa.data import example_setup
     from bayes_rcsa.inference.problem import IdentificationOptions, build_problem
     from bayes_rcsa.io.setup import load_setup
@@ -87,47 +125,55 @@ def template_problem(config: str):
         meas.append((m.configuration, FRF(f[idx], m.frf.values[idx], None, m.frf.source)))
     options = IdentificationOptions(lengths=spec["lengths"], band=BAND, tempering=1.0, model=spec["model"],
                                     noise_scale=spec.get("noise_scale", IdentificationOptions.noise_scale))
-    return build_problem(setup.model(), meas, setup.contact, options)
+    problem = build_problem(setup.model(), meas, setup.contact, options)
+    if prior_sd_factor != 1.0:
+        problem = problem.with_extra_terms(PriorSdError(problem, prior_sd_factor))
+    return problem
 
 
 def run_replicate(args) -> dict:
-    """One SBC replicate ``(config, seed, index)`` (:func:`bayes_rcsa.inference.sbc.sbc_replicate`)."""
+    """One SBC replicate ``(config, seed, index, sampler, prior_sd_factor)``
+    (:func:`bayes_rcsa.inference.sbc.sbc_replicate`)."""
     from bayes_rcsa.inference.sampler import SamplerSettings
     from bayes_rcsa.inference.sbc import sbc_replicate
 
-    config, seed, index, sampler = args
+    config, seed, index, sampler, factor = args
     ss = np.random.SeedSequence([seed, list(CONFIGS).index(config), index])
-    row = sbc_replicate(_template(config), ss, SamplerSettings(progress=False), N_DRAWS, sampler=sampler).to_dict()
+    row = sbc_replicate(_template(config, factor), ss, SamplerSettings(progress=False), N_DRAWS,
+                        sampler=sampler).to_dict()
     return {"index": index, **row}
 
 
 _TEMPLATES: dict = {}
 
 
-def _template(config: str):
-    if config not in _TEMPLATES:
-        _TEMPLATES[config] = template_problem(config)
-    return _TEMPLATES[config]
+def _template(config: str, prior_sd_factor: float = 1.0):
+    key = (config, float(prior_sd_factor))
+    if key not in _TEMPLATES:
+        _TEMPLATES[key] = template_problem(config, prior_sd_factor)
+    return _TEMPLATES[key]
 
 
-def _stem(config: str, sampler: str) -> str:
-    return config if sampler == "mcmc" else f"{config}-{sampler}"
+def _stem(config: str, sampler: str, prior_sd_factor: float = 1.0) -> str:
+    stem = config if sampler == "mcmc" else f"{config}-{sampler}"
+    return stem if prior_sd_factor == 1.0 else f"{stem}-priorsd{prior_sd_factor:g}"
 
 
 def run_config(config: str, replicates: int, seed: int, workers: int, out: Path, time_limit: float = math.inf,
-               sampler: str = "auto") -> dict:
+               sampler: str = "auto", prior_sd_factor: float = 1.0) -> dict:
     from bayes_rcsa.inference.diagnostics import chain_diagnostics
 
-    names = list(_template(config).parameters.names)
+    names = list(_template(config, prior_sd_factor).parameters.names)
     # import ArviZ and compile its numba kernels once, before the workers fork (about 10 s each otherwise)
     chain_diagnostics(np.random.default_rng(0).standard_normal((50, 8, len(names))))
-    tasks = [(config, seed, r, sampler) for r in range(replicates)]
+    tasks = [(config, seed, r, sampler, prior_sd_factor) for r in range(replicates)]
     t0 = time.perf_counter()
     rows = []
-    path = out / f"{_stem(config, sampler)}.json"
+    path = out / f"{_stem(config, sampler, prior_sd_factor)}.json"
 
     def save() -> None:
         doc = {"config": config, "sampler": sampler, "seed": seed, "n_draws": N_DRAWS, "band_hz": list(BAND), "line_step": LINE_STEP,
+               "fit_prior_sd_factor": prior_sd_factor,
                "parameter_names": names, "replicates": sorted(rows, key=lambda r: r["index"]),
                "wall_time_s": time.perf_counter() - t0, "workers": workers,
                "replicates_requested": replicates}
@@ -166,38 +212,87 @@ def check_and_plot(doc: dict, out: Path, alpha: float = 0.01):
     rng = np.random.default_rng([doc["seed"], 7])
     check = sbc_check(ranks, doc["n_draws"], names, rng, alpha=alpha)
     sampler = doc.get("sampler", "mcmc")
-    sbc_plot(ranks, doc["n_draws"], names, out / f"{_stem(doc['config'], sampler)}.png", rng, alpha=alpha / len(names),
-             title=f"SBC {doc['config']} ({sampler}): {ranks.shape[0]} replicates, L = {doc['n_draws']}",
+    factor = doc.get("fit_prior_sd_factor", 1.0)
+    control = "" if factor == 1.0 else f", fitted prior sd x{factor:g}"
+    sbc_plot(ranks, doc["n_draws"], names, out / f"{_stem(doc['config'], sampler, factor)}.png", rng,
+             alpha=alpha / len(names),
+             title=f"SBC {doc['config']} ({sampler}{control}): {ranks.shape[0]} replicates, L = {doc['n_draws']}",
              p_values=check.p_ecdf)
     return check
 
 
-def table(out: Path, alpha: float = 0.01) -> str:
+def _docs(out: Path, config: str, sampler: str) -> list[Path]:
+    """The configuration's JSON files: the run itself, then its negative controls (``-priorsd<F>``)."""
+    stem = _stem(config, sampler)
+    main = [out / f"{stem}.json"] if (out / f"{stem}.json").exists() else []
+    return main + sorted(out.glob(f"{stem}-priorsd*.json"))
+
+
+def table(out: Path, alpha: float = 0.01, configs=None) -> str:
+    """The Markdown table of the JSON files of ``configs`` (default every configuration), redrawing their figures."""
     lines = ["| configuration | sampler | parameter | replicates | ECDF p | Holm p | chi-square p (20 bins) "
              "| verdict at FWER 0.01 | importance accepted | not converged | median s / replicate | wall time |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for config in CONFIGS:
+    for config in (CONFIGS if configs is None else configs):
         for sampler in ("mcmc", "auto"):
-            path = out / f"{_stem(config, sampler)}.json"
-            if not path.exists():
-                continue
-            doc = json.loads(path.read_text())
-            check = check_and_plot(doc, out, alpha)
-            reps = doc["replicates"]
-            nc = sum(not r["converged"] for r in reps)
-            accepted = f"{sum(r.get('sampler') == 'importance' for r in reps)}/{len(reps)}" if sampler == "auto" else "-"
-            med = float(np.median([r["time_s"] for r in reps]))
-            for j, name in enumerate(check.names):
-                lines.append(
-                    f"| {config} | {sampler} | {name} | {check.n_replicates} | {check.p_ecdf[j]:.3f} | "
-                    f"{check.p_holm[j]:.3f} | {check.p_chi2[j]:.3f} | {'pass' if check.passed[j] else '**fail**'} | "
-                    f"{accepted} | {nc} | {med:.1f} | {doc['wall_time_s'] / 60:.0f} min ({doc['workers']} workers) |")
+            for path in _docs(out, config, sampler):
+                doc = json.loads(path.read_text())
+                check = check_and_plot(doc, out, alpha)
+                reps = doc["replicates"]
+                nc = sum(not r["converged"] for r in reps)
+                n_imp = sum(r.get("sampler") == "importance" for r in reps)
+                accepted = f"{n_imp}/{len(reps)}" if sampler == "auto" else "-"
+                med = float(np.median([r["time_s"] for r in reps]))
+                factor = doc.get("fit_prior_sd_factor", 1.0)
+                label = config if factor == 1.0 else f"{config} (control: fitted prior sd x{factor:g})"
+                for j, name in enumerate(check.names):
+                    lines.append(
+                        f"| {label} | {sampler} | {name} | {check.n_replicates} | {check.p_ecdf[j]:.3f} | "
+                        f"{check.p_holm[j]:.3f} | {check.p_chi2[j]:.3f} | "
+                        f"{'pass' if check.passed[j] else '**fail**'} | {accepted} | {nc} | {med:.1f} | "
+                        f"{doc['wall_time_s'] / 60:.0f} min ({doc['workers']} workers) |")
     return "\n".join(lines)
+
+
+def sampler_summary(doc: dict) -> str:
+    """One line per sampler path of a JSON file: replicates, time, Pareto k, chain length and an ESS estimate.
+
+    ``sbc_replicate`` does not record the ESS: an accepted importance sample has ESS >= 1,000 and a converged
+    chain a bulk ESS >= 400 by identify's rules; for a chain the line also gives ``walkers (steps - burn) / max tau``
+    (burn = min(3 max tau, steps / 2), the sampler's rule), the effective draws of its slowest coordinate.
+    """
+    from bayes_rcsa.inference.sampler import SamplerSettings
+
+    reps = doc["replicates"]
+    walkers = SamplerSettings(progress=False).walkers(len(doc["parameter_names"]))
+    out = []
+    imp = [r for r in reps if r.get("sampler") == "importance"]
+    if imp:
+        t = [r["time_s"] for r in imp]
+        k = [r["pareto_k"] for r in imp]
+        out.append(f"importance sampling: {len(imp)}/{len(reps)} replicates, median {np.median(t):.2f} s "
+                   f"(max {max(t):.1f} s), Pareto k median {np.median(k):.2f} (max {max(k):.2f}), ESS >= 1000")
+    ch = [r for r in reps if r.get("sampler", "mcmc") == "mcmc"]
+    if ch:
+        t = [r["time_s"] for r in ch]
+        steps = np.array([r["steps"] for r in ch], dtype=float)
+        tau = np.array([r["max_tau"] if r["max_tau"] is not None else np.nan for r in ch])
+        ess = walkers * (steps - np.minimum(3 * tau, steps / 2)) / tau
+        refused = [r["pareto_k"] for r in ch if r.get("pareto_k") is not None]
+        out.append(f"chain: {len(ch)}/{len(reps)} replicates ({sum(r['converged'] for r in ch)} converged), median "
+                   f"{np.median(t):.1f} s (max {max(t):.0f} s), steps median {np.median(steps):.0f}, max tau median "
+                   f"{np.nanmedian(tau):.0f}, ESS estimate min {np.nanmin(ess):.0f} median {np.nanmedian(ess):.0f}"
+                   + (f", refused importance Pareto k median {np.median(refused):.2f}" if refused else ""))
+    t_all = [r["time_s"] for r in reps]
+    out.append(f"all: {len(reps)} replicates, mean {np.mean(t_all):.1f} s, median {np.median(t_all):.1f} s per "
+               f"replicate, wall {doc['wall_time_s'] / 60:.1f} min on {doc['workers']} workers")
+    return "\n".join(out)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--config", default="method2", choices=[*CONFIGS, "all"])
+    ap.add_argument("--config", default=None, choices=[*CONFIGS, "all"],
+                    help="default: method2 for a run, every configuration for --table")
     ap.add_argument("--replicates", type=int, default=200)
     ap.add_argument("--seed", type=int, default=20260421, help="base of every replicate's seed sequence")
     ap.add_argument("--workers", type=int, default=1)
@@ -206,14 +301,23 @@ def main() -> None:
                     help="minutes per configuration after which no new replicate is started")
     ap.add_argument("--sampler", default="auto", choices=["auto", "mcmc"],
                     help="identify's default (importance sampling, the chain when refused) or the chain alone")
-    ap.add_argument("--table", action="store_true", help="only print the table (and redraw the figures)")
+    ap.add_argument("--fit-prior-sd-factor", type=float, default=1.0,
+                    help="negative control: the sampled posterior's prior sd of the discrepancy_* coefficients is "
+                         "this factor times the stated one (which the truths are drawn from); 1: no control")
+    ap.add_argument("--table", action="store_true",
+                    help="only print the table (and redraw the figures) of --config (default every configuration)")
     a = ap.parse_args()
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     a.out.mkdir(parents=True, exist_ok=True)
+    configs = list(CONFIGS) if a.config in (None, "all") else [a.config]
     if not a.table:
-        for config in (CONFIGS if a.config == "all" else [a.config]):
-            run_config(config, a.replicates, a.seed, a.workers, a.out, 60 * a.time_limit, a.sampler)
-    print(table(a.out))
+        configs = ["method2"] if a.config is None else configs
+        for config in configs:
+            doc = run_config(config, a.replicates, a.seed, a.workers, a.out, 60 * a.time_limit, a.sampler,
+                             a.fit_prior_sd_factor)
+            print(f"{config}:\n{sampler_summary(doc)}", file=sys.stderr)
+    # only the figures of the configurations asked for are redrawn
+    print(table(a.out, configs=configs))
 
 
 if __name__ == "__main__":
