@@ -164,9 +164,9 @@ def _reference_loglik(prob, theta):
             kt = 10 ** v["k_thetaM"] * (1 + v["g_thetaM"] * (l - la) / (lb - la))
             h = prob.model.frf(obs.configuration, obs.frequency_hz, kx, kt, 10.0, 5e-4)
             s = 10 ** v[f"sigma_{j}"]
-            hmax2 = np.max(np.abs(obs.values) ** 2)
+            hmax2 = np.max(np.abs(h) ** 2)
             for n in range(obs.n_lines):
-                # proportional to the model's |H| (documented noise model), floor from the data
+                # proportional to the model's |H| (documented noise model), the floor from the model's band maximum
                 var = s**2 * (abs(h[n]) ** 2 + 0.01**2 * hmax2) / obs.coherence[n]
                 total += -abs(h[n] - obs.values[n]) ** 2 / var - math.log(math.pi * var)
         out.append(total)

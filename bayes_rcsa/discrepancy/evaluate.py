@@ -57,7 +57,8 @@ def _quantiles(x: np.ndarray) -> dict:
 
 
 def _noise_sd(prob: Problem, vals, measured: list, parts_map: list) -> list:
-    """Per measurement (fitted and held out): (n_draws, 1) relative noise scale and (n,) variance shape.
+    """Per measurement (fitted and held out): (n_draws, 1) relative noise scale, the squared relative noise floor
+    ``eps^2`` and (n,) coherence.
 
     The scatter of a measured peak is the measurement's, so the scale is the measurement's own noise,
     estimated without a model (:func:`.noise.relative_noise_scale`; 1.00-1.02 of the realised noise on both
@@ -81,8 +82,7 @@ def _noise_sd(prob: Problem, vals, measured: list, parts_map: list) -> list:
             scale = np.full_like(scale, own)
         coh = frf.coherence[mask] if frf.coherence is not None else np.ones(hm.size)
         coh = np.where(coh > 0, coh, 1.0)  # lines the likelihood drops (coherence 0) carry no noise information
-        floor2 = (prob.options.noise_floor ** 2) * float(np.max(np.abs(hm)) ** 2)
-        out.append((scale, floor2, coh))
+        out.append((scale, prob.options.noise_floor ** 2, coh))
     return out
 
 
@@ -204,9 +204,11 @@ def evaluate(fit: ModelFit, rng: np.random.Generator, n_draws: int = 200, correc
     per, tracked, z2, z2_win = [], [], [], []
     truncated = tuple(truncated_by_prior(fit))
     used = {(o.configuration, o.source) for o in prob.observations}
-    for j, ((cfg, frf), f, hm, hp, hd, (scale, floor2, coh)) in enumerate(
+    for j, ((cfg, frf), f, hm, hp, hd, (scale, eps2, coh)) in enumerate(
             zip(prob.all_measurements, freqs, measured, parts, dparts, noise)):
-        sd = scale * np.sqrt((np.abs(hd) ** 2 + floor2) / coh)  # (n_draws, n) complex-noise standard deviation
+        # the likelihood's noise model: the floor from each draw's own band maximum
+        a2 = np.abs(hd) ** 2
+        sd = scale * np.sqrt((a2 + eps2 * a2.max(axis=1, keepdims=True)) / coh)  # (n_draws, n) complex-noise sd
         # NOISE_REPLICATES noise realisations per draw: the measured peak's scatter (the bias's observation
         # variance, the predictive interval) is a 90 % range of the tracked peak, which one realisation per draw
         # leaves 10 % uncertain and biased low

@@ -102,7 +102,7 @@ def whitened_residuals(problem: Problem, theta: np.ndarray) -> np.ndarray:
     lik = problem.likelihood
     theta = np.atleast_2d(theta)
     h = lik.model_frf(theta)
-    var = (np.abs(h) ** 2 + lik.floor2) / lik.coherence
+    var = lik.variance_of(h)
     s = problem.parameters.noise(problem.parameters.values(theta))[:, lik.stack.index]
     z = (h - lik.data) / (s * np.sqrt(var))
     return np.ascontiguousarray(z).view(np.float64)
@@ -118,7 +118,7 @@ def profile_noise(problem: Problem, theta: np.ndarray) -> np.ndarray:
         lo, hi = pri.optimisation_bounds()[j]
         theta[j] = 0.5 * (lo + hi)
     h = lik.model_frf(theta[None])[0]
-    var = (np.abs(h) ** 2 + lik.floor2) / lik.coherence
+    var = lik.variance_of(h)[0]
     q = np.abs(h - lik.data) ** 2 / var
     names = problem.parameters.names
     for m, sl in enumerate(lik.stack.slices):

@@ -6,7 +6,7 @@ Each band line ``n`` of measurement ``j`` has a complex residual
 ``r_n = H_model(f_n) - H_meas(f_n)``, modelled as circular complex Gaussian
 with variance::
 
-    sigma_n^2 = s_j^2 * v_n(theta),   v_n = (|H_model(f_n)|^2 + (eps * max_band |H_meas|)^2) / gamma_n
+    sigma_n^2 = s_j^2 * v_n(theta),   v_n = (|H_model(f_n)|^2 + (eps * max_band |H_model|)^2) / gamma_n
 
 ``s_j`` (``sigma_j``) is the relative noise scale of measurement ``j``, a
 sampled parameter; ``eps`` (``noise_floor``, default 0.01) keeps lines near
@@ -22,8 +22,14 @@ one, and the normalisation ``-sum ln(pi s^2 v_n)`` is kept.  Weights taken
 from the noisy measured ``|H|`` are correlated with the noise itself; on
 the synthetic bench this biased the weakly identified direction of the
 posterior (the k_xf-k_thetaM trade-off) enough to lower the 90 % coverage
-of k_xf from about 0.86 to 0.79 (benchmarks/calibration.py).  The data-only
-weights ``1 / v_n(measured)`` are still used by the optimiser's grid stage
+of k_xf from about 0.86 to 0.79 (benchmarks/calibration.py).  The floor
+too is the model's: ``max_band |H_model|`` of the measurement's band lines,
+per parameter set.  Taken from the measured band maximum (as before), it
+grew with the noise itself, so the likelihood was not the model that
+generates the data: where the noise is as large as the signal, the noise
+scale's posterior sat below the truth and simulation-based calibration
+failed (docs/calibration.md).  The data-only weights ``1 / v_n(measured)``
+(with the measured floor) are still used by the optimiser's grid stage
 (:mod:`.search`), where only the location of the optimum matters.
 
 Honest intervals: tempering by the effective number of lines
@@ -137,7 +143,8 @@ class NoiseModel:
     Attributes
     ----------
     floor : float
-        eps, relative to the largest ``|H|`` in the band of each measurement.
+        eps, relative to the largest ``|H|`` in the band of each measurement (the model's in the likelihood,
+        the measured one in the optimiser's data-only grid weights).
     min_coherence : float
         Lines with lower coherence are left out.
     """
@@ -152,7 +159,7 @@ class NoiseModel:
             raise SetupError(f"likelihood min_coherence = {self.min_coherence!r}: expected 0 <= value < 1")
 
     def floor2(self, obs: Observation) -> float:
-        """(eps max |H_meas|)^2 of one measurement, (m/N)^2."""
+        """(eps max |H_meas|)^2 of one measurement, (m/N)^2 (the data-only grid weights)."""
         return float((self.floor**2) * np.max(np.abs(obs.values) ** 2))
 
     def variance_shape(self, obs: Observation) -> np.ndarray:
@@ -219,8 +226,10 @@ class FRFLikelihood:
         self.data = np.concatenate([o.values for o in self.observations])
         v = np.concatenate([noise.variance_shape(o) for o in self.observations])
         self.weight = 1.0 / v  # data-only weights (the optimiser's grid stage)
-        self.floor2 = np.concatenate([np.full(o.n_lines, noise.floor2(o)) for o in self.observations])
-        if not np.all(self.floor2 > 0):
+        self._floor_eps2 = float(noise.floor) ** 2
+        self._starts = np.array([sl.start for sl in self.stack.slices])
+        if not self._floor_eps2 > 0:
+            # a model receptance of zero on any line would make a variance zero
             raise DataError("noise_floor = 0 needs a non-zero model receptance everywhere; set a positive noise floor")
         self.coherence = np.concatenate(
             [o.coherence if o.coherence is not None else np.ones(o.n_lines) for o in self.observations]
@@ -248,12 +257,31 @@ class FRFLikelihood:
     def _model_frf(self, v) -> np.ndarray:
         return self.forward.frf(v)
 
+    def _floor2(self, abs2: np.ndarray) -> np.ndarray:
+        """(eps max_band |H_model|)^2 per measurement, spread over its lines: (n, n_lines) from ``abs2`` = |H_model|^2."""
+        peak = np.maximum.reduceat(abs2, self._starts, axis=1)  # (n, n_meas): each measurement's band maximum
+        return self._floor_eps2 * peak[:, self.stack.index]
+
+    def variance_of(self, h: np.ndarray) -> np.ndarray:
+        """v_n of the noise model for model FRFs ``h`` (n, n_lines) complex m/N: (n, n_lines) in (m/N)^2.
+
+        Raises
+        ------
+        DataError
+            A zero variance (a model receptance of zero on a line with ``noise_floor = 0``).
+        """
+        a2 = np.abs(np.atleast_2d(h)) ** 2
+        var = (a2 + self._floor2(a2)) / self.coherence
+        if not np.all(var > 0):
+            raise DataError("noise_floor = 0 needs a non-zero model receptance everywhere; set a positive noise floor")
+        return var
+
     def _terms(self, v):
         """|r_n|^2 / v_n and v_n for parameter values ``v``: two (n, n_lines) arrays."""
         h = self._model_frf(v)
         hv = h.view(np.float64)
         var = hv[:, 0::2] ** 2 + hv[:, 1::2] ** 2  # |H_model|^2
-        var += self.floor2
+        var += self._floor2(var)
         var /= self.coherence
         h -= self.data
         rv = h.view(np.float64)
@@ -280,14 +308,13 @@ class FRFLikelihood:
 
     def variance_shape(self, theta: np.ndarray) -> np.ndarray:
         """v_n(theta) of the noise model (without ``s_j^2``), (n, n_lines) in (m/N)^2."""
-        h = self.model_frf(theta)
-        return (np.abs(h) ** 2 + self.floor2) / self.coherence
+        return self.variance_of(self.model_frf(theta))
 
     def normalised_residuals(self, theta: np.ndarray) -> np.ndarray:
         """``r_n / sigma_n`` for one parameter vector, (n_lines,) complex."""
         v = self.parameters.values(np.atleast_2d(theta))
         h = self._model_frf(v)[0]
-        var = (np.abs(h) ** 2 + self.floor2) / self.coherence
+        var = self.variance_of(h)[0]
         s = np.array([v[n][0] for n in self._noise_names])[self.stack.index]
         return (h - self.data) / (s * np.sqrt(var))
 

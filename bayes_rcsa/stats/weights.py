@@ -184,7 +184,9 @@ def pareto_smoothed_log_weights(log_weights) -> tuple[np.ndarray, float]:
             k, sigma = _gpd_fit(excess)
         if math.isfinite(k):
             p = np.arange(0.5, tail_idx.size) / tail_idx.size
-            with np.errstate(invalid="ignore", divide="ignore"):
+            # a very heavy fitted tail (large k) overflows the top quantiles to inf: capped just below, as any
+            # smoothed weight above the largest raw one
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
                 x[tail_idx[tail_order]] = np.log(_gpd_quantile(p, k, sigma) + exp_cut)
             x[x > 0] = 0.0  # no smoothed weight above the largest raw one
     top = np.max(x)
