@@ -97,6 +97,11 @@ def test_load_decodes_the_inference_data_only_when_used_and_from_the_file_as_loa
     np.testing.assert_array_equal(loaded.inference_data.posterior["k_xf"].values, expected)
     (folder / "posterior.nc").unlink()
     np.testing.assert_array_equal(loaded.inference_data.posterior["k_xf"].values, expected)
+    import arviz
+
+    # every ArviZ function takes it (az.summary, az.plot_posterior check the type)
+    assert isinstance(loaded.inference_data, arviz.InferenceData)
+    assert "k_xf" in arviz.summary(loaded.inference_data, var_names=["k_xf"], kind="stats").index
 
 
 def test_warnings_reach_the_result_and_the_json(posterior, cli_run):

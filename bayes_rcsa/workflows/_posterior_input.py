@@ -65,9 +65,10 @@ def posterior_parts(posterior) -> PosteriorParts:
         raise SetupError("the posterior holds no draws (identified with method 'deterministic'); predictions and "
                          "lobes need posterior draws")
     path = getattr(posterior, "path", None)
-    idata = getattr(posterior, "inference_data", None)
     # the numbers of the file as h5py read them (what the callee would read itself), so that no ArviZ decode is
-    # forced; an InferenceData built in a script is passed on as it is
-    idata = getattr(idata, "array_data", idata)
+    # forced; an InferenceData already decoded, or set by a script, is passed on as it is
+    from .identification import Posterior, _numbers
+
+    idata = _numbers(posterior) if isinstance(posterior, Posterior) else getattr(posterior, "inference_data", None)
     return PosteriorParts(None if path is None else Path(path), draws, idata,
                           None if path is not None else getattr(posterior, "summary", None))

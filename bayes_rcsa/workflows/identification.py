@@ -124,7 +124,7 @@ class Posterior(Result):
 
     summary: dict
     draws: Any = None
-    inference_data: Any = None
+    inference_data: Any = field(default=None, repr=False)
     setup: Any = None
     path: Path | None = None
     warnings: tuple[str, ...] = ()
@@ -310,6 +310,27 @@ class Posterior(Result):
         return predict(self.setup, self, lengths, **kw)
 
 
+def _get_inference_data(self):
+    held = self.__dict__.get("_inference_data")
+    return held.data() if isinstance(held, _InferenceDataOnFirstUse) else held
+
+
+def _set_inference_data(self, value) -> None:
+    self.__dict__["_inference_data"] = value
+
+
+# ``inference_data`` is decoded by ArviZ when first read (an ``arviz.InferenceData``, which every ArviZ function
+# takes); until then the posterior holds the file's bytes or path, and its numbers for the package's own readers
+Posterior.inference_data = property(_get_inference_data, _set_inference_data,
+                                    doc="The content of posterior.nc as an arviz.InferenceData (decoded on first use).")
+
+
+def _numbers(posterior):
+    """The file content of ``posterior`` for the package's readers: h5py numbers when not yet decoded by ArviZ."""
+    held = posterior.__dict__.get("_inference_data")
+    return held.array_data if isinstance(held, _InferenceDataOnFirstUse) else held
+
+
 def _loaded(idata):
     """``idata`` with every group read into memory (the file may be replaced or removed afterwards)."""
     for group in idata.groups():
@@ -492,8 +513,9 @@ def _identify(setup, lengths, method, seed, walkers, max_steps, check_every, ess
         posterior._write(out, plots)
     if posterior.path is not None:
         # the draws as predict/lobes read them (h5py, no ArviZ); the InferenceData only when a script asks for it
-        posterior.inference_data = _InferenceDataOnFirstUse(posterior.path)
-        posterior.draws = _draws_of(posterior.inference_data, setup)
+        held = _InferenceDataOnFirstUse(posterior.path)
+        posterior.inference_data = held
+        posterior.draws = _draws_of(held, setup)
     else:
         posterior.inference_data = None
     return posterior
@@ -568,6 +590,10 @@ class _InferenceDataOnFirstUse:
 
             self._arrays = read_posterior(self._path, option=None, arrays=True)
         return self._arrays
+
+    def data(self):
+        """The decoded ``arviz.InferenceData`` (decoded on the first call, then kept)."""
+        return self._data()
 
     def _data(self):
         if self._idata is None:
