@@ -101,10 +101,12 @@ CANONICAL = (
     ("fluted_section (undeclared)", "fluted_section", {"fe": {}, "rotor": {"fluted_section": True}},
      {"fe": {"tool_declared": "one_cylinder"}, "rotor": {"fluted_declared": "undeclared"}}),
     # issue #43 item 2 on the project's bench: every bearing of the exported spindle (1 + magnitude) times stiffer
-    # (synthetic/effects.py); the bench refuses magnitudes <= 0 (normalise_effects), so a softer file (-10 %, -25 %)
-    # has no row here and is run on the rotor bench only
+    # (synthetic/effects.py; a negative magnitude: softer, rows below)
     ("spindle file: all bearings +10 % (fe)", "spindle_error", {"fe": {"spindle_error": 0.10}}, {"fe": {}}),
     ("spindle file: all bearings +30 % (fe)", "spindle_error", {"fe": {"spindle_error": 0.30}}, {"fe": {}}),
+    # a file whose bearings are softer than today's (the project's bench takes negative magnitudes since #43)
+    ("spindle file: all bearings -10 % (fe)", "spindle_error", {"fe": {"spindle_error": -0.10}}, {"fe": {}}),
+    ("spindle file: all bearings -25 % (fe)", "spindle_error", {"fe": {"spindle_error": -0.25}}, {"fe": {}}),
 )
 #: First seed of the naming rows from the eleventh on (the first ten take 1000-1099; 1100-1499 belong to the clean,
 #: out-of-library, two-effect and named-coverage rows).

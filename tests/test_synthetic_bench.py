@@ -183,6 +183,23 @@ def test_spindle_export_is_reciprocal_passive_and_perturbable():
     assert np.abs(err[:, 0, 0]).max() < np.abs(sx[:, 0, 0]).max()  # stiffer bearings, lower flange peaks
 
 
+def test_a_spindle_file_with_softer_bearings_and_the_range_of_the_change():
+    # another day's preload or temperature: the file's bearings can be softer as well as stiffer (issue #43)
+    cfg = default_bench_config()
+    f = cfg.frequency_hz
+    sx = true_spindle_receptance(cfg, "x", f).block
+    soft = exported_spindle_receptance(cfg.with_effects(spindle_error=-0.25), "x", f).block
+    assert np.abs(soft[:, 0, 0]).max() > np.abs(sx[:, 0, 0]).max()  # softer bearings, higher flange peaks
+    # the lowest flange resonance moves down (bearing-dominated), never up
+    assert f[np.argmax(np.abs(soft[:, 0, 0]))] < f[np.argmax(np.abs(sx[:, 0, 0]))]
+    assert np.all(soft[:, 0, 0].imag <= 0) and np.all(soft[:, 1, 1].imag <= 0)  # still passive
+    for bad, match in ((-0.5, "> -0.5 other than 0"), (-0.7, "> -0.5 other than 0"), (0.0, "other than 0")):
+        with pytest.raises(SetupError, match=match):
+            cfg.with_effects(spindle_error=bad)
+    with pytest.raises(SetupError, match="expected a finite magnitude > 0"):
+        cfg.with_effects(tip_mass=-0.001)  # an effect without a direction stays positive
+
+
 # ------------------------------------------------------------------ noise --
 
 

@@ -48,6 +48,8 @@ class EffectInfo:
     unit: str
     description: str
     max_magnitude: float = math.inf
+    #: Magnitudes below 0 down to (not including) this are allowed too (-inf: none; an effect with a direction)
+    min_magnitude: float = 0.0
 
 
 HIDDEN_EFFECTS: dict[str, EffectInfo] = {
@@ -86,7 +88,8 @@ HIDDEN_EFFECTS: dict[str, EffectInfo] = {
         EffectInfo(
             "spindle_error", 0.15, "1",
             "the exported spindle receptance comes from a spindle whose bearings are (1 + magnitude) times stiffer "
-            "(an identification error)",
+            "(an identification error, another day's preload or temperature; negative: softer, down to half)",
+            min_magnitude=-0.5,
         ),
         EffectInfo(
             "spindle_rotation_omitted", 1.0, "1",
@@ -108,7 +111,9 @@ def normalise_effects(effects: Mapping | None, where: str = "hidden_effects") ->
 
     ``True`` stands for the default magnitude and ``False`` drops the
     effect; any other value must be a finite number > 0 (and within the
-    effect's range).  Unknown names are rejected with the list of known ones.
+    effect's range; an effect with a direction, ``min_magnitude < 0``, also
+    takes a negative magnitude above ``min_magnitude``).  Unknown names are
+    rejected with the list of known ones.
 
     Returns
     -------
@@ -123,8 +128,12 @@ def normalise_effects(effects: Mapping | None, where: str = "hidden_effects") ->
             value = info.default
         elif value is False:
             continue
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-            raise SetupError(f"{where}.{name} = {value!r}: expected a finite magnitude > 0 ({info.unit}) or true")
+        signed = info.min_magnitude < 0
+        if (isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value == 0
+                or value <= (info.min_magnitude if signed else 0.0)):
+            wanted = (f"a finite magnitude > {info.min_magnitude!r} other than 0" if signed
+                      else "a finite magnitude > 0")
+            raise SetupError(f"{where}.{name} = {value!r}: expected {wanted} ({info.unit}) or true")
         if value > info.max_magnitude:
             raise SetupError(f"{where}.{name} = {value!r}: expected at most {info.max_magnitude!r} ({info.unit})")
         out[name] = float(value)
