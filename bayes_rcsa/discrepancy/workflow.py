@@ -256,8 +256,9 @@ def _second_effect(setup, base_opts, first, cands, decision, options, say, requi
                                    "lines", "scores": scores, "refits": refits, "decision": dec, "named": dec["named"]}
 
 
-#: First halves of a pair tried at most, best criterion first (each try is a second round of screening and refits).
-MAX_PAIR_FIRST_HALVES = 3
+#: First halves of a pair tried at most, best criterion first.  Each try is a second round of screening and refits
+#: (~10 s on the rotor bench); two cover the case seen (an edge-bound stand-in ranked above the real first half).
+MAX_PAIR_FIRST_HALVES = 2
 
 
 def first_passing_pair(pair_first: list, attempt) -> tuple:
