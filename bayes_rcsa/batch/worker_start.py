@@ -19,8 +19,7 @@ import bayes_rcsa.stability.probabilistic  # noqa: E402,F401  (lobes)
 # what every step imports lazily, measured on a worker's identify (chain), predict and lobes: ArviZ used to bring
 # most of it along; without it each worker would pay ~2 s of imports
 import emcee  # noqa: E402,F401  (with scipy.stats)
-import h5py  # noqa: E402,F401  (posterior.nc, the checkpoint)
-import h5netcdf  # noqa: E402,F401  (the netCDF writer)
+import h5py  # noqa: E402,F401  (posterior.nc, the checkpoint; h5netcdf stays the store's own import)
 import numba  # noqa: E402,F401  (the compiled kernels' runtime)
 import matplotlib  # noqa: E402  (the figures of every step: matplotlib's own start-up, once)
 import matplotlib.backends.backend_agg  # noqa: E402,F401
