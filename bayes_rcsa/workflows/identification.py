@@ -548,8 +548,8 @@ class _InferenceDataOnFirstUse:
     """The ``arviz.InferenceData`` of a posterior.nc, decoded on first use and kept.
 
     identify returned the file read back with ArviZ (importing ArviZ and xarray and decoding every group: seconds
-    per run, paid by every command-line run and every batch worker, which never look at it); a script that uses
-    ``posterior.inference_data`` pays once, on its first attribute, item or group access.  The numbers the package
+    per run, paid by every command-line run and every batch worker, which never look at it); a script that reads
+    ``posterior.inference_data`` (a property calling :meth:`data`) pays once.  The numbers the package
     itself needs (draws, attributes, cut coefficients) come from :attr:`array_data` (h5py, read once).
 
     Made by identify, the file must still be where identify wrote it; made by :meth:`snapshot` (``Posterior.load``
@@ -593,9 +593,6 @@ class _InferenceDataOnFirstUse:
 
     def data(self):
         """The decoded ``arviz.InferenceData`` (decoded on the first call, then kept)."""
-        return self._data()
-
-    def _data(self):
         if self._idata is None:
             if self._content is None:
                 self._idata = _read_idata(self._path)
@@ -607,26 +604,6 @@ class _InferenceDataOnFirstUse:
                     self._idata = _read_idata(copy)
                 self._content = None
         return self._idata
-
-    def __getattr__(self, name: str):
-        if name.startswith("__"):
-            raise AttributeError(name)
-        return getattr(self._data(), name)
-
-    def __getitem__(self, key):
-        return self._data()[key]
-
-    def __contains__(self, key) -> bool:
-        return key in self._data()
-
-    def __iter__(self):
-        return iter(self._data())
-
-    def __repr__(self) -> str:
-        return repr(self._data())
-
-    def _repr_html_(self) -> str:
-        return self._data()._repr_html_()
 
 
 def _draws_of(idata: _InferenceDataOnFirstUse, setup):
