@@ -8,6 +8,7 @@ load; the import set is what makes them).
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -99,3 +100,29 @@ def test_an_importance_sampled_identify_imports_neither_arviz_nor_scipy_stats_no
 
     idata = arviz.from_netcdf(str(tmp_path / "out" / "posterior.nc"))
     assert {"posterior", "log_likelihood", "sample_stats", "observed_data", "constant_data"} <= set(idata.groups())
+
+
+_THREADS_PROBE = """
+import json, os, sys
+import bayes_rcsa.cli.main
+import numpy
+from bayes_rcsa.threads import THREAD_VARIABLES
+print(json.dumps({k: os.environ.get(k) for k in THREAD_VARIABLES}))
+"""
+
+
+def test_the_command_line_runs_one_blas_thread_unless_the_user_sets_another_number():
+    """The command line caps numpy's BLAS at one thread before numpy loads (bayes_rcsa.threads: small batched
+    problems, where a second thread cost the discrepancy fit's SVD 150x on a busy machine); a user's own setting
+    is kept."""
+    from bayes_rcsa.threads import THREAD_VARIABLES
+
+    env = {k: v for k, v in os.environ.items() if k not in THREAD_VARIABLES}
+    proc = subprocess.run([sys.executable, "-c", _THREADS_PROBE], cwd=ROOT, env=env, capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout) == {k: "1" for k in THREAD_VARIABLES}
+    env["OPENBLAS_NUM_THREADS"] = "2"
+    proc = subprocess.run([sys.executable, "-c", _THREADS_PROBE], cwd=ROOT, env=env, capture_output=True,
+                          text=True, timeout=120)
+    assert json.loads(proc.stdout)["OPENBLAS_NUM_THREADS"] == "2"

@@ -169,6 +169,9 @@ def test_exact_baseline_for_any_fluted_length_passive_reciprocal_and_batched(ben
         assert np.max(np.abs(h[j] - base[0])) > 0.05 * np.max(np.abs(base[0]))
         alone = fwd.frf({k: x[j:j + 1] for k, x in v.items()})
         np.testing.assert_allclose(h[j], alone[0], rtol=1e-12, atol=0)
+    # repeated sets (a finite-difference Jacobian's batch, computed once per distinct set): each row is its own set's
+    rep = [3, 4, 3, 0, 4, 3]
+    np.testing.assert_allclose(fwd.frf({k: x[rep] for k, x in v.items()}), h[rep], rtol=1e-12, atol=0)
     # passive (e^{+i w t}: Im h <= 0) over the corners of the prior box
     corners = np.array(np.meshgrid(fwd.parameters["flute_area_ratio"].prior.bounds,
                                    fwd.parameters["flute_inertia_ratio"].prior.bounds, (lo, hi))).reshape(3, -1)

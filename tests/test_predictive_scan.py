@@ -157,3 +157,25 @@ def test_a_shared_shift_the_model_can_make_is_no_band_but_a_local_resonance_is()
 def test_z2_is_nan_without_a_noise_scale():
     h = sdof(F, 900.0)
     assert np.isnan(predictive_z2(h, h[None], float("nan"))).all()
+
+
+def test_the_window_statistic_is_the_quadratic_form_of_each_window_s_own_covariance():
+    """The banded covariance (formed once for all windows) gives, for every window, ``r^H C^-1 r`` with ``C`` the
+    draws' covariance of that window's lines plus the noise: checked against the covariance formed window by
+    window, with draws correlated over lines (a shared gain) so that the off-diagonal blocks matter."""
+    rng = np.random.default_rng(5)
+    h = sdof(F[:80], 700.0)
+    gain = 1 + 0.05 * rng.standard_normal((40, 1)) + 0.05j * rng.standard_normal((40, 1))
+    hd = h * gain + 0.01 * np.abs(h) * (rng.standard_normal((40, 80)) + 1j * rng.standard_normal((40, 80)))
+    hm = noisy(h, rng)
+    got = predictive_window_statistic(hm, hd, 0.02, windows=(5, 9, 17, 99))
+    mean = hd.mean(axis=0)
+    d, r = hd - mean, hm - mean
+    for w in (5, 9, 17):
+        for p in (0, 31, 80 - w):
+            sl = slice(p, p + w)
+            c = d[:, sl].conj().T @ d[:, sl] / hd.shape[0] + np.diag((0.02 * np.abs(mean[sl])) ** 2)
+            want = np.real(r[sl] @ np.linalg.solve(c, r[sl].conj()))
+            np.testing.assert_allclose(got[w][p + w // 2], want, rtol=1e-9)
+        assert np.isnan(got[w][: w // 2]).all() and np.isnan(got[w][80 - w // 2:]).all()
+    assert np.isnan(got[99]).all()  # a window longer than the band

@@ -39,7 +39,7 @@ from ..errors import OutputError
 from ..io.atomic import atomic_write_text, is_io_error, output_error
 from .manifest import SetupJob
 from .streams import output_to
-from .threads import THREAD_VARIABLES, limit_threads
+from ..threads import THREAD_VARIABLES, limit_threads
 
 __all__ = ["run_setup", "run_batch", "BatchResult", "limit_threads", "KILL_HOOK_ENV", "THREAD_VARIABLES",
            "WORKER_START"]

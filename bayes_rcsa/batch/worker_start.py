@@ -8,7 +8,7 @@ once per worker process.  Nothing here may import numpy before the caps are
 set.
 """
 
-from bayes_rcsa.batch.threads import limit_threads
+from bayes_rcsa.threads import limit_threads
 
 limit_threads()
 

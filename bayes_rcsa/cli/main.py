@@ -25,11 +25,16 @@ import sys
 import textwrap
 
 from .. import __version__
-from ..errors import BayesRCSAError, OutputError
-from ..messages import warning_log
-from ..vocabulary import in_words
-from ._arguments import check_lengths_in_metres, join_negative_values
-from ._common import Summary, check_arguments, command_warnings, merge_warnings
+from ..threads import single_threaded_by_default
+
+# before numpy (imported with ._arguments) loads its BLAS: see bayes_rcsa.threads
+single_threaded_by_default()
+
+from ..errors import BayesRCSAError, OutputError  # noqa: E402
+from ..messages import warning_log  # noqa: E402
+from ..vocabulary import in_words  # noqa: E402
+from ._arguments import check_lengths_in_metres, join_negative_values  # noqa: E402
+from ._common import Summary, check_arguments, command_warnings, merge_warnings  # noqa: E402
 
 __all__ = ["main", "build_parser", "COMMANDS", "HelpFormatter", "HELP_WIDTH"]
 

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SetupError
+from ..threads import THREAD_VARIABLES
 from .artifact import ArtifactSetup
 from .inverse import combine_cross, forward_artifact, forward_jacobian, inverse_exact, propagated_std, unreliable_bands
 from .noise import estimate_relative_noise, noise_sigma
@@ -333,12 +334,6 @@ def _worker(setup: ArtifactSetup, directions: tuple, index: int, n_samples: int,
                               n_samples), max_modes=max_modes, progress=report)
 
 
-# Thread pools capped at one thread in the worker processes: numpy's BLAS reads these when it is imported,
-# and two workers on two cores with a BLAS thread per core each would fight for the cores.
-_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS",
-                     "NUMBA_NUM_THREADS")
-
-
 def identify_directions(
     setup: ArtifactSetup,
     directions: tuple,
@@ -397,8 +392,10 @@ def identify_directions(
     # spawn: a fresh interpreter per worker (a forked child would inherit this process's BLAS threads)
     ctx = multiprocessing.get_context("spawn")
     progress_queue = ctx.Queue()
-    saved = {k: os.environ.get(k) for k in _THREAD_VARIABLES}
-    os.environ.update({k: "1" for k in _THREAD_VARIABLES})
+    # one BLAS thread per worker (read when the spawned interpreter imports numpy): two workers on two cores
+    # with a BLAS thread per core each would fight for the cores
+    saved = {k: os.environ.get(k) for k in THREAD_VARIABLES}
+    os.environ.update({k: "1" for k in THREAD_VARIABLES})
     try:
         pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
                                       initargs=(progress_queue,))

@@ -454,8 +454,16 @@ class FlutedSection(ModelTerm):
         at_base = (ra == 1.0) & (ri == 1.0)
         if np.all(at_base):
             return subs
-        ra1, ri1 = ra[:, None], ri[:, None]
         n_sets = ra.size
+        fl = np.broadcast_to(np.asarray(values[FLUTE_LENGTH], dtype=float), ra.shape) if FLUTE_LENGTH in values \
+            else np.zeros(ra.shape)
+        # the two-port depends on this term's own values only: a finite-difference Jacobian's batch (one set per
+        # parameter, most of them sharing the base point's flute) needs it once per distinct set
+        acting = np.flatnonzero(~at_base)
+        uniq, inv = np.unique(np.stack([ra[acting], ri[acting], fl[acting]], axis=1), axis=0, return_inverse=True)
+        inv = inv.reshape(-1)
+        u_values = {"flute_area_ratio": uniq[:, 0], "flute_inertia_ratio": uniq[:, 1], FLUTE_LENGTH: uniq[:, 2]}
+        ua, ui = uniq[:, 0], uniq[:, 1]
         tool = subs.tool
         out = {k: np.array(np.broadcast_to(getattr(tool, k), (n_sets,) + getattr(tool, k).shape[1:]))
                for k in ("r11", "r12", "r21", "r22")}
@@ -467,12 +475,13 @@ class FlutedSection(ModelTerm):
             key = (cfg.tool, cfg.clamping_length, ctx.omega[lines].tobytes())
             tp = done.get(key)
             if tp is None:
-                tp = done[key] = self._tool_two_port(values, ra, ra1, ri1, cfg, ctx.model, ctx.omega[lines])
+                tp = done[key] = self._tool_two_port(u_values, ua, ua[:, None], ui[:, None], cfg, ctx.model,
+                                                     ctx.omega[lines])
             if tp is None:  # nothing acted on at this configuration
                 continue
             for k in out:
-                new = np.broadcast_to(getattr(tp, k), (n_sets, lines.size, 2, 2))
-                out[k][:, lines] = np.where(at_base[:, None, None, None], out[k][:, lines], new)
+                new = np.broadcast_to(getattr(tp, k), (uniq.shape[0], lines.size, 2, 2))
+                out[k][np.ix_(acting, lines)] = new[inv]
         return subs.replace(tool=TwoPort(**out))
 
     @staticmethod
