@@ -251,3 +251,43 @@ def test_noise_free_fit_removes_the_gap_and_recovers_the_fluted_length(benches, 
     assert fitted[FLUTE_LENGTH] == pytest.approx(flute, rel=tol), fitted
     assert fitted["k_xf"] == pytest.approx(k[0], rel=0.1) and fitted["k_thetaM"] == pytest.approx(k[1], rel=0.25)
     assert not make_term(TERM).implausible(fitted)  # a flute profile, not a stand-in
+
+
+def test_the_screen_s_batched_flute_length_grid_is_the_point_by_point_score_test(benches, monkeypatch):
+    """On a one-cylinder tool the fluted length has no effect at the baseline (a = i = 1) and has no switch, so
+    the score test differentiates the term at each point of the length grid: in batched model evaluations
+    (``screen._grid_jacobians``), which must give the point-by-point Jacobians' statistic and starts."""
+    from bayes_rcsa.discrepancy import DiscrepancyOptions, screen
+    from bayes_rcsa.discrepancy import workflow as W
+    from bayes_rcsa.discrepancy.fit import fit_baseline, whitened_residuals
+
+    setup = benches["rotor"][0]
+    _, base_opts, problem = W.validate(setup, DiscrepancyOptions(lengths=LENGTHS, candidates=(TERM,)))
+    baseline = fit_baseline(problem)
+    term_problem = W._problem(setup, base_opts, [TERM])
+    calls = []
+    batched_grid = screen._grid_jacobians
+
+    def spy(problem, points, cols, h):
+        calls.append(points.shape[0])
+        return batched_grid(problem, points, cols, h)
+
+    monkeypatch.setattr(screen, "_grid_jacobians", spy)
+    fast = screen.score_test(baseline, term_problem, TERM)
+    assert calls and calls[0] >= 100  # the grid path ran, over the fine grid of the fluted length
+
+    def point_by_point(problem, points, cols, h):
+        out = []
+        for theta, hk in zip(points, h):
+            pts = np.repeat(theta[None], len(cols) + 1, axis=0)
+            pts[1 + np.arange(len(cols)), cols] += hk
+            z = whitened_residuals(problem, pts)
+            out.append(((z[1:] - z[0]) / hk[:, None]).T)
+        return np.array(out)
+
+    monkeypatch.setattr(screen, "_grid_jacobians", point_by_point)
+    slow = screen.score_test(baseline, term_problem, TERM)
+    assert fast.dof == slow.dof and fast.statistic > 0
+    # a set's residuals do not depend on the batch it is evaluated in (rounding aside)
+    np.testing.assert_allclose(fast.statistic, slow.statistic, rtol=1e-9)
+    np.testing.assert_allclose(np.array(fast.starts), np.array(slow.starts), rtol=1e-9, atol=1e-12)

@@ -140,13 +140,18 @@ def score_test(baseline: ModelFit, problem: Problem, effect: str) -> ScoreResult
     for i, g in enumerate(grid):
         points[i, inactive] = g
     switched = _switch_jacobians(problem, effect, theta0, points, active, inactive, lambda t: steps(t, active, 1e-3))
+    gridded = None
+    if switched is None and inactive:
+        h_t = 1e-3 * width[term_cols]
+        h_t = np.where(points[:, term_cols] + h_t > bounds[term_cols, 1], -h_t, h_t)  # as steps(), at every point
+        gridded = _grid_jacobians(problem, points, term_cols, h_t)
     found = []
     for i, theta in enumerate(points):
         if switched is not None:
             ja = switched[i]
             act = active if np.linalg.norm(ja) > 0 else []
         elif inactive:
-            _, ja = jac(theta, term_cols, 1e-3)
+            ja = gridded[i]
             cols = [k for k, c in enumerate(term_cols) if np.linalg.norm(ja[:, k]) > 0]
             ja = ja[:, cols]
             act = [term_cols[k] for k in cols]
@@ -176,6 +181,31 @@ def score_test(baseline: ModelFit, problem: Problem, effect: str) -> ScoreResult
     stat = max(stat, 0.0) if np.isfinite(stat) else 0.0
     starts = tuple(t[1] for t in found[:_N_STARTS])
     return ScoreResult(effect, stat, max(dof, 1), float(chi2.sf(stat, max(dof, 1))), start, starts)
+
+
+def _grid_jacobians(problem: Problem, points: np.ndarray, cols: list[int], h: np.ndarray) -> np.ndarray:
+    """Forward-difference Jacobians in ``cols`` at every grid point, in batched model evaluations.
+
+    One evaluation of ``_CHUNK`` sets instead of one small evaluation per point: a term without a switch (the
+    fluted length of a tool declared as one cylinder) is differentiated at each of the grid's points.
+
+    Parameters
+    ----------
+    points : (n_grid, ndim) sampling coordinates
+    cols : the term's columns
+    h : (n_grid, len(cols)) steps
+
+    Returns
+    -------
+    (n_grid, 2 n_lines, len(cols))
+    """
+    n_grid, k = points.shape[0], len(cols)
+    pts = np.repeat(points[:, None], k + 1, axis=1)  # (n_grid, k + 1, ndim): the point, then one step per column
+    pts[:, 1 + np.arange(k), cols] += h
+    flat = pts.reshape(-1, points.shape[1])
+    z = np.concatenate([whitened_residuals(problem, flat[a:a + _CHUNK]) for a in range(0, flat.shape[0], _CHUNK)])
+    z = z.reshape(n_grid, k + 1, -1)
+    return np.swapaxes((z[:, 1:] - z[:, :1]) / h[:, :, None], 1, 2)
 
 
 def _switch_jacobians(problem: Problem, effect: str, theta0: np.ndarray, points: np.ndarray, active: list[int],
