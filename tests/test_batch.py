@@ -44,6 +44,7 @@ kr = "230e6"
 immersion = 0.95
 speeds = "5000:30000:16"
 depth_points = 16
+plots = false
 """
 
 
@@ -92,6 +93,7 @@ def separate(library, tmp_path_factory):
         d = out / job.name
         for step in job.steps:
             assert main(job.argv(step, d)) == 0, (job.name, step)
+        assert "--no-plots" in job.argv("lobes", d) and not (d / "lobes" / "lobes.png").exists()  # plots = false
         results[job.name] = _results(d)
     return results
 

@@ -35,7 +35,7 @@ OUT = "{run}/out"
 
 def _lobes(fx: str = "tip_x_30mm.csv", fy: str = "tip_y_30mm.csv", *extra: str) -> list[str]:
     return ["lobes", "--measured-x", f"{{data}}/{fx}", "--measured-y", f"{{data}}/{fy}", *SMALL, *DRAWS, *extra,
-            "--out", OUT]
+            "--no-plots", "--out", OUT]
 
 
 # --------------------------------------------------------------------------- file edits
@@ -296,7 +296,7 @@ def test_posterior_of_another_geometry_is_named(name, command, edit, key, identi
                 "--directions", "x", "--max-draws", "10", "--quiet", "--no-plots", "--json"]
     else:
         argv = ["lobes", str(data / "setup.toml"), "--posterior", post, "--clamping-length", "0.03", "--draws", "5",
-                *SMALL, "--out", str(out), "--json"]
+                *SMALL, "--no-plots", "--out", str(out), "--json"]
     assert main(argv) == 0
     cap = capsys.readouterr()
     hits = [ln for ln in cap.err.splitlines() if ": warning: " in ln and key + " = " in ln]

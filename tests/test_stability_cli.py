@@ -132,3 +132,16 @@ def test_measured_mode_needs_both_files(tmp_path, frfs, capsys):
     argv = ["lobes", "--measured-x", frfs[0], *COMMON, "--speeds", "5000:30000", "--out", str(tmp_path / "o")]
     assert main(argv) == 2
     assert "--measured-y" in capsys.readouterr().err
+
+
+def test_no_plots_writes_every_number_but_no_figure_and_a_forced_run_leaves_no_stale_figure(tmp_path, frfs, capsys):
+    out = tmp_path / "lobes"
+    argv = ["lobes", "--measured-x", frfs[0], "--measured-y", frfs[1], *COMMON, "--speeds", "9000:14000:40",
+            "--out", str(out)]
+    assert main(argv) == 0
+    assert (out / "lobes.png").exists() and "lobes.png" in capsys.readouterr().err
+    # again into the same folder without the figure: the earlier run's lobes.png must not stay beside these lobes
+    assert main(argv + ["--force", "--no-plots"]) == 0
+    err = capsys.readouterr().err
+    assert not (out / "lobes.png").exists() and "lobes.png" not in err and "p_stable.npz" in err
+    assert (out / "lobes.json").exists() and (out / "p_stable.npz").exists()

@@ -25,7 +25,8 @@ CUT = CuttingConditions(kt=790e6, kr=230e6, flutes=4, radial_immersion=0.95, mil
 
 def run_lobes(tmp_path, name, *extra):
     out = tmp_path / name
-    assert main(["lobes", "--measured-x", FX, "--measured-y", FY, *CASE, *extra, "--out", str(out), "--quiet"]) == 0
+    assert main(["lobes", "--measured-x", FX, "--measured-y", FY, *CASE, *extra, "--out", str(out), "--quiet",
+                 "--no-plots"]) == 0
     return json.loads((out / "lobes.json").read_text())
 
 

@@ -51,7 +51,7 @@ PREDICT_KEYS = {"lengths", "directions", "tool", "freq", "max_draws", "seed", "p
 #: Keys of a ``lobes`` table (``bayes-rcsa lobes`` options of the posterior mode); ``seed`` as for predict.
 LOBES_KEYS = {"clamping_length", "draws", "seed", "flutes", "kt", "kr", "allow_unusual", "immersion", "angles",
               "milling", "feed", "pitch", "speeds", "max_depth", "flute_length", "speed_tolerance", "depth_margin",
-              "depth_points", "method", "intervals", "max_modes", "level", "budget", "tests"}
+              "depth_points", "method", "intervals", "max_modes", "level", "budget", "tests", "plots"}
 _SETUP_KEYS = {"name", "file", "predict", "lobes"} | IDENTIFY_KEYS
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$")
 # options whose values are file names: relative to the manifest, like ``file``

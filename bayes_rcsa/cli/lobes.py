@@ -89,6 +89,8 @@ def register(subparsers) -> None:
                       f"cutting it (default {DEFAULT_BUDGET_S:g})")
     p.add_argument("--tests", metavar="CSV", help="cutting tests: spindle_speed_rpm,depth_m,outcome (stable|chatter)")
     p.add_argument("--quiet", action="store_true", help="no run-time estimate or progress bar on stderr")
+    p.add_argument("--no-plots", action="store_true",
+                   help="skip lobes.png (lobes.json and p_stable.npz hold every number it draws)")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
     add_force_argument(p)
     p.set_defaults(func=run)
@@ -115,6 +117,6 @@ def run(args: argparse.Namespace) -> Summary:
         level=optional_float(args.level, "--level"), confidence=optional_float(args.confidence, "--confidence"),
         tests=args.tests, spindle_samples=args.spindle_uncertainty, progress=not args.quiet,
         budget_s=parse_float(args.budget, "--budget", positive=True))
-    path = result.save(args.out, force=args.force)
+    path = result.save(args.out, force=args.force, plots=not args.no_plots)
     return Summary(result.summary_line(), {"out": str(args.out), "lobes": str(path), **result.summary_data()},
                    warnings=result.warnings)

@@ -146,14 +146,16 @@ def _dumps(document: dict) -> str:
     return "{\n" + ",\n".join(items) + "\n}\n"
 
 
-def write_lobes_outputs(outdir, res, document: dict, tests=None, title: str = "", max_depth=None) -> Path:
-    """Write lobes.png, p_stable.npz and lobes.json into ``outdir`` (each atomically; the figure first, as the
-    step most likely to fail).  Returns the path of lobes.json."""
+def write_lobes_outputs(outdir, res, document: dict, tests=None, title: str = "", max_depth=None,
+                        plots: bool = True) -> Path:
+    """Write lobes.png (unless not ``plots``), p_stable.npz and lobes.json into ``outdir`` (each atomically; the
+    figure first, as the step most likely to fail).  Returns the path of lobes.json."""
     from ..io.atomic import atomic_path, atomic_write_text
 
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
-    plot_lobes(outdir / "lobes.png", res, tests, title, max_depth=max_depth)
+    if plots:
+        plot_lobes(outdir / "lobes.png", res, tests, title, max_depth=max_depth)
     with atomic_path(outdir / "p_stable.npz") as tmp:
         with open(tmp, "wb") as fh:
             shown_speed, shown_p, _ = display_map(res.speed_rpm, res.p_stable)

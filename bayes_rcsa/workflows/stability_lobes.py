@@ -104,7 +104,11 @@ class Lobes(Result):
     def summary_line(self) -> str:
         d = self.document
         rec = self.recommended
-        msg = f"wrote {self.path}, p_stable.npz, lobes.png" if self.path is not None else "lobes computed"
+        if self.path is None:
+            msg = "lobes computed"
+        else:
+            png = self.path.with_name("lobes.png")
+            msg = f"wrote {self.path}, p_stable.npz" + (", lobes.png" if png.exists() else "")
         if rec is not None:
             below, above = rec["margin_speed_rpm"]["below"], rec["margin_speed_rpm"]["above"]
             msg += (f"; recommended {rpm(rec['spindle_speed_rpm'])}, {mm(rec['depth_m'])} (P(stable) >= "
@@ -162,13 +166,14 @@ class Lobes(Result):
         return self.document["depth_limits_m"]["max_depth"]
 
     def save(self, folder, *, force: bool = False, plots: bool = True) -> Path:
-        """Write lobes.json, p_stable.npz and lobes.png (always: the figure is part of the command's output)."""
+        """Write lobes.json, p_stable.npz and (``plots``) lobes.png into ``folder``; returns the path of lobes.json."""
         from ..stability.outputs import write_lobes_outputs
 
         res = self.lobes if self.lobes is not None else self._view()
-        with saving(folder, force) as out:
+        # a forced run removes the earlier run's files first: no lobes.png of other lobes beside these
+        with saving(folder, force, earlier_outputs=self.files) as out:
             path = write_lobes_outputs(out, res, self.document, self._tests(), self._plot_title(),
-                                       max_depth=self._max_depth())
+                                       max_depth=self._max_depth(), plots=plots)
         self.path = path
         return path
 
