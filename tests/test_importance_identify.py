@@ -139,3 +139,43 @@ def test_cli_sampler_option_and_resume(setup_file, tmp_path, capsys):  # noqa: F
     assert json.loads((out / "summary.json").read_text()) == summary
     with pytest.raises(SetupError, match="--sampler 'gibbs'"):
         bayes_rcsa.identify(setup_file, lengths=LENGTHS, sampler="gibbs")
+
+
+def _noise_above_signal_campaign():
+    """One length of the bundled example (x, 25 mm, 101 lines over 500-2500 Hz, the default noise prior
+    [1e-4, 10]) simulated from the model at a stiff joint with noise twice the signal (log10 sigma_0 = 0.3):
+    the configuration ``single`` of benchmarks/sbc.py, where SBC put every draw on one side of such truths."""
+    from bayes_rcsa.data import example_setup
+    from bayes_rcsa.inference.problem import build_problem
+    from bayes_rcsa.inference.sbc import simulate_problem
+    from bayes_rcsa.model.receptance import FRF
+
+    setup = load_setup(example_setup())
+    m = next(m for m in setup.measurements if m.configuration.direction == "x" and m.configuration.clamping_length == 0.025)
+    f = m.frf.frequency_hz
+    idx = np.nonzero((f >= 500.0) & (f <= 2500.0))[0][::10]
+    options = IdentificationOptions(lengths=(0.025,), band=(500.0, 2500.0), tempering=1.0)
+    problem = build_problem(setup.model(), [(m.configuration, FRF(f[idx], m.frf.values[idx], None, m.frf.source))],
+                            setup.contact, options)
+    assert problem.parameters.names == ("k_xf", "k_thetaM", "sigma_0")
+    truth = np.array([8.9, 7.5, 0.3])  # log10 N/m, log10 N m/rad, log10 of the relative noise scale
+    return simulate_problem(problem, truth, np.random.default_rng(3)), truth
+
+
+def test_noise_above_signal_finds_the_mode_and_refuses_importance_sampling():
+    """With noise above the signal (a) the optimum is the likelihood's, not the data-weighted grid's: that grid ranks
+    a soft joint (k_xf 1e5, k_thetaM 2e3) with a larger noise scale first, 85 log units below the truth, and
+    importance sampling around it was accepted with every draw below the true stiffnesses; (b) importance sampling
+    is refused (noise scale at the optimum > 1) and the chain runs, with the reason in the summary."""
+    from bayes_rcsa.inference.importance import MAX_NOISE_SCALE
+
+    problem, truth = _noise_above_signal_campaign()
+    # the fall-back chain is not under test here: a short fixed-steps one
+    res = identify(problem, seed=5, sampler="auto", settings=quick_settings(n_walkers=8, n_steps=60, n_burn=20))
+    optimum = res.optimum
+    assert optimum.log_posterior >= float(problem.log_posterior()(truth[None])[0]) - 1.0, (optimum.x, optimum.message)
+    assert "likelihood's own profile" in optimum.message
+    assert 10 ** optimum.x[2] > MAX_NOISE_SCALE
+    block = res.summary["sampler"]
+    assert not res.importance.accepted and res.importance.n_proposals == 0 and res.chain is not None
+    assert block["mode"] == "mcmc" and "noise above the signal" in block["fallback_reason"]

@@ -29,6 +29,9 @@ The algorithm (:func:`importance_posterior`)
    (:data:`bayes_rcsa.stats.weights.PARETO_K_MAX`) and Kish ESS of the smoothed weights ``>= 1000``
    (:data:`bayes_rcsa.stats.weights.MIN_ESS_INTERVAL_END`: a 5 % point then has a Monte Carlo error of about
    0.07 posterior sd).  Otherwise the result is refused with the reason, and identify runs the chain.
+   Before any draw: refused when a relative noise scale at the optimum exceeds :data:`MAX_NOISE_SCALE` (1:
+   noise above the signal on every line), where the posterior is a bent ridge of the two stiffnesses that a
+   proposal around one end of it cannot be checked to cover (the weights it sees pass; docs/calibration.md).
 6. **Resampling** to a fixed number of equally weighted draws by systematic resampling (Kitagawa 1996; unbiased,
    with a smaller variance than multinomial resampling: every draw of weight ``w`` appears ``floor(n w)`` or
    ``ceil(n w)`` times), in random order, so that every consumer of posterior draws (predict, lobes, design,
@@ -60,8 +63,9 @@ from ..stats.weights import (MIN_ESS_COVARIANCE, MIN_ESS_INTERVAL_END, MIN_ESS_P
                              pareto_smoothed_log_weights)
 from .search import derivatives
 
-__all__ = ["ImportanceResult", "importance_posterior", "laplace_covariance", "systematic_resample", "DF", "SCALE",
-           "N_PILOT", "N_BATCH", "MAX_REFITS", "MAX_PROPOSALS", "TARGET_ESS", "MAX_SD_OF_WIDTH", "ACCEPTANCE_RULE"]
+__all__ = ["ImportanceResult", "importance_posterior", "laplace_covariance", "systematic_resample", "optimum_noise_scale",
+           "DF", "SCALE", "N_PILOT", "N_BATCH", "MAX_REFITS", "MAX_PROPOSALS", "TARGET_ESS", "MAX_SD_OF_WIDTH",
+           "MAX_NOISE_SCALE", "ACCEPTANCE_RULE"]
 
 #: Degrees of freedom of the t proposals (finite variance of the weights needs heavier tails than the posterior).
 DF = 4.0
@@ -82,10 +86,19 @@ TARGET_ESS = 2 * MIN_ESS_INTERVAL_END
 #: Widest proposal standard deviation in a coordinate, as a fraction of its prior width: a uniform prior's own
 #: sd is 0.29 of its width, so no posterior is wider; beyond this the Hessian is flat there, not informative.
 MAX_SD_OF_WIDTH = 0.3
+#: Largest relative noise scale (noise rms / model |H| on every line) at the optimum for which importance sampling is
+#: tried.  Above it the noise exceeds the signal on every line: the data no longer resolve the resonance, and the
+#: posterior is the prior's box cut by a bent ridge of the two stiffnesses (an L: a soft translational joint with
+#: any rotational one, or a stiff one with a soft rotational joint) along which the noise scale trades with the
+#: fit.  A unimodal t around one end of it gets Pareto k <= 0.7 from the weights it sees and never sees the other
+#: end; simulation-based calibration of ``single`` under the default noise prior put every draw on one side of the
+#: truth in such replicates (docs/calibration.md).  The chain, started at the optimum, walks the ridge.
+MAX_NOISE_SCALE = 1.0
 ACCEPTANCE_RULE = (f"importance sampling from multivariate t proposals ({DF:g} degrees of freedom) around the "
                    "posterior optimum (Laplace covariance, then refitted to a weighted pilot), deterministic-mixture "
                    f"Pareto-smoothed weights; accepted when the Pareto shape k <= {PARETO_K_MAX:g} and the weights' "
-                   f"ESS >= {MIN_ESS_INTERVAL_END}; then systematically resampled to equally weighted draws")
+                   f"ESS >= {MIN_ESS_INTERVAL_END} (not tried when a noise scale at the optimum exceeds "
+                   f"{MAX_NOISE_SCALE:g}); then systematically resampled to equally weighted draws")
 
 
 @dataclass(frozen=True)
@@ -195,6 +208,19 @@ def laplace_covariance(log_post, x: np.ndarray, bounds) -> tuple[np.ndarray, str
     return 0.5 * (cov + cov.T), note
 
 
+def optimum_noise_scale(log_post, x: np.ndarray) -> float:
+    """Largest relative noise scale ``sigma_j`` (dimensionless, noise rms per model ``|H|``) at ``x`` (ndim,).
+
+    ``log_post`` is a :class:`.problem.LogPosterior` (its likelihood's parameter model names the noise
+    coordinates, its priors map them to physical values); NaN for a callable without them or without noise scales.
+    """
+    pm = getattr(getattr(log_post, "likelihood", None), "parameters", None)
+    priors = getattr(log_post, "priors", None)
+    if pm is None or priors is None or not pm.noise_names:
+        return math.nan
+    return max(float(priors[n].to_physical(x[pm.names.index(n)])) for n in pm.noise_names)
+
+
 def systematic_resample(weights: np.ndarray, size: int, rng: np.random.Generator) -> np.ndarray:
     """Indices of ``size`` draws by systematic resampling of normalised ``weights`` (n,), in random order.
 
@@ -241,7 +267,7 @@ def importance_posterior(log_post, x_map: np.ndarray, bounds, rng: np.random.Gen
                          df: float = DF, scale: float = SCALE, n_pilot: int = N_PILOT, n_batch: int = N_BATCH,
                          max_proposals: int = MAX_PROPOSALS, target_ess: float = TARGET_ESS,
                          min_ess: float = MIN_ESS_INTERVAL_END, proposal_shrink: float = 1.0,
-                         batch: int = 4000) -> ImportanceResult:
+                         batch: int = 4000, max_noise_scale: float = MAX_NOISE_SCALE) -> ImportanceResult:
     """Importance-sample the posterior ``log_post`` around its optimum ``x_map`` (module docstring).
 
     Parameters
@@ -259,6 +285,9 @@ def importance_posterior(log_post, x_map: np.ndarray, bounds, rng: np.random.Gen
         Factor on the proposals' standard deviations (1: as designed).  Only for testing that a proposal too
         narrow for the posterior is refused (0.1 gives Pareto k far above 0.7).
     batch : int, rows per log-posterior call
+    max_noise_scale : float
+        Refused without a draw when a relative noise scale at ``x_map`` (:func:`optimum_noise_scale`) exceeds it
+        (:data:`MAX_NOISE_SCALE`: noise above the signal); ``inf`` never refuses for that.
 
     Returns
     -------
@@ -267,6 +296,14 @@ def importance_posterior(log_post, x_map: np.ndarray, bounds, rng: np.random.Gen
     t0 = time.perf_counter()
     x_map = np.asarray(x_map, dtype=float)
     d = x_map.size
+    noise = optimum_noise_scale(log_post, x_map)
+    if noise > max_noise_scale:
+        reason = (f"importance sampling refused: the noise scale at the optimum is {noise:.2g} > {max_noise_scale:g} "
+                  "(noise above the signal): the posterior is a long bent ridge that a proposal around the optimum "
+                  "does not cover")
+        return ImportanceResult(False, reason, None, None, pareto_k=math.nan, ess=0.0, n_proposals=0, n_inside=0,
+                                wall_time=time.perf_counter() - t0,
+                                proposal={"df": df, "scale": scale, "noise_scale_at_optimum": noise})
     cov, note = laplace_covariance(log_post, x_map, bounds)
     shrink2 = float(proposal_shrink) ** 2
     components, counts = [_T(x_map, scale * shrink2 * cov, df)], [0]

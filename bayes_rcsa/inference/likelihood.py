@@ -29,8 +29,11 @@ grew with the noise itself, so the likelihood was not the model that
 generates the data: where the noise is as large as the signal, the noise
 scale's posterior sat below the truth and simulation-based calibration
 failed (docs/calibration.md).  The data-only weights ``1 / v_n(measured)``
-(with the measured floor) are still used by the optimiser's grid stage
-(:mod:`.search`), where only the location of the optimum matters.
+(with the measured floor) are still used by the optimiser's fast grid
+stage (:mod:`.search`), where only the location of the optimum matters and
+the noise is small; where a noise scale at its optimum exceeds 0.1 the grid
+is searched again with this likelihood's own profile (with noise above the
+signal the data-weighted grid ranked a wrong resonance first).
 
 Honest intervals: tempering by the effective number of lines
 -------------------------------------------------------------

@@ -29,6 +29,18 @@ The search
 3. The best few well-separated grid points are polished by L-BFGS-B on the
    full log posterior (noise scales starting at their profile values); the
    best polished point is the optimum.
+4. The maps of step 1 weight the residuals by the *measured* ``|H|``
+   (``Q_j = sum_n |r_n|^2 / v_n(measured)``), a proxy for the likelihood's
+   model variance that holds while the noise is small against the signal.
+   When a noise scale at the polished optimum exceeds
+   :data:`EXACT_PROFILE_NOISE`, :func:`.sampler.find_optimum` searches the
+   grid again with the likelihood's own profile (``exact=True``: the model's
+   variance, its ``ln v_n`` term and each noise scale maximised within its
+   prior bounds; chunked forward path, 0.1-0.7 s on 101 lines of one length)
+   and polishes its best points too.  With noise twice the signal the proxy
+   ranked a wrong resonance (a soft joint with a larger noise scale) first,
+   40-300 log units below the mode that generated the data
+   (docs/calibration.md).
 
 Sampled damping is held at the centre of its prior during the grid stage
 and freed in the polish.  Sampled model-term parameters are held at their
@@ -47,7 +59,15 @@ from ..errors import ConvergenceError
 from .likelihood import FRFLikelihood, weighted_sums
 from ..params.priors import PriorSet
 
-__all__ = ["grid_candidates", "polish", "peak_bandwidth"]
+__all__ = ["grid_candidates", "polish", "peak_bandwidth", "EXACT_PROFILE_NOISE"]
+
+#: Relative noise scale above which :func:`.sampler.find_optimum` searches the grid again with the likelihood's
+#: own profile (``grid_candidates(..., exact=True)``).  The fast path's weights ``1 / |H_meas|^2`` stand for the
+#: likelihood's ``1 / |H_model|^2``; with ``H_meas = H_model (1 + s z)``, ``z`` unit complex Gaussian, they are off
+#: by about ``2 s`` per line (20 % at ``s = 0.1``) and the likelihood's ``ln v`` term, which they drop, starts to
+#: decide between resonances (docs/calibration.md: with noise above the signal the fast grid ranked a wrong
+#: resonance first).  Below it the two grids rank the same mode first.
+EXACT_PROFILE_NOISE = 0.1
 
 
 def peak_bandwidth(frequency_hz: np.ndarray, values: np.ndarray) -> float:
@@ -68,7 +88,8 @@ def peak_bandwidth(frequency_hz: np.ndarray, values: np.ndarray) -> float:
 
 
 def _length_maps(likelihood: FRFLikelihood, log_kx: np.ndarray, log_kt: np.ndarray, held: dict[str, float],
-                 max_lines: int, chunk_sets: int = 1024) -> dict[float, np.ndarray]:
+                 max_lines: int, chunk_sets: int = 1024,
+                 noise_bounds: list[tuple[float, float]] | None = None) -> dict[float, np.ndarray]:
     """Profile log-likelihood map ``(n_x, n_t)`` of each distinct clamping length.
 
     The model is evaluated on at most ``max_lines`` lines per measurement
@@ -77,17 +98,24 @@ def _length_maps(likelihood: FRFLikelihood, log_kx: np.ndarray, log_kt: np.ndarr
     parameters at the ``held`` values (physical units).  ``chunk_sets`` grid points are evaluated per call:
     the maps are the same for any chunk, but (chunk, lines) temporaries that stay in cache are faster (bundled
     example, 182,000 points x 512 lines: 4.2 s in chunks of 16,384, 3.1-3.4 s in chunks of 1024).
+
+    ``noise_bounds`` None: the data-weighted map ``-N_j ln Q_j``, ``Q_j = sum_n |r_n|^2 / v_n(measured)`` (the
+    fast path).  ``noise_bounds`` ``[(lo_j, hi_j)]`` (relative noise scales, one pair per measurement): the
+    likelihood's own profile (:func:`_exact_sums`), with the model's variance and each noise scale maximised
+    within its bounds; through the chunked forward path, several times slower per point.
     """
     from ..model.assembly import ConfigurationStack
     from ..params.forward import ForwardModel
 
     obs_all = likelihood.observations
-    caches, data, weight, n_used = [], [], [], []
+    caches, data, weight, coherence, n_used = [], [], [], [], []
     for j, obs in enumerate(obs_all):
         idx = np.unique(np.linspace(0, obs.n_lines - 1, min(obs.n_lines, max_lines)).round().astype(int))
         caches.append(likelihood.model.precompute(obs.configuration, obs.frequency_hz[idx]))
         data.append(obs.values[idx])
-        weight.append(likelihood.weight[likelihood.stack.slices[j]][idx])
+        sl = likelihood.stack.slices[j]
+        weight.append(likelihood.weight[sl][idx])
+        coherence.append(likelihood.coherence[sl][idx])
         n_used.append(idx.size)
     sub = ConfigurationStack(caches)
     forward = ForwardModel(likelihood.parameters, sub, likelihood.model)
@@ -97,21 +125,59 @@ def _length_maps(likelihood: FRFLikelihood, log_kx: np.ndarray, log_kt: np.ndarr
     ii, kk = np.meshgrid(np.arange(log_kx.size), np.arange(log_kt.size), indexing="ij")
     kx_all = 10.0 ** log_kx[ii.ravel()]
     kt_all = 10.0 ** log_kt[kk.ravel()]
-    values = {n: np.full(kx_all.size, v) for n, v in held.items()}
-    values.update({"k_xf": kx_all, "k_thetaM": kt_all, "g_xf": np.zeros(kx_all.size), "g_thetaM": np.zeros(kx_all.size)})
-    # one configuration per observation in ``sub``, so the per-configuration sums are the per-measurement ones
-    q = forward.grid_sums(values, log_kx.size, log_kt.size, d, np.concatenate(weight))
-    if q is not None:
-        q = q.reshape(kx_all.size, len(obs_all))
+    if noise_bounds is not None:
+        ll = _exact_sums(forward, kx_all, kt_all, held, d, np.concatenate(coherence), sub.slices,
+                         float(likelihood.noise.floor) ** 2, noise_bounds, chunk_sets)
     else:
-        q = _chunked_sums(forward, kx_all, kt_all, held, d, w2, float_slices, chunk_sets)
-    with np.errstate(divide="ignore"):
-        ll = -np.asarray(n_used)[None, :] * np.log(q)  # (n_points, n_meas)
+        values = {n: np.full(kx_all.size, v) for n, v in held.items()}
+        values.update({"k_xf": kx_all, "k_thetaM": kt_all, "g_xf": np.zeros(kx_all.size),
+                       "g_thetaM": np.zeros(kx_all.size)})
+        # one configuration per observation in ``sub``, so the per-configuration sums are the per-measurement ones
+        q = forward.grid_sums(values, log_kx.size, log_kt.size, d, np.concatenate(weight))
+        if q is not None:
+            q = q.reshape(kx_all.size, len(obs_all))
+        else:
+            q = _chunked_sums(forward, kx_all, kt_all, held, d, w2, float_slices, chunk_sets)
+        with np.errstate(divide="ignore"):
+            ll = -np.asarray(n_used)[None, :] * np.log(q)  # (n_points, n_meas)
     groups: dict[float, np.ndarray] = {}
     for j, obs in enumerate(obs_all):
         length = round(obs.configuration.clamping_length, 12)
         groups[length] = groups.get(length, 0.0) + ll[:, j].reshape(log_kx.size, log_kt.size)
     return groups
+
+
+def _exact_sums(forward, kx_all, kt_all, held, d, coherence, slices, eps2: float, noise_bounds,
+                chunk_sets: int) -> np.ndarray:
+    """The likelihood's own log-likelihood per grid point and measurement, noise scales profiled: (n_points, n_meas).
+
+    Per measurement ``j`` with model variance ``v_n = (|H_n|^2 + eps2 max_band |H|^2) / gamma_n`` ((m/N)^2, as
+    :class:`.likelihood.FRFLikelihood`) and ``Q_j = sum_n |r_n|^2 / v_n``, the log-likelihood
+    ``-Q_j / s^2 - N_j ln s^2 - sum_n ln v_n`` (constants dropped) at ``s^2 = Q_j / N_j`` clipped to
+    ``[lo_j^2, hi_j^2]``.  Unlike the data-weighted sums this keeps the ``ln v_n`` term and the model's weights,
+    which matter once the noise is comparable with the signal (the measured ``|H|`` is then no proxy for the
+    model's).
+    """
+    n_meas = len(slices)
+    lo2 = np.array([b[0] for b in noise_bounds], dtype=float) ** 2
+    hi2 = np.array([b[1] for b in noise_bounds], dtype=float) ** 2
+    n_per = np.array([sl.stop - sl.start for sl in slices], dtype=float)
+    out = np.empty((kx_all.size, n_meas))
+    for a in range(0, kx_all.size, chunk_sets):
+        kx = kx_all[a : a + chunk_sets]
+        values = {n: np.full(kx.size, v) for n, v in held.items()}
+        values.update({"k_xf": kx, "k_thetaM": kt_all[a : a + chunk_sets],
+                       "g_xf": np.zeros(kx.size), "g_thetaM": np.zeros(kx.size)})
+        h = forward.frf(values)  # (chunk, n_lines) complex m/N
+        a2 = h.real**2 + h.imag**2
+        r2 = np.abs(h - d) ** 2
+        for j, sl in enumerate(slices):
+            v = (a2[:, sl] + eps2 * np.max(a2[:, sl], axis=1, keepdims=True)) / coherence[sl]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                q = np.sum(r2[:, sl] / v, axis=1)
+                s2 = np.clip(q / n_per[j], lo2[j], hi2[j])
+                out[a : a + chunk_sets, j] = -q / s2 - n_per[j] * np.log(s2) - np.sum(np.log(v), axis=1)
+    return np.where(np.isfinite(out), out, -np.inf)
 
 
 def _chunked_sums(forward, kx_all, kt_all, held, d, w2, float_slices, chunk_sets) -> np.ndarray:
@@ -158,7 +224,8 @@ def _separated_top(values: np.ndarray, n: int, min_sep: tuple[int, ...]) -> list
     return out
 
 
-def grid_candidates(likelihood: FRFLikelihood, priors: PriorSet, max_lines: int = 64, n_best: int = 3) -> list[np.ndarray]:
+def grid_candidates(likelihood: FRFLikelihood, priors: PriorSet, max_lines: int = 64, n_best: int = 3,
+                    exact: bool = False) -> list[np.ndarray]:
     """Best well-separated grid points of the profile posterior, best first.
 
     Two stages keep the search cheap on priors spanning several decades:
@@ -236,7 +303,10 @@ def grid_candidates(likelihood: FRFLikelihood, priors: PriorSet, max_lines: int 
     ext_t = math.log10(1 + max(0.0, gt.max())) if growth.has_growth else 0.0
     log_kx = np.arange(x_lo, x_hi + ext_x + 1.5 * s_x, s_x)
     log_kt = np.arange(t_lo, t_hi + ext_t + 1.5 * s_t, s_t)
-    maps = _length_maps(likelihood, log_kx, log_kt, held, max_lines)
+    noise_bounds = None
+    if exact:
+        noise_bounds = [tuple(phys(n, u) for u in priors[n].optimisation_bounds()) for n in pm.noise_names]
+    maps = _length_maps(likelihood, log_kx, log_kt, held, max_lines, noise_bounds=noise_bounds)
     n_x0 = int(np.searchsorted(log_kx, x_hi + 1e-9 * s_x))
     n_t0 = int(np.searchsorted(log_kt, t_hi + 1e-9 * s_t))
     lp_x = ln_prior("k_xf", 10.0 ** log_kx[:n_x0])
@@ -274,22 +344,27 @@ def grid_candidates(likelihood: FRFLikelihood, priors: PriorSet, max_lines: int 
         for j, n in enumerate(names):
             if n in values:
                 theta[j] = float(priors[n].to_sampling(values[n]))
-        out.append(_profile_noise(likelihood, priors, theta))
+        out.append(_profile_noise(likelihood, priors, theta, exact))
     if not out:
         raise ConvergenceError("grid search: no grid point has a finite posterior density")
     return out
 
 
-def _profile_noise(likelihood: FRFLikelihood, priors: PriorSet, theta: np.ndarray) -> np.ndarray:
-    """Set the noise coordinates of ``theta`` to their maximum-likelihood values (within the prior)."""
+def _profile_noise(likelihood: FRFLikelihood, priors: PriorSet, theta: np.ndarray, exact: bool = False) -> np.ndarray:
+    """Set the noise coordinates of ``theta`` to their maximum-likelihood values (within the prior).
+
+    ``exact``: with the likelihood's model variance (``s^2 = sum |r|^2 / v(theta) / N``), else with the data-only
+    weights of the grid's fast path.
+    """
     pm = likelihood.parameters
     theta = theta.copy()
     noise_idx = [pm.names.index(n) for n in pm.noise_names]
     for j in noise_idx:
         lo, hi = priors[pm.names[j]].optimisation_bounds()
         theta[j] = 0.5 * (lo + hi)
-    r = likelihood.model_frf(theta[None, :])[0] - likelihood.data
-    w = likelihood.weight
+    h = likelihood.model_frf(theta[None, :])[0]
+    r = h - likelihood.data
+    w = 1.0 / likelihood.variance_of(h)[0] if exact else likelihood.weight
     for m, j in enumerate(noise_idx):
         sl = likelihood.stack.slices[m]
         s = math.sqrt(float(np.sum(np.abs(r[sl]) ** 2 * w[sl])) / (sl.stop - sl.start))
