@@ -277,11 +277,15 @@ def sampler_summary(doc: dict) -> str:
         t = [r["time_s"] for r in ch]
         steps = np.array([r["steps"] for r in ch], dtype=float)
         tau = np.array([r["max_tau"] if r["max_tau"] is not None else np.nan for r in ch])
-        ess = walkers * (steps - np.minimum(3 * tau, steps / 2)) / tau
+        recorded = [r.get("min_ess") for r in ch]
+        if all(e is not None for e in recorded):  # the replicates' own bulk ESS (recorded since 2026-11-29)
+            ess, ess_name = np.array(recorded, dtype=float), "bulk ESS"
+        else:  # older files: estimated from the steps and tau
+            ess, ess_name = walkers * (steps - np.minimum(3 * tau, steps / 2)) / tau, "ESS estimate"
         refused = [r["pareto_k"] for r in ch if r.get("pareto_k") is not None]
         out.append(f"chain: {len(ch)}/{len(reps)} replicates ({sum(r['converged'] for r in ch)} converged), median "
                    f"{np.median(t):.1f} s (max {max(t):.0f} s), steps median {np.median(steps):.0f}, max tau median "
-                   f"{np.nanmedian(tau):.0f}, ESS estimate min {np.nanmin(ess):.0f} median {np.nanmedian(ess):.0f}"
+                   f"{np.nanmedian(tau):.0f}, {ess_name} min {np.nanmin(ess):.0f} median {np.nanmedian(ess):.0f}"
                    + (f", refused importance Pareto k median {np.median(refused):.2f}" if refused else ""))
     t_all = [r["time_s"] for r in reps]
     out.append(f"all: {len(reps)} replicates, mean {np.mean(t_all):.1f} s, median {np.median(t_all):.1f} s per "

@@ -157,7 +157,7 @@ def _reduced_sbc(problem, tempering: float, sampler: str = "mcmc", replicates: i
     settings = SamplerSettings(n_walkers=8, n_steps=240, n_burn=80, check_every=120, progress=False)
     reps = [sbc_replicate(problem, np.random.SeedSequence([4242, r]), settings, N_DRAWS, tempering, sampler)
             for r in range(replicates)]
-    return np.array([r.ranks for r in reps]), [r.sampler for r in reps]
+    return np.array([r.ranks for r in reps]), [r.sampler for r in reps], reps
 
 
 @pytest.mark.slow
@@ -182,8 +182,12 @@ def test_reduced_sbc_of_the_default_importance_sampler_passes(reduced_problem):
     chain (8 s), to be told apart."""
     rng = np.random.default_rng(6)
     names = list(reduced_problem.parameters.names)
-    ranks, used = _reduced_sbc(reduced_problem, 1.0, "auto", 40)
+    ranks, used, reps = _reduced_sbc(reduced_problem, 1.0, "auto", 40)
     assert used.count("importance") >= 36, used
+    # each replicate records the ESS of the draws it ranked: the weights' (accepted at >= 1000), the chain's bulk ESS
+    assert all(r.min_ess >= 1000 for r in reps if r.sampler == "importance")
+    assert all(np.isfinite(r.min_ess) and r.min_ess > 0 for r in reps), [r.min_ess for r in reps]
+    assert all(r.to_dict()["min_ess"] == r.min_ess for r in reps)
     exact = sbc_check(ranks, N_DRAWS, names, rng, alpha=0.01)
     assert exact.all_passed, (exact.p_ecdf, exact.p_chi2)
 

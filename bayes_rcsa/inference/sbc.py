@@ -105,6 +105,9 @@ class SbcReplicate:
     time_s : float, wall time of the replicate
     sampler : str, what produced the draws: ``"mcmc"`` or ``"importance"``
     pareto_k : float, the importance weights' Pareto k (NaN when no importance sampling was tried)
+    min_ess : float, effective sample size of the draws the truth was ranked among: the importance weights' Kish
+        ESS, or the chain's smallest bulk ESS over the parameters (ArviZ, kept part; NaN when the chain was too short
+        to compute it)
     """
 
     truth: np.ndarray
@@ -115,12 +118,14 @@ class SbcReplicate:
     time_s: float
     sampler: str = "mcmc"
     pareto_k: float = math.nan
+    min_ess: float = math.nan
 
     def to_dict(self) -> dict:
         return {"truth": self.truth.tolist(), "ranks": self.ranks.tolist(), "converged": self.converged,
                 "steps": self.steps, "max_tau": None if math.isnan(self.max_tau) else self.max_tau,
                 "time_s": self.time_s, "sampler": self.sampler,
-                "pareto_k": None if math.isnan(self.pareto_k) else self.pareto_k}
+                "pareto_k": None if math.isnan(self.pareto_k) else self.pareto_k,
+                "min_ess": None if math.isnan(self.min_ess) else self.min_ess}
 
 
 def sbc_replicate(problem: Problem, seed_sequence: np.random.SeedSequence, settings: SamplerSettings,
@@ -161,11 +166,13 @@ def sbc_replicate(problem: Problem, seed_sequence: np.random.SeedSequence, setti
         if imp.accepted:
             draws = imp.theta[rng_rank.choice(imp.theta.shape[0], n_draws, replace=False)]
             return SbcReplicate(truth, sbc_ranks(truth, draws, rng_rank), True, 0, math.nan,
-                                time.perf_counter() - t0, "importance", k)
+                                time.perf_counter() - t0, "importance", k, float(imp.ess))
     walkers = initial_ensemble(lp, optimum.x, rng_init, settings.walkers(lp.ndim))
     from .diagnostics import chain_diagnostics
 
     chain = run_ensemble(lp, settings, initial=walkers, rng=rng_mcmc, diagnose=chain_diagnostics)
     draws = nearly_independent_draws(chain, n_draws, rng_rank)
+    ess_bulk = np.asarray(chain.diagnostics.get("ess_bulk", ()), dtype=float)
+    min_ess = float(np.min(ess_bulk)) if ess_bulk.size and np.all(np.isfinite(ess_bulk)) else math.nan
     return SbcReplicate(truth, sbc_ranks(truth, draws, rng_rank), bool(chain.converged), int(chain.steps_run),
-                        float(np.max(chain.tau)), time.perf_counter() - t0, "mcmc", k)
+                        float(np.max(chain.tau)), time.perf_counter() - t0, "mcmc", k, min_ess)
