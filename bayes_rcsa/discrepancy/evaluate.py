@@ -14,6 +14,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..inference.band import band_mask
+from ..inference.likelihood import noise_variance
 from ..inference.problem import Problem
 from ..model.assembly import ConfigurationStack
 from ..model.modes import find_modes, match_modes, mode_windows, track_modes
@@ -207,8 +208,7 @@ def evaluate(fit: ModelFit, rng: np.random.Generator, n_draws: int = 200, correc
     for j, ((cfg, frf), f, hm, hp, hd, (scale, eps2, coh)) in enumerate(
             zip(prob.all_measurements, freqs, measured, parts, dparts, noise)):
         # the likelihood's noise model: the floor from each draw's own band maximum
-        a2 = np.abs(hd) ** 2
-        sd = scale * np.sqrt((a2 + eps2 * a2.max(axis=1, keepdims=True)) / coh)  # (n_draws, n) complex-noise sd
+        sd = scale * np.sqrt(noise_variance(np.abs(hd) ** 2, coh, eps2, [slice(0, hd.shape[1])]))  # complex-noise sd
         # NOISE_REPLICATES noise realisations per draw: the measured peak's scatter (the bias's observation
         # variance, the predictive interval) is a 90 % range of the tracked peak, which one realisation per draw
         # leaves 10 % uncertain and biased low

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import ConvergenceError
+from ..inference import search
 from ..inference.likelihood import residual_correlation_length
 from ..inference.problem import Problem
 
@@ -110,28 +111,7 @@ def whitened_residuals(problem: Problem, theta: np.ndarray) -> np.ndarray:
 
 def profile_noise(problem: Problem, theta: np.ndarray) -> np.ndarray:
     """``theta`` with every noise coordinate at its maximum-likelihood value (within its prior)."""
-    lik = problem.likelihood
-    theta = np.array(theta, dtype=float)
-    idx = _noise_index(problem)
-    pri = problem.priors
-    for j in idx:
-        lo, hi = pri.optimisation_bounds()[j]
-        theta[j] = 0.5 * (lo + hi)
-    h = lik.model_frf(theta[None])[0]
-    var = lik.variance_of(h)[0]
-    q = np.abs(h - lik.data) ** 2 / var
-    names = problem.parameters.names
-    for m, sl in enumerate(lik.stack.slices):
-        name = problem.parameters.noise_names[m]
-        if name not in names:
-            continue
-        j = names.index(name)
-        s = math.sqrt(float(np.mean(q[sl])))
-        p = pri[name]
-        lo, hi = p.optimisation_bounds()
-        # outside the prior support there is no mass: the bound is the constrained maximum, not a fudge
-        theta[j] = float(np.clip(p.to_sampling(s), lo, hi))
-    return theta
+    return search.profile_noise(problem.likelihood, problem.priors, theta, exact=True)
 
 
 def _jacobian(problem: Problem, theta: np.ndarray, cols: list[int], step: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

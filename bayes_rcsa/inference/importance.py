@@ -61,7 +61,7 @@ import numpy as np
 from ..stats.weights import (MIN_ESS_COVARIANCE, MIN_ESS_INTERVAL_END, MIN_ESS_PER_DIMENSION, PARETO_K_MAX,
                              effective_sample_size, importance_reliable, normalise_log_weights,
                              pareto_smoothed_log_weights)
-from .search import derivatives
+from .search import derivatives, optimum_noise_scale
 
 __all__ = ["ImportanceResult", "importance_posterior", "laplace_covariance", "systematic_resample", "optimum_noise_scale",
            "DF", "SCALE", "N_PILOT", "N_BATCH", "MAX_REFITS", "MAX_PROPOSALS", "TARGET_ESS", "MAX_SD_OF_WIDTH",
@@ -206,19 +206,6 @@ def laplace_covariance(log_post, x: np.ndarray, bounds) -> tuple[np.ndarray, str
     cov = (vec / lam) @ vec.T * np.outer(width, width)
     note = f"{clipped} of {x.size} curvature directions bounded" if clipped else ""
     return 0.5 * (cov + cov.T), note
-
-
-def optimum_noise_scale(log_post, x: np.ndarray) -> float:
-    """Largest relative noise scale ``sigma_j`` (dimensionless, noise rms per model ``|H|``) at ``x`` (ndim,).
-
-    ``log_post`` is a :class:`.problem.LogPosterior` (its likelihood's parameter model names the noise
-    coordinates, its priors map them to physical values); NaN for a callable without them or without noise scales.
-    """
-    pm = getattr(getattr(log_post, "likelihood", None), "parameters", None)
-    priors = getattr(log_post, "priors", None)
-    if pm is None or priors is None or not pm.noise_names:
-        return math.nan
-    return max(float(priors[n].to_physical(x[pm.names.index(n)])) for n in pm.noise_names)
 
 
 def systematic_resample(weights: np.ndarray, size: int, rng: np.random.Generator) -> np.ndarray:

@@ -77,6 +77,7 @@ from ..params.model import ParameterModel
 from .band import Band, MIN_LINES, band_mask
 
 __all__ = [
+    "noise_variance",
     "Observation",
     "NoiseModel",
     "FRFLikelihood",
@@ -173,6 +174,28 @@ class NoiseModel:
         if not np.all(v > 0):
             raise DataError(f"{obs.source}: zero receptance in the band and noise_floor = 0; set a positive noise floor")
         return v
+
+
+def noise_variance(abs2: np.ndarray, coherence: np.ndarray, eps2: float, slices) -> np.ndarray:
+    """The noise model's variance ``v_n = (|H_n|^2 + eps2 max_band |H|^2) / gamma_n`` on every line, (m/N)^2.
+
+    The one formula of the likelihood's noise variance (the floor is each measurement's own band maximum of
+    the *model* FRF); the optimiser's exact grid and the discrepancy workflow's noise draws use it too.
+
+    Parameters
+    ----------
+    abs2 : (n, n_lines) float, ``|H_model|^2`` (m/N)^2 of n parameter sets
+    coherence : (n_lines,) float in (0, 1]
+    eps2 : float, the squared relative noise floor
+    slices : sequence of slice, each measurement's lines (contiguous, in order, covering ``n_lines``)
+
+    Returns
+    -------
+    (n, n_lines) float
+    """
+    starts = np.array([sl.start for sl in slices])
+    peak = np.maximum.reduceat(abs2, starts, axis=1)  # (n, n_meas): each measurement's band maximum
+    return (abs2 + eps2 * np.repeat(peak, [sl.stop - sl.start for sl in slices], axis=1)) / coherence
 
 
 class FRFLikelihood:
@@ -273,8 +296,7 @@ class FRFLikelihood:
         DataError
             A zero variance (a model receptance of zero on a line with ``noise_floor = 0``).
         """
-        a2 = np.abs(np.atleast_2d(h)) ** 2
-        var = (a2 + self._floor2(a2)) / self.coherence
+        var = noise_variance(np.abs(np.atleast_2d(h)) ** 2, self.coherence, self._floor_eps2, self.stack.slices)
         if not np.all(var > 0):
             raise DataError("noise_floor = 0 needs a non-zero model receptance everywhere; set a positive noise floor")
         return var

@@ -303,7 +303,7 @@ def find_optimum(log_post: LogPosterior, n_candidates: int = 3, max_lines: int =
     max_lines : int
         Lines per measurement in the grid stage.
     """
-    from .search import EXACT_PROFILE_NOISE, grid_candidates, polish
+    from .search import EXACT_PROFILE_NOISE, grid_candidates, optimum_noise_scale, polish
 
     n0 = log_post.n_evaluations
     bounds = log_post.priors.optimisation_bounds()
@@ -315,14 +315,13 @@ def find_optimum(log_post: LogPosterior, n_candidates: int = 3, max_lines: int =
     if best_x is None or not np.isfinite(best_v):
         raise ConvergenceError("the optimiser found no point with a finite posterior density")
     message = f"grid search + L-BFGS-B polish of {n_candidates} candidates"
-    pm, priors = log_post.likelihood.parameters, log_post.priors
-    noise = [float(priors[n].to_physical(best_x[pm.names.index(n)])) for n in pm.noise_names]
-    if noise and max(noise) > EXACT_PROFILE_NOISE:
-        for x0 in grid_candidates(log_post.likelihood, priors, max_lines, n_candidates, exact=True):
+    noise = optimum_noise_scale(log_post, best_x)
+    if noise > EXACT_PROFILE_NOISE:
+        for x0 in grid_candidates(log_post.likelihood, log_post.priors, max_lines, n_candidates, exact=True):
             x, v = polish(log_post, x0, bounds)
             if v > best_v:
                 best_x, best_v = x, v
-        message += (f"; noise scale {max(noise):.2g} > {EXACT_PROFILE_NOISE:g}: grid searched again with the "
+        message += (f"; noise scale {noise:.2g} > {EXACT_PROFILE_NOISE:g}: grid searched again with the "
                     f"likelihood's own profile, {n_candidates} more candidates polished")
     return Optimum(best_x, float(best_v), log_post.n_evaluations - n0, True, message)
 

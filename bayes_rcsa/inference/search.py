@@ -56,10 +56,10 @@ import math
 import numpy as np
 
 from ..errors import ConvergenceError
-from .likelihood import FRFLikelihood, weighted_sums
+from .likelihood import FRFLikelihood, noise_variance, weighted_sums
 from ..params.priors import PriorSet
 
-__all__ = ["grid_candidates", "polish", "peak_bandwidth", "EXACT_PROFILE_NOISE"]
+__all__ = ["grid_candidates", "polish", "peak_bandwidth", "profile_noise", "optimum_noise_scale", "EXACT_PROFILE_NOISE"]
 
 #: Relative noise scale above which :func:`.sampler.find_optimum` searches the grid again with the likelihood's
 #: own profile (``grid_candidates(..., exact=True)``).  The fast path's weights ``1 / |H_meas|^2`` stand for the
@@ -169,10 +169,10 @@ def _exact_sums(forward, kx_all, kt_all, held, d, coherence, slices, eps2: float
         values.update({"k_xf": kx, "k_thetaM": kt_all[a : a + chunk_sets],
                        "g_xf": np.zeros(kx.size), "g_thetaM": np.zeros(kx.size)})
         h = forward.frf(values)  # (chunk, n_lines) complex m/N
-        a2 = h.real**2 + h.imag**2
+        v_all = noise_variance(h.real**2 + h.imag**2, coherence, eps2, slices)
         r2 = np.abs(h - d) ** 2
         for j, sl in enumerate(slices):
-            v = (a2[:, sl] + eps2 * np.max(a2[:, sl], axis=1, keepdims=True)) / coherence[sl]
+            v = v_all[:, sl]
             with np.errstate(divide="ignore", invalid="ignore"):
                 q = np.sum(r2[:, sl] / v, axis=1)
                 s2 = np.clip(q / n_per[j], lo2[j], hi2[j])
@@ -344,34 +344,54 @@ def grid_candidates(likelihood: FRFLikelihood, priors: PriorSet, max_lines: int 
         for j, n in enumerate(names):
             if n in values:
                 theta[j] = float(priors[n].to_sampling(values[n]))
-        out.append(_profile_noise(likelihood, priors, theta, exact))
+        out.append(profile_noise(likelihood, priors, theta, exact))
     if not out:
         raise ConvergenceError("grid search: no grid point has a finite posterior density")
     return out
 
 
-def _profile_noise(likelihood: FRFLikelihood, priors: PriorSet, theta: np.ndarray, exact: bool = False) -> np.ndarray:
-    """Set the noise coordinates of ``theta`` to their maximum-likelihood values (within the prior).
+def profile_noise(likelihood: FRFLikelihood, priors: PriorSet, theta: np.ndarray, exact: bool = True) -> np.ndarray:
+    """``theta`` (ndim,) with every sampled noise coordinate at its maximum-likelihood value, within its prior.
 
-    ``exact``: with the likelihood's model variance (``s^2 = sum |r|^2 / v(theta) / N``), else with the data-only
-    weights of the grid's fast path.
+    ``exact``: with the likelihood's model variance (``s^2 = mean_n |r_n|^2 / v_n(theta)`` per measurement, the
+    noise scales' profile of the likelihood itself; the discrepancy workflow's fits and the exact grid), else with
+    the data-only weights of the grid's fast path.  The model is evaluated once, with the noise scales at the
+    centres of their priors (they do not change the model FRF).
     """
     pm = likelihood.parameters
-    theta = theta.copy()
-    noise_idx = [pm.names.index(n) for n in pm.noise_names]
-    for j in noise_idx:
-        lo, hi = priors[pm.names[j]].optimisation_bounds()
-        theta[j] = 0.5 * (lo + hi)
+    names = pm.names
+    theta = np.array(theta, dtype=float)
+    for n in pm.noise_names:
+        if n in names:
+            lo, hi = priors[n].optimisation_bounds()
+            theta[names.index(n)] = 0.5 * (lo + hi)
     h = likelihood.model_frf(theta[None, :])[0]
-    r = h - likelihood.data
-    w = 1.0 / likelihood.variance_of(h)[0] if exact else likelihood.weight
-    for m, j in enumerate(noise_idx):
-        sl = likelihood.stack.slices[m]
-        s = math.sqrt(float(np.sum(np.abs(r[sl]) ** 2 * w[sl])) / (sl.stop - sl.start))
-        p = priors[pm.names[j]]
+    if exact:
+        q = np.abs(h - likelihood.data) ** 2 / likelihood.variance_of(h)[0]
+    else:
+        q = np.abs(h - likelihood.data) ** 2 * likelihood.weight
+    for m, sl in enumerate(likelihood.stack.slices):
+        name = pm.noise_names[m]
+        if name not in names:
+            continue
+        p = priors[name]
         lo, hi = p.optimisation_bounds()
-        theta[j] = float(np.clip(p.to_sampling(s), lo, hi))  # the prior support, not a fudge: outside it has no mass
+        # outside the prior support there is no mass: the bound is the constrained maximum, not a fudge
+        theta[names.index(name)] = float(np.clip(p.to_sampling(math.sqrt(float(np.mean(q[sl])))), lo, hi))
     return theta
+
+
+def optimum_noise_scale(log_post, x: np.ndarray) -> float:
+    """Largest relative noise scale ``sigma_j`` (dimensionless, noise rms per model ``|H|``) at ``x`` (ndim,).
+
+    ``log_post`` is a :class:`.problem.LogPosterior` (its likelihood's parameter model names the noise
+    coordinates, its priors map them to physical values); NaN for a callable without them or without noise scales.
+    """
+    pm = getattr(getattr(log_post, "likelihood", None), "parameters", None)
+    priors = getattr(log_post, "priors", None)
+    scales = [float(priors[n].to_physical(x[pm.names.index(n)])) for n in (pm.noise_names if pm is not None else ())
+              if priors is not None and n in pm.names]
+    return max(scales) if scales else math.nan
 
 
 def derivatives(log_post, x: np.ndarray, step: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
