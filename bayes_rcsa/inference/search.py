@@ -36,7 +36,8 @@ The search
    :data:`EXACT_PROFILE_NOISE`, :func:`.sampler.find_optimum` searches the
    grid again with the likelihood's own profile (``exact=True``: the model's
    variance, its ``ln v_n`` term and each noise scale maximised within its
-   prior bounds; chunked forward path, 0.1-0.7 s on 101 lines of one length)
+   prior bounds; :meth:`.ForwardModel.grid_profile_sums` without forming the FRFs, the chunked forward path
+   where a model term makes the FRF more than the joint formula)
    and polishes its best points too.  With noise twice the signal the proxy
    ranked a wrong resonance (a soft joint with a larger noise scale) first,
    40-300 log units below the mode that generated the data
@@ -101,8 +102,9 @@ def _length_maps(likelihood: FRFLikelihood, log_kx: np.ndarray, log_kt: np.ndarr
 
     ``noise_bounds`` None: the data-weighted map ``-N_j ln Q_j``, ``Q_j = sum_n |r_n|^2 / v_n(measured)`` (the
     fast path).  ``noise_bounds`` ``[(lo_j, hi_j)]`` (relative noise scales, one pair per measurement): the
-    likelihood's own profile (:func:`_exact_sums`), with the model's variance and each noise scale maximised
-    within its bounds; through the chunked forward path, several times slower per point.
+    likelihood's own profile (:func:`_profile_log_likelihood`), with the model's variance and each noise scale maximised
+    within its bounds (:meth:`.ForwardModel.grid_profile_sums`, or the chunked forward model where that declines:
+    2.8 times slower on the bundled example's grid, benchmarks/grid_search.py).
     """
     from ..model.assembly import ConfigurationStack
     from ..params.forward import ForwardModel
@@ -125,13 +127,19 @@ def _length_maps(likelihood: FRFLikelihood, log_kx: np.ndarray, log_kt: np.ndarr
     ii, kk = np.meshgrid(np.arange(log_kx.size), np.arange(log_kt.size), indexing="ij")
     kx_all = 10.0 ** log_kx[ii.ravel()]
     kt_all = 10.0 ** log_kt[kk.ravel()]
+    values = {n: np.full(kx_all.size, v) for n, v in held.items()}
+    values.update({"k_xf": kx_all, "k_thetaM": kt_all, "g_xf": np.zeros(kx_all.size),
+                   "g_thetaM": np.zeros(kx_all.size)})
     if noise_bounds is not None:
-        ll = _exact_sums(forward, kx_all, kt_all, held, d, np.concatenate(coherence), sub.slices,
-                         float(likelihood.noise.floor) ** 2, noise_bounds, chunk_sets)
+        eps2 = float(likelihood.noise.floor) ** 2
+        coh = np.concatenate(coherence)
+        sums = forward.grid_profile_sums(values, log_kx.size, log_kt.size, d, coh, eps2)
+        if sums is None:
+            q, lv = _chunked_profile_sums(forward, kx_all, kt_all, held, d, coh, sub.slices, eps2, chunk_sets)
+        else:
+            q, lv = (a.reshape(kx_all.size, len(obs_all)) for a in sums)
+        ll = _profile_log_likelihood(q, lv, np.asarray(n_used, dtype=float), noise_bounds)
     else:
-        values = {n: np.full(kx_all.size, v) for n, v in held.items()}
-        values.update({"k_xf": kx_all, "k_thetaM": kt_all, "g_xf": np.zeros(kx_all.size),
-                       "g_thetaM": np.zeros(kx_all.size)})
         # one configuration per observation in ``sub``, so the per-configuration sums are the per-measurement ones
         q = forward.grid_sums(values, log_kx.size, log_kt.size, d, np.concatenate(weight))
         if q is not None:
@@ -147,22 +155,14 @@ def _length_maps(likelihood: FRFLikelihood, log_kx: np.ndarray, log_kt: np.ndarr
     return groups
 
 
-def _exact_sums(forward, kx_all, kt_all, held, d, coherence, slices, eps2: float, noise_bounds,
-                chunk_sets: int) -> np.ndarray:
-    """The likelihood's own log-likelihood per grid point and measurement, noise scales profiled: (n_points, n_meas).
-
-    Per measurement ``j`` with model variance ``v_n = (|H_n|^2 + eps2 max_band |H|^2) / gamma_n`` ((m/N)^2, as
-    :class:`.likelihood.FRFLikelihood`) and ``Q_j = sum_n |r_n|^2 / v_n``, the log-likelihood
-    ``-Q_j / s^2 - N_j ln s^2 - sum_n ln v_n`` (constants dropped) at ``s^2 = Q_j / N_j`` clipped to
-    ``[lo_j^2, hi_j^2]``.  Unlike the data-weighted sums this keeps the ``ln v_n`` term and the model's weights,
-    which matter once the noise is comparable with the signal (the measured ``|H|`` is then no proxy for the
-    model's).
-    """
+def _chunked_profile_sums(forward, kx_all, kt_all, held, d, coherence, slices, eps2: float,
+                          chunk_sets: int) -> tuple[np.ndarray, np.ndarray]:
+    """``Q = sum |r|^2 / v`` and ``L = sum ln v`` per grid point and measurement through the full forward model,
+    chunk by chunk, (n_points, n_meas) each: the exact grid where :meth:`.ForwardModel.grid_profile_sums` does
+    not apply (a structural or FRF model term is active)."""
     n_meas = len(slices)
-    lo2 = np.array([b[0] for b in noise_bounds], dtype=float) ** 2
-    hi2 = np.array([b[1] for b in noise_bounds], dtype=float) ** 2
-    n_per = np.array([sl.stop - sl.start for sl in slices], dtype=float)
-    out = np.empty((kx_all.size, n_meas))
+    q = np.empty((kx_all.size, n_meas))
+    lv = np.empty((kx_all.size, n_meas))
     for a in range(0, kx_all.size, chunk_sets):
         kx = kx_all[a : a + chunk_sets]
         values = {n: np.full(kx.size, v) for n, v in held.items()}
@@ -171,12 +171,29 @@ def _exact_sums(forward, kx_all, kt_all, held, d, coherence, slices, eps2: float
         h = forward.frf(values)  # (chunk, n_lines) complex m/N
         v_all = noise_variance(h.real**2 + h.imag**2, coherence, eps2, slices)
         r2 = np.abs(h - d) ** 2
-        for j, sl in enumerate(slices):
-            v = v_all[:, sl]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                q = np.sum(r2[:, sl] / v, axis=1)
-                s2 = np.clip(q / n_per[j], lo2[j], hi2[j])
-                out[a : a + chunk_sets, j] = -q / s2 - n_per[j] * np.log(s2) - np.sum(np.log(v), axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for j, sl in enumerate(slices):
+                v = v_all[:, sl]
+                q[a : a + chunk_sets, j] = np.sum(r2[:, sl] / v, axis=1)
+                lv[a : a + chunk_sets, j] = np.sum(np.log(v), axis=1)
+    return q, lv
+
+
+def _profile_log_likelihood(q: np.ndarray, lv: np.ndarray, n_per: np.ndarray, noise_bounds) -> np.ndarray:
+    """The likelihood's own log-likelihood per grid point and measurement, noise scales profiled: (n_points, n_meas).
+
+    Per measurement ``j`` with model variance ``v_n = (|H_n|^2 + eps2 max_band |H|^2) / gamma_n`` ((m/N)^2, as
+    :class:`.likelihood.FRFLikelihood`), ``Q_j = sum_n |r_n|^2 / v_n`` and ``L_j = sum_n ln v_n``: the
+    log-likelihood ``-Q_j / s^2 - N_j ln s^2 - L_j`` (constants dropped) at ``s^2 = Q_j / N_j`` clipped to
+    ``[lo_j^2, hi_j^2]``.  Unlike the data-weighted sums this keeps the ``ln v_n`` term and the model's weights,
+    which matter once the noise is comparable with the signal (the measured ``|H|`` is then no proxy for the
+    model's).  Non-finite values (a zero variance) rank as ``-inf``.
+    """
+    lo2 = np.array([b[0] for b in noise_bounds], dtype=float) ** 2
+    hi2 = np.array([b[1] for b in noise_bounds], dtype=float) ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s2 = np.clip(q / n_per, lo2, hi2)
+        out = -q / s2 - n_per * np.log(s2) - lv
     return np.where(np.isfinite(out), out, -np.inf)
 
 

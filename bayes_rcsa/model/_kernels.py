@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["grid_sums_kernel", "pack_coefficients", "tool_point_kernel", "tool_point_kernel_batched", "tool_point_kernel_tip",
+__all__ = ["grid_profile_kernel", "grid_sums_kernel", "pack_coefficients", "tool_point_kernel", "tool_point_kernel_batched", "tool_point_kernel_tip",
            "tip_coefficients"]
 
 _ORDER = ("t22", "e00", "e11", "g", "p", "q", "r")
@@ -68,24 +68,42 @@ def _jit():
     return _JIT
 
 
+def _inputs(*arrays):
+    """Every input array writeable and C-contiguous (copied where not).
+
+    Numba compiles one machine-code version per argument type, and a read-only or strided array is another
+    type: each such call site cost a second compilation of about a second (several per kernel in a fresh
+    install or a clean CI checkout, where nothing is cached yet).  The copies are of inputs only, never of
+    the ``out`` arrays the kernels fill.
+    """
+    return [a if a.flags.writeable and a.flags.c_contiguous else np.array(a, order="C") for a in arrays]
+
+
 def tool_point_kernel(kx, kt, cx, ct, hx, ht, starts, omega, C, out) -> None:
     """Fill ``out`` (n_sets, n_lines) complex with the tool-point receptance (compiled; see
     :func:`._kernels_jit.tool_point_kernel` for the shapes)."""
-    (_JIT or _jit()).tool_point_kernel(kx, kt, cx, ct, hx, ht, starts, omega, C, out)
+    (_JIT or _jit()).tool_point_kernel(*_inputs(kx, kt, cx, ct, hx, ht, starts, omega, C), out)
 
 
 def tool_point_kernel_batched(kx, kt, cx, ct, hx, ht, starts, omega, CB, out) -> None:
     """:func:`tool_point_kernel` with coefficients per parameter set, ``CB`` (B, 14, n_lines), B = 1 or n_sets."""
-    (_JIT or _jit()).tool_point_kernel_batched(kx, kt, cx, ct, hx, ht, starts, omega, CB, out)
+    (_JIT or _jit()).tool_point_kernel_batched(*_inputs(kx, kt, cx, ct, hx, ht, starts, omega, CB), out)
 
 
 def tool_point_kernel_tip(kx, kt, cx, ct, hx, ht, starts, omega, C, Z, out) -> None:
     """Tool-point receptance with a diagonal dynamic stiffness ``Z`` attached at the tool tip (compiled; see
     :func:`._kernels_jit.tool_point_kernel_tip`)."""
-    (_JIT or _jit()).tool_point_kernel_tip(kx, kt, cx, ct, hx, ht, starts, omega, C, Z, out)
+    (_JIT or _jit()).tool_point_kernel_tip(*_inputs(kx, kt, cx, ct, hx, ht, starts, omega, C, Z), out)
 
 
 def grid_sums_kernel(kx, cx, hx, kt, ct, ht, starts, omega, C, d, w, q) -> None:
     """Weighted squared residual sums on a separable contact grid, ``q`` (n_x, n_t, n_configs) (compiled; see
     :func:`._kernels_jit.grid_sums_kernel`)."""
-    (_JIT or _jit()).grid_sums_kernel(kx, cx, hx, kt, ct, ht, starts, omega, C, d, w, q)
+    (_JIT or _jit()).grid_sums_kernel(*_inputs(kx, cx, hx, kt, ct, ht, starts, omega, C, d, w), q)
+
+
+def grid_profile_kernel(kx, cx, hx, kt, ct, ht, starts, omega, C, d, coherence, eps2, q, lv) -> None:
+    """The likelihood's ``sum |h - d|^2 / v`` and ``sum ln v`` per configuration on a separable contact grid
+    (compiled; see :func:`._kernels_jit.grid_profile_kernel`)."""
+    (_JIT or _jit()).grid_profile_kernel(*_inputs(kx, cx, hx, kt, ct, ht, starts, omega, C, d, coherence), float(eps2),
+                                         q, lv)

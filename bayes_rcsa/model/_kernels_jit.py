@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["grid_sums_kernel", "tool_point_kernel", "tool_point_kernel_batched", "tool_point_kernel_tip"]
+__all__ = ["grid_profile_kernel", "grid_sums_kernel", "tool_point_kernel", "tool_point_kernel_batched", "tool_point_kernel_tip"]
 
 @njit(cache=True, fastmath=False, nogil=True, inline="always")
 def _fill_set(kx, kt, cx, ct, hx, ht, starts, omega, C, out, s):  # pragma: no cover - compiled
@@ -127,6 +127,43 @@ def tool_point_kernel_tip(kx, kt, cx, ct, hx, ht, starts, omega, C, Z, out):  # 
                                     (num.imag * den.real - num.real * den.imag) * inv)
 
 
+@njit(cache=True, fastmath=False, nogil=True, inline="always")
+def _row_terms(kx, cx, hx, a, starts, omega, C, m):  # pragma: no cover - compiled
+    """The per-line Moebius coefficients of grid row ``a`` (the work that depends on ``Kx`` alone), into ``m``
+    (8, n_lines): rows ``n0, n1, d0, d1`` as (real, imaginary) pairs (see :func:`grid_sums_kernel`)."""
+    for c in range(kx.shape[1]):
+        kxr = kx[a, c]
+        for j in range(starts[c], starts[c + 1]):
+            kxi = omega[j] * cx[a, c] + hx[a, c]
+            axr = C[2, j] * kxr - C[3, j] * kxi + 1.0  # e00 Kx + 1
+            axi = C[2, j] * kxi + C[3, j] * kxr
+            pkr = C[8, j] * kxr - C[9, j] * kxi  # p Kx
+            pki = C[8, j] * kxi + C[9, j] * kxr
+            m[0, j] = pkr
+            m[1, j] = pki
+            # n1 = p Kx e11 + q (e00 Kx + 1) - r Kx
+            m[2, j] = (pkr * C[4, j] - pki * C[5, j]) + (C[10, j] * axr - C[11, j] * axi) \
+                - (C[12, j] * kxr - C[13, j] * kxi)
+            m[3, j] = (pkr * C[5, j] + pki * C[4, j]) + (C[10, j] * axi + C[11, j] * axr) \
+                - (C[12, j] * kxi + C[13, j] * kxr)
+            m[4, j] = axr
+            m[5, j] = axi
+            # d1 = (e00 Kx + 1) e11 - g Kx
+            m[6, j] = (axr * C[4, j] - axi * C[5, j]) - (C[6, j] * kxr - C[7, j] * kxi)
+            m[7, j] = (axr * C[5, j] + axi * C[4, j]) - (C[6, j] * kxi + C[7, j] * kxr)
+
+
+@njit(cache=True, fastmath=False, nogil=True, inline="always")
+def _moebius(m, j, ktr, kti):  # pragma: no cover - compiled
+    """``(n0 + n1 Kt) / (d0 + d1 Kt)`` on line ``j`` (real, imaginary) from :func:`_row_terms`'s ``m``."""
+    numr = m[0, j] + m[2, j] * ktr - m[3, j] * kti
+    numi = m[1, j] + m[2, j] * kti + m[3, j] * ktr
+    denr = m[4, j] + m[6, j] * ktr - m[7, j] * kti
+    deni = m[5, j] + m[6, j] * kti + m[7, j] * ktr
+    inv = 1.0 / (denr * denr + deni * deni)
+    return (numr * denr + numi * deni) * inv, (numi * denr - numr * deni) * inv
+
+
 @njit(cache=True, fastmath=False, nogil=True)
 def grid_sums_kernel(kx, cx, hx, kt, ct, ht, starts, omega, C, d, w, q):  # pragma: no cover - compiled
     """Weighted squared residual sums on a separable contact grid, without forming the FRFs.
@@ -152,35 +189,9 @@ def grid_sums_kernel(kx, cx, hx, kt, ct, ht, starts, omega, C, d, w, q):  # prag
     n_x, n_cfg = kx.shape
     n_t = kt.shape[0]
     n_lines = omega.size
-    n0r = np.empty(n_lines)
-    n0i = np.empty(n_lines)
-    n1r = np.empty(n_lines)
-    n1i = np.empty(n_lines)
-    d0r = np.empty(n_lines)
-    d0i = np.empty(n_lines)
-    d1r = np.empty(n_lines)
-    d1i = np.empty(n_lines)
+    m = np.empty((8, n_lines))
     for a in range(n_x):
-        for c in range(n_cfg):
-            kxr = kx[a, c]
-            for j in range(starts[c], starts[c + 1]):
-                kxi = omega[j] * cx[a, c] + hx[a, c]
-                axr = C[2, j] * kxr - C[3, j] * kxi + 1.0  # e00 Kx + 1
-                axi = C[2, j] * kxi + C[3, j] * kxr
-                pkr = C[8, j] * kxr - C[9, j] * kxi  # p Kx
-                pki = C[8, j] * kxi + C[9, j] * kxr
-                n0r[j] = pkr
-                n0i[j] = pki
-                # n1 = p Kx e11 + q (e00 Kx + 1) - r Kx
-                n1r[j] = (pkr * C[4, j] - pki * C[5, j]) + (C[10, j] * axr - C[11, j] * axi) \
-                    - (C[12, j] * kxr - C[13, j] * kxi)
-                n1i[j] = (pkr * C[5, j] + pki * C[4, j]) + (C[10, j] * axi + C[11, j] * axr) \
-                    - (C[12, j] * kxi + C[13, j] * kxr)
-                d0r[j] = axr
-                d0i[j] = axi
-                # d1 = (e00 Kx + 1) e11 - g Kx
-                d1r[j] = (axr * C[4, j] - axi * C[5, j]) - (C[6, j] * kxr - C[7, j] * kxi)
-                d1i[j] = (axr * C[5, j] + axi * C[4, j]) - (C[6, j] * kxi + C[7, j] * kxr)
+        _row_terms(kx, cx, hx, a, starts, omega, C, m)
         for b in range(n_t):
             for c in range(n_cfg):
                 ktr = kt[b, c]
@@ -188,13 +199,62 @@ def grid_sums_kernel(kx, cx, hx, kt, ct, ht, starts, omega, C, d, w, q):  # prag
                 hts = ht[b, c]
                 acc = 0.0
                 for j in range(starts[c], starts[c + 1]):
-                    kti = omega[j] * cts + hts
-                    numr = n0r[j] + n1r[j] * ktr - n1i[j] * kti
-                    numi = n0i[j] + n1r[j] * kti + n1i[j] * ktr
-                    denr = d0r[j] + d1r[j] * ktr - d1i[j] * kti
-                    deni = d0i[j] + d1r[j] * kti + d1i[j] * ktr
-                    inv = 1.0 / (denr * denr + deni * deni)
-                    rr = C[0, j] - d[0, j] - (numr * denr + numi * deni) * inv
-                    ri = C[1, j] - d[1, j] - (numi * denr - numr * deni) * inv
+                    xr, xi = _moebius(m, j, ktr, omega[j] * cts + hts)
+                    rr = C[0, j] - d[0, j] - xr
+                    ri = C[1, j] - d[1, j] - xi
                     acc += w[j] * (rr * rr + ri * ri)
                 q[a, b, c] = acc
+
+
+@njit(cache=True, fastmath=False, nogil=True, error_model="numpy")
+def grid_profile_kernel(kx, cx, hx, kt, ct, ht, starts, omega, C, d, coherence, eps2, q, lv):  # pragma: no cover
+    """The likelihood's own sums on a separable contact grid: ``q = sum |h - d|^2 / v`` and ``lv = sum ln v``.
+
+    ``v_n = (|h_n|^2 + eps2 max_config |h|^2) / coherence_n`` is the noise model's variance
+    (:func:`bayes_rcsa.inference.likelihood.noise_variance`, one configuration per measurement), so each
+    grid point needs its configuration's band maximum first: the lines' ``|h|^2`` and ``|h - d|^2`` are kept
+    in two scratch rows and summed in a second pass.  The Moebius rearrangement is the one of
+    :func:`grid_sums_kernel`.  ``error_model="numpy"``: a zero variance gives inf/nan (ranked -inf by the
+    caller), as numpy does, instead of raising.
+
+    Parameters
+    ----------
+    kx, cx, hx, kt, ct, ht, starts, omega, C, d : as :func:`grid_sums_kernel`
+    coherence : (n_lines,) float in (0, 1]
+    eps2 : float, the squared relative noise floor
+    q, lv : (n_x, n_t, n_configs) float64, filled
+    """
+    n_x, n_cfg = kx.shape
+    n_t = kt.shape[0]
+    n_lines = omega.size
+    m = np.empty((8, n_lines))
+    a2 = np.empty(n_lines)
+    r2 = np.empty(n_lines)
+    for a in range(n_x):
+        _row_terms(kx, cx, hx, a, starts, omega, C, m)
+        for b in range(n_t):
+            for c in range(n_cfg):
+                ktr = kt[b, c]
+                cts = ct[b, c]
+                hts = ht[b, c]
+                peak = 0.0
+                for j in range(starts[c], starts[c + 1]):
+                    xr, xi = _moebius(m, j, ktr, omega[j] * cts + hts)
+                    hr = C[0, j] - xr
+                    hi = C[1, j] - xi
+                    h2 = hr * hr + hi * hi
+                    a2[j] = h2
+                    if h2 > peak:
+                        peak = h2
+                    rr = hr - d[0, j]
+                    ri = hi - d[1, j]
+                    r2[j] = rr * rr + ri * ri
+                floor = eps2 * peak
+                acc_q = 0.0
+                acc_l = 0.0
+                for j in range(starts[c], starts[c + 1]):
+                    v = (a2[j] + floor) / coherence[j]
+                    acc_q += r2[j] / v
+                    acc_l += np.log(v)
+                q[a, b, c] = acc_q
+                lv[a, b, c] = acc_l

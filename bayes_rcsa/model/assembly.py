@@ -28,7 +28,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..errors import SetupError
-from ._kernels import (grid_sums_kernel, pack_coefficients, tip_coefficients, tool_point_kernel,
+from ._kernels import (grid_profile_kernel, grid_sums_kernel, pack_coefficients, tip_coefficients, tool_point_kernel,
                        tool_point_kernel_batched, tool_point_kernel_tip)
 from .coupling import attach, contact_compliance
 from .geometry import Holder, Tool, holder_segments, tool_overhang_segments
@@ -377,6 +377,42 @@ class ConfigurationStack:
         -------
         (n_x, n_t, n_configs) float
         """
+        rows, columns, d = self._grid_inputs(rows, columns, data)
+        q = np.empty((rows[0].shape[0], columns[0].shape[0], len(self.caches)))
+        grid_sums_kernel(*rows, *columns, self._starts, self.omega, self._packed, d,
+                         np.ascontiguousarray(weight, dtype=float), q)
+        return q
+
+    def grid_profile_sums(self, rows: Sequence[np.ndarray], columns: Sequence[np.ndarray], data: np.ndarray,
+                          coherence: np.ndarray, eps2: float) -> tuple[np.ndarray, np.ndarray]:
+        """The likelihood's own sums per configuration on a grid of contacts, without forming ``H``.
+
+        With the noise model's variance ``v_n = (|H_n|^2 + eps2 max_config |H|^2) / coherence_n``
+        (:func:`bayes_rcsa.inference.likelihood.noise_variance`, each configuration one measurement):
+        ``Q = sum_lines |H - data|^2 / v`` and ``L = sum_lines ln v``, the two sums of the log-likelihood
+        with its noise scale profiled out.  Same arithmetic as :meth:`grid_sums`; the band maximum
+        needs a second pass over each configuration's lines.
+
+        Parameters
+        ----------
+        rows, columns, data : as :meth:`grid_sums`
+        coherence : (n_lines,) float in (0, 1]
+        eps2 : float, squared relative noise floor
+
+        Returns
+        -------
+        Q, L : (n_x, n_t, n_configs) float
+            ``Q`` dimensionless, ``L`` the sum of ``ln v`` with ``v`` in (m/N)^2.
+        """
+        rows, columns, d = self._grid_inputs(rows, columns, data)
+        shape = (rows[0].shape[0], columns[0].shape[0], len(self.caches))
+        q, lv = np.empty(shape), np.empty(shape)
+        grid_profile_kernel(*rows, *columns, self._starts, self.omega, self._packed, d,
+                            np.ascontiguousarray(coherence, dtype=float), float(eps2), q, lv)
+        return q, lv
+
+    def _grid_inputs(self, rows, columns, data):
+        """Contiguous (n, n_configs) rows and columns and the data's (2, n_lines) real/imaginary parts."""
         n_cfg = len(self.caches)
         rows = [np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), np.shape(rows[0]))) for v in rows]
         columns = [np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), np.shape(columns[0])))
@@ -384,10 +420,7 @@ class ConfigurationStack:
         if rows[0].ndim != 2 or rows[0].shape[1] != n_cfg or columns[0].ndim != 2 or columns[0].shape[1] != n_cfg:
             raise ValueError(f"grid rows and columns must be (n, {n_cfg}), got {rows[0].shape} and {columns[0].shape}")
         d = np.ascontiguousarray(np.stack([np.real(data), np.imag(data)]), dtype=float)
-        q = np.empty((rows[0].shape[0], columns[0].shape[0], n_cfg))
-        grid_sums_kernel(*rows, *columns, self._starts, self.omega, self._packed, d,
-                         np.ascontiguousarray(weight, dtype=float), q)
-        return q
+        return rows, columns, d
 
     def frf_numpy(self, k_xf, k_thetaM, c_xf=0.0, c_thetaM=0.0, h_xf=0.0, h_thetaM=0.0) -> np.ndarray:
         """Same as :meth:`frf` with plain numpy array operations (reference path)."""

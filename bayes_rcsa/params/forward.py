@@ -169,6 +169,33 @@ class ForwardModel:
             translational joint depend on the column or the rotational joint
             on the row; then evaluate with :meth:`frf`.
         """
+        grid = self._separable_grid(values, n_x, n_t)
+        return None if grid is None else self.stack.grid_sums(*grid, data, weight)
+
+    def grid_profile_sums(self, values: Mapping[str, np.ndarray], n_x: int, n_t: int, data: np.ndarray,
+                          coherence: np.ndarray, eps2: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """The likelihood's ``sum |H - data|^2 / v`` and ``sum ln v`` per configuration on a contact grid, or None.
+
+        :meth:`grid_sums` with the noise model's variance ``v`` of the *model* FRF in place of fixed weights
+        (:meth:`ConfigurationStack.grid_profile_sums`): the exact grid search's evaluation.  None under the
+        same conditions as :meth:`grid_sums`.
+
+        Parameters
+        ----------
+        values, n_x, n_t, data : as :meth:`grid_sums`
+        coherence : (n_lines,) float in (0, 1]
+        eps2 : float, squared relative noise floor
+
+        Returns
+        -------
+        (Q, L), each (n_x, n_t, n_configs) float, or None
+        """
+        grid = self._separable_grid(values, n_x, n_t)
+        return None if grid is None else self.stack.grid_profile_sums(*grid, data, coherence, eps2)
+
+    def _separable_grid(self, values: Mapping[str, np.ndarray], n_x: int, n_t: int):
+        """(rows, columns) of a contact grid for the stack's grid kernels, or None where the FRF is not the plain
+        joint formula or the joints are not separable (see :meth:`grid_sums`)."""
         if self._spindle_terms or self._substructure_terms or self._frf_terms:
             return None
         contact = self.contact(values)
@@ -182,7 +209,7 @@ class ForwardModel:
         if not (all(np.all(g == r[:, None, :]) for g, r in zip(grids[:3], rows))
                 and all(np.all(g == c[None, :, :]) for g, c in zip(grids[3:], columns))):
             return None
-        return self.stack.grid_sums(rows, columns, data, weight)
+        return rows, columns
 
     def frf_theta(self, theta: np.ndarray, spindle_sample: np.ndarray | None = None) -> np.ndarray:
         """:meth:`frf` for sampling coordinates ``theta`` (n, ndim)."""

@@ -450,10 +450,13 @@ def _apply(steps: _Steps, V: np.ndarray) -> np.ndarray:
     hd = np.stack([H for H, _, _ in disc.groups])
     lag_r = np.array([r for _, r, _ in disc.groups], dtype=np.int64)
     lag_f = np.array([f for _, _, f in disc.groups], dtype=float)
-    return apply_monodromy(steps.P, np.ascontiguousarray(steps.ga), np.ascontiguousarray(steps.gb), steps.minv,
-                           np.ascontiguousarray(steps.weight), np.ascontiguousarray(steps.depth, dtype=float),
-                           np.ascontiguousarray(disc.h_current), hd, lag_r, lag_f, steps.nx, disc.L,
-                           np.ascontiguousarray(V, dtype=float))
+    # writeable C-contiguous arrays only: numba compiles another version for every read-only or strided
+    # argument (about a second each on a fresh install)
+    def c(a):
+        return np.require(a, float, ("C", "W"))
+
+    return apply_monodromy(c(steps.P), c(steps.ga), c(steps.gb), c(steps.minv), c(steps.weight), c(steps.depth),
+                           c(disc.h_current), c(hd), lag_r, lag_f, steps.nx, disc.L, c(V))
 
 
 def _explicit(steps: _Steps) -> np.ndarray:
