@@ -35,10 +35,15 @@ def png_data_uri(path) -> str:
 
 
 def figure_data_uri(fig, dpi: int = 90) -> str:
-    """Render a matplotlib figure (from :func:`bayes_rcsa.io.figures.new_figure`, no pyplot state) to a PNG data
-    URI."""
+    """Render a matplotlib figure (from :func:`bayes_rcsa.io.figures.new_figure`, no pyplot state, laid out by
+    :func:`bayes_rcsa.io.figures.finish`) to a PNG data URI.
+
+    Saved as laid out, like the package's PNG files: ``bbox_inches="tight"`` would draw every figure once more
+    only to trim the few pixels of margin ``finish``'s tight layout leaves (measured: the demo report's 16
+    figures 10.4 s -> 6.7 s to build).
+    """
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
+    fig.savefig(buf, format="png", dpi=dpi)
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
