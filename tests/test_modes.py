@@ -363,17 +363,21 @@ def _bias_coverage(correct, departure_sd, seed, n_rep=1500, lengths=(0.025, 0.03
     f_model = 1000.0 + 200.0 * (x - 0.025) / 0.015
     kern = departure_sd**2 * np.exp(-0.5 * ((x[:, None] - x[None, :]) / 0.0075) ** 2) + 1e-12 * np.eye(x.size)
     chol = np.linalg.cholesky(kern)
+    # what every replicate shares, made once (the correction reads the draws, never writes them); the random
+    # draws below come in the same order as ever
+    is_fitted = [bool(np.isclose(l, fitted).any()) for l in x]
+    model_draws = [np.full((n_draws, 1), f) for f in f_model]
     hits = {True: [0, 0], False: [0, 0]}
     for _ in range(n_rep):
         truth = f_model + rng.normal(0.0, 5.0) + chol @ rng.standard_normal(x.size)
         measured = truth + noise_sd * rng.standard_normal(x.size)
         meas, draws = [], []
-        for i, l in enumerate(x):
+        for i, l in enumerate(x.tolist()):
             q = {"q05": 0.0, "q50": 0.0, "q95": 0.0}
-            meas.append({"fitted": bool(np.isclose(l, fitted).any()), "direction": "x", "clamping_length": float(l),
+            meas.append({"fitted": is_fitted[i], "direction": "x", "clamping_length": l,
                          "modes": [{"measured_hz": float(measured[i]), "model_hz": float(f_model[i]),
                                     "error_pct": 0.0, "model_interval": q, "predictive_interval": q}]})
-            fd = np.full((n_draws, 1), f_model[i])
+            fd = model_draws[i]
             draws.append((fd, fd + noise_sd * rng.standard_normal((n_draws, 1))))
         correct(meas, draws, rng)
         for i, m in enumerate(meas):
