@@ -276,7 +276,7 @@ def _oracle(term, model, receptance, true_block, upper: bool):
                    np.linalg.norm(b[:, 1, 1] - p_true) / np.linalg.norm(p_true))
 
 
-def test_modes_above_the_file_carry_the_rotation_of_a_spindle_on_tilting_bearings(tmp_path):
+def test_modes_above_the_file_carry_the_rotation_of_a_spindle_on_tilting_bearings(tmp_path, bench):
     """The independent rotor bench (three bearing sets with rotational stiffness, written without this term's code):
     most of its flange rotation is the static flexibility of modes above the file band, which in-band slopes
     alone cannot give; the project's bench, whose rotation comes from its in-band modes, needs little of it."""
@@ -304,10 +304,8 @@ def test_modes_above_the_file_carry_the_rotation_of_a_spindle_on_tilting_bearing
     coef_p = np.linalg.lstsq(np.vstack([cols.real, cols.imag]), np.r_[true[:, 1, 1].real, true[:, 1, 1].imag],
                              rcond=None)[0][:-1]
     np.testing.assert_allclose(np.sqrt(coef_p), np.abs(x_up[:-2]), rtol=0.25)
-    # the project's bench: the upper part barely helps, and its compliance stays small
-    fe_cfg, fe_model = default_bench_config(hidden_effects={"spindle_rotation_omitted": 1.0}, frequency_step=STEP), None
-    fe_path = write_campaign(generate_campaign(fe_cfg, np.random.default_rng(0)), tmp_path / "fe")
-    fe_model = load_setup(fe_path).model()
+    # the project's bench (the module's campaign): the upper part barely helps, and its compliance stays small
+    fe_cfg, fe_model = bench
     fr = fe_model.spindle_receptance("x")
     fe_true = true_spindle_receptance(fe_cfg, "x", fr.frequency_hz).block
     _, e_in = _oracle(term, fe_model, fr, fe_true, upper=False)
