@@ -91,7 +91,8 @@ def test_identify_with_the_library_one_tap_and_zero_taps_feed_predict_and_lobes(
         assert dom and all(math.isfinite(p["q50_hz"]) for p in dom)
         assert main(["lobes", str(setup), "--posterior", str(d / "posterior.nc"), "--clamping-length", "0.030",
                      "--draws", "4", "--flutes", "4", "--kt", "790e6", "--kr", "230e6", "--immersion", "0.95",
-                     "--speeds", "5000:30000:12", "--depth-points", "12", "--out", str(d / "lobes")]) == 0
+                     "--speeds", "5000:30000:12", "--depth-points", "12", "--out", str(d / "lobes"),
+                     "--no-plots"]) == 0  # lobes.png is not read (shrinkage.png below is)
         assert json.loads((d / "lobes" / "lobes.json").read_text())["depth_limits_m"]
 
 
@@ -160,9 +161,11 @@ def test_stage1_on_the_process_pool_and_the_library_reuses_it(tiny_library, tmp_
 
     # This test is about stage 1 (the process pool, reuse), not stage 2's convergence: with its default rule
     # stage 2 and its two leave-one-out refits take ~60 s per library run here (tau ~140 steps in 8 dimensions, 7,500-
-    # 8,250 steps each), so the leave-one-out refits get a 300-step cap, and stage 2 too (the first run through the
-    # command's --max-steps, which overrides this default)
-    short = Stage2Settings(n_burn=100, ess_target=150, chunk=150, max_steps=300)
+    # 8,250 steps each), so the leave-one-out refits get a 100-step cap after 50 of burn-in, and stage 2 too (the first
+    # run through the command's --max-steps, which overrides this default).  Nothing asserted here depends on those
+    # chains' length: the setups' ESS is an importance ESS (at least 1 for finite weights), the weak-fit warning counts
+    # combinations.  (300-step caps after 100 of burn-in made these chains about a third of the test.)
+    short = Stage2Settings(n_burn=50, ess_target=150, chunk=100, max_steps=100)
     monkeypatch.setattr(workflow, "fit_library", functools.partial(workflow.fit_library, settings=short))
     monkeypatch.setattr(workflow, "loo_p_values", functools.partial(workflow.loo_p_values, settings=short))
     jobs = load_manifest(tiny_library)
@@ -203,9 +206,13 @@ def test_library_outputs_and_the_report_section(tmp_path):
         z = np.array([7.0 + 1.5 * math.log(dia / 0.01), 0.25]) + 0.05 * rng.standard_normal(2)
         setups.append(SetupDraws(f"c{i}", ("ER32", "HSK")[i % 2], dia, z + 0.01 * rng.standard_normal((300, 2)),
                                  np.zeros(2), np.zeros((2, 2)), box))
-    # a step cap (the outputs are under test, not stage 2's convergence; the default rule takes ~8,000 steps here)
+    # a step cap (the outputs are under test, not stage 2's convergence; the default rule takes ~8,000 steps here):
+    # 150 steps after 100 of burn-in (was 300 after 150; the fit's CPU 3.2 -> 2.4 s).  On the test's generator and seeds
+    # 50-52 the ER32 law's 90 % interval at 10 mm runs from 0.066-0.077 decade below 10^7 to 0.084-0.094 above with
+    # either cap, the spreads' level from 0.027-0.030 to 0.16-0.19 decade around the 0.05 asked below
+    steps = 150
     fit = fit_library(Stage1(names, setups, (0.025, 0.040, 0.5), box, []), rng,
-                      Stage2Settings(n_burn=150, ess_target=150, chunk=150, max_steps=300), outliers=False)
+                      Stage2Settings(n_burn=100, ess_target=150, chunk=150, max_steps=steps), outliers=False)
     paths = write_library(tmp_path / "lib", fit)
     assert {p.name for p in paths.values()} == {"population.nc", "laws.json", "laws.csv", "library.json",
                                                "shrinkage.png"}
@@ -222,12 +229,12 @@ def test_library_outputs_and_the_report_section(tmp_path):
     q = fit.stage2.fit.quality
     for row in doc["stage2"].values():
         assert row["rhat_max"] == pytest.approx(np.max(q.rhat)) and row["ess_bulk_min"] == pytest.approx(np.min(q.ess_bulk))
-        # 300 steps cannot measure tau (50 tau): the ESS is unknown, not the bulk ESS of so short a chain
+        # 150 steps cannot measure tau (50 tau): the ESS is unknown, not the bulk ESS of so short a chain
         assert not q.tau_measured and row["ess"] is None and row["converged"] is False and row["tau_measured"] is False
-        assert row["steps"] == 300 and row["ess_tail_min"] > 0 and row["autocorrelation_steps"] > 0
+        assert row["steps"] == steps and row["ess_tail_min"] > 0 and row["autocorrelation_steps"] > 0
     assert doc["pooling"]["stage2_rhat_max"] == pytest.approx(np.max(q.rhat))
-    assert doc["pooling"]["stage2_ess"] is None and doc["pooling"]["stage2_steps"] == 300
-    assert any("stage 2 stopped at max_steps = 300 unconverged" in w for w in doc["warnings"])
+    assert doc["pooling"]["stage2_ess"] is None and doc["pooling"]["stage2_steps"] == steps
+    assert any(f"stage 2 stopped at max_steps = {steps} unconverged" in w for w in doc["warnings"])
     html = write_report_html([tmp_path / "lib"], tmp_path / "report.html").read_text()
     assert "Tool library: the contact population" in html and html.count("<td>ER32</td><td>contact stiffness, translational (kxf)</td>") == 1
     assert "shrinkage: own vs pooled estimates" in html
