@@ -35,7 +35,10 @@ def setup_file(tmp_path_factory):
 @pytest.fixture(scope="module")
 def cli_run(setup_file, tmp_path_factory):
     out = tmp_path_factory.mktemp("cli") / "identify"
-    assert main(["identify", str(setup_file), "--out", str(out), *SMALL_ARGV]) == 0
+    # --no-plots here and plots=False in the save compared with it: the PNGs (trace, corner, frf; 2.1-2.3 s of CPU
+    # a set) are written and checked once, by test_identify_with_out_checkpoints_and_saves_there (the CLI's own
+    # path: identify(out=...) -> Posterior._write, as save)
+    assert main(["identify", str(setup_file), "--out", str(out), *SMALL_ARGV, "--no-plots"]) == 0
     return out
 
 
@@ -64,7 +67,7 @@ def test_identify_returns_what_the_command_line_writes(posterior, cli_run):
 
 def test_save_writes_the_command_line_files_and_load_round_trips(posterior, cli_run, tmp_path):
     out = tmp_path / "saved"
-    posterior.save(out)
+    posterior.save(out, plots=False)  # as the CLI run (--no-plots); the plots: test_identify_with_out_checkpoints...
     assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in cli_run.iterdir() if p.name != "chain.h5")
     back = bayes_rcsa.Posterior.load(out)
     assert back.summary == json.loads(json.dumps(posterior.summary))
@@ -138,8 +141,12 @@ def test_figures_and_notebook_view(posterior):
 
 def test_identify_with_out_checkpoints_and_saves_there(setup_file, tmp_path, cli_run):
     out = tmp_path / "run"
-    post = bayes_rcsa.identify(setup_file, **SMALL, out=out, plots=False)
+    # with plots: the one run of this file that writes the PNGs (what `bayes-rcsa identify --out` writes)
+    post = bayes_rcsa.identify(setup_file, **SMALL, out=out)
     assert post.path == out / "posterior.nc" and (out / "chain.h5").is_file()
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        [p.name for p in cli_run.iterdir()] + ["corner.png", "frf.png", "trace.png"])
+    assert all((out / name).stat().st_size > 0 for name in ("corner.png", "frf.png", "trace.png"))
     assert _without_timing(json.loads((out / "summary.json").read_text())) == \
         _without_timing(json.loads((cli_run / "summary.json").read_text()))
     assert post.summary_line() == f"Bayesian fit over the clamping lengths: NOT converged; results in {out}"

@@ -313,6 +313,8 @@ def _base_lobes(t):
         t.opts[CUT[i]] = CUT[i + 1]
     t.opts["--quiet"] = None
     t.opts["--draws"] = "20"  # the files' '# averages = 5' make it probabilistic; the default 500 cost ~3 s CPU a run
+    # as the other slow commands here: lobes.png was nearly all of a clean run (0.4-1.0 s of CPU; 0.04 s without)
+    t.opts["--no-plots"] = None
     t.opts["--out"] = str(t.root / "out")
 
 
