@@ -127,9 +127,7 @@ def _length_maps(likelihood: FRFLikelihood, log_kx: np.ndarray, log_kt: np.ndarr
     ii, kk = np.meshgrid(np.arange(log_kx.size), np.arange(log_kt.size), indexing="ij")
     kx_all = 10.0 ** log_kx[ii.ravel()]
     kt_all = 10.0 ** log_kt[kk.ravel()]
-    values = {n: np.full(kx_all.size, v) for n, v in held.items()}
-    values.update({"k_xf": kx_all, "k_thetaM": kt_all, "g_xf": np.zeros(kx_all.size),
-                   "g_thetaM": np.zeros(kx_all.size)})
+    values = _grid_values(held, kx_all, kt_all)
     if noise_bounds is not None:
         eps2 = float(likelihood.noise.floor) ** 2
         coh = np.concatenate(coherence)
@@ -155,6 +153,14 @@ def _length_maps(likelihood: FRFLikelihood, log_kx: np.ndarray, log_kt: np.ndarr
     return groups
 
 
+def _grid_values(held: dict[str, float], kx: np.ndarray, kt: np.ndarray) -> dict[str, np.ndarray]:
+    """Physical parameter values of grid points: contact stiffnesses ``kx``, ``kt`` (n,) N/m and N m/rad, no
+    growth, every other parameter at its ``held`` value."""
+    values = {n: np.full(kx.size, v) for n, v in held.items()}
+    values.update({"k_xf": kx, "k_thetaM": kt, "g_xf": np.zeros(kx.size), "g_thetaM": np.zeros(kx.size)})
+    return values
+
+
 def _chunked_profile_sums(forward, kx_all, kt_all, held, d, coherence, slices, eps2: float,
                           chunk_sets: int) -> tuple[np.ndarray, np.ndarray]:
     """``Q = sum |r|^2 / v`` and ``L = sum ln v`` per grid point and measurement through the full forward model,
@@ -165,9 +171,7 @@ def _chunked_profile_sums(forward, kx_all, kt_all, held, d, coherence, slices, e
     lv = np.empty((kx_all.size, n_meas))
     for a in range(0, kx_all.size, chunk_sets):
         kx = kx_all[a : a + chunk_sets]
-        values = {n: np.full(kx.size, v) for n, v in held.items()}
-        values.update({"k_xf": kx, "k_thetaM": kt_all[a : a + chunk_sets],
-                       "g_xf": np.zeros(kx.size), "g_thetaM": np.zeros(kx.size)})
+        values = _grid_values(held, kx, kt_all[a : a + chunk_sets])
         h = forward.frf(values)  # (chunk, n_lines) complex m/N
         v_all = noise_variance(h.real**2 + h.imag**2, coherence, eps2, slices)
         r2 = np.abs(h - d) ** 2
@@ -202,9 +206,7 @@ def _chunked_sums(forward, kx_all, kt_all, held, d, w2, float_slices, chunk_sets
     q = np.empty((kx_all.size, len(float_slices)))
     for a in range(0, kx_all.size, chunk_sets):
         kx = kx_all[a : a + chunk_sets]
-        values = {n: np.full(kx.size, v) for n, v in held.items()}
-        values.update({"k_xf": kx, "k_thetaM": kt_all[a : a + chunk_sets],
-                       "g_xf": np.zeros(kx.size), "g_thetaM": np.zeros(kx.size)})
+        values = _grid_values(held, kx, kt_all[a : a + chunk_sets])
         r = forward.frf(values)
         r -= d
         q[a : a + chunk_sets] = weighted_sums(r, w2, float_slices)
