@@ -55,7 +55,7 @@ def _factor(Ct: np.ndarray, s2: np.ndarray):
     Parameters
     ----------
     Ct : (d, d, n) surrogate covariances, setup axis last
-    s2 : (W, d) population variances per walker
+    s2 : (W, d) population variances per walker, or (W, d, n) per walker and setup
 
     Returns
     -------
@@ -73,7 +73,7 @@ def _factor(Ct: np.ndarray, s2: np.ndarray):
     logdet = 0.0
     with np.errstate(invalid="ignore", divide="ignore"):
         for j in range(d):
-            acc = Ct[j, j][None, :] + s2[:, j][:, None]
+            acc = Ct[j, j][None, :] + (s2[:, j] if s2.ndim == 3 else s2[:, j][:, None])
             for k in range(j):
                 acc = acc - L[j][k] * L[j][k]
             L[j][j] = np.sqrt(acc)
@@ -131,17 +131,90 @@ class Group:
                      self.m[keep], self.C[keep])
 
 
-def _sums(g: Group, s2: np.ndarray):
-    """Per walker: ``S_p = sum_s x^p V^-1`` (p = 0, 1, 2; (W, d, d)), ``g_p = sum_s x^p V^-1 m`` (p = 0, 1;
-    (W, d)), ``q = sum_s m^T V^-1 m`` and ``sum_s ln det V`` ((W,)); NaN where a V is not positive definite."""
-    d, n = g.mT.shape
+class _Layout:
+    """The surrogates of all holder types laid out once for :func:`_linear_system` (what does not depend on the
+    sampled hyperparameters).
+
+    The setups of all types sit side by side (setup axis last), so that the element-by-element Cholesky
+    factors, forward substitutions and inverse factors are one pass over every setup instead of one per type; the
+    per-type sums and the assembly of ``P`` repeat the arithmetic of one type at a time, operation for operation,
+    so the numbers are those of the per-type computation bit for bit (tests/test_library_fastpaths.py).
+    ``S1`` and ``S2`` enter both off-diagonal blocks untransposed, as the per-type computation had them.
+
+    Parameters
+    ----------
+    groups : sequence of Group, one per holder type
+    hyper : Hyperprior
+    """
+
+    def __init__(self, groups, hyper: Hyperprior) -> None:
+        groups = tuple(groups)
+        T, d = len(groups), hyper.ndim
+        K = 2 * d * T + d
+        self.T, self.d, self.K = T, d, K
+        n = [len(g.names) for g in groups]
+        self.edges = np.concatenate([[0], np.cumsum(n)]).astype(int)
+        self.type_of = np.repeat(np.arange(T), n)  # (N,) holder type of each setup
+        self.mT = np.concatenate([g.mT for g in groups], axis=1)  # (d, N)
+        self.Ct = np.concatenate([g.Ct for g in groups], axis=2)  # (d, d, N)
+        self.x = np.concatenate([g.x for g in groups])
+        self.const = [k * d * math.log(2 * math.pi) for k in n]
+        self.mu0 = np.concatenate([np.tile(hyper.a_mean, T), np.zeros(T * d), np.zeros(d)])
+        self.p0 = np.concatenate([np.tile(hyper.a_sd ** -2, T), np.ones(T * d), hyper.b_sd ** -2])
+        self.p0mu0 = self.p0 * self.mu0
+        # flat indices into P (K * K) of the blocks each type writes alone, in the order of the stacked values of
+        # _linear_system: (a, a), (a, delta), (delta, a), (a, b0), (b0, a), (delta, delta), (delta, b0), (b0, delta)
+        j = np.arange(d)
+        blocks = []
+        for t in range(T):
+            ia, idl, ib = t * d + j, T * d + t * d + j, 2 * d * T + j
+            blocks.append([(ia, ia), (ia, idl), (idl, ia), (ia, ib), (ib, ia), (idl, idl), (idl, ib), (ib, idl)])
+        self.flat = np.array([[[(r[:, None] * K + c[None, :]).ravel() for r, c in bt] for bt in blocks]]).reshape(-1)
+        # entries of P that hold a prior precision in the blocks above: P starts as diag(p0) there
+        self.ia_diag = (np.arange(T * d) * (K + 1))
+        self.idl_diag = ((T * d + np.arange(T * d)) * (K + 1))
+        self.ib = slice(2 * d * T, K)
+        for v in (self.edges, self.type_of, self.mT, self.Ct, self.x, self.mu0, self.p0, self.p0mu0, self.flat):
+            v.setflags(write=False)  # handed out to every call (mu0, p0 to the caller): never written
+
+
+def _gram(Ct: np.ndarray, mT: np.ndarray, x: np.ndarray, s2: np.ndarray, edges):
+    """The Gram matrices of the setups between consecutive ``edges``, and ``ln det V`` (W, n) of every setup.
+
+    Parameters
+    ----------
+    Ct : (d, d, n) surrogate covariances; mT : (d, n) means; x : (n,) covariate (setup axis last)
+    s2 : (W, d) population variances, or (W, d, n) per setup
+    edges : sequence of int, the setups ``edges[k]:edges[k + 1]`` form group k
+
+    Returns
+    -------
+    G : list of (W, 2d + 1, 2d + 1), one per group: with ``A[w, s, k] = (row k of L^-1, x_s * row k of L^-1,
+        y_k)`` and ``V^-1 = sum_k Linv[k]^T Linv[k]``, ``G = A^T A`` over (setups of the group, k) holds every
+        sum at once: ``S_p = sum_s x^p V^-1`` (p = 0, 1, 2), ``g_p = sum_s x^p V^-1 m`` (p = 0, 1) and
+        ``q = sum_s m^T V^-1 m``
+    logdet : (W, n)
+    """
+    d, n = mT.shape
     W = s2.shape[0]
-    L, logdet = _factor(g.Ct, s2)
-    y = _forward(L, np.broadcast_to(g.mT[:, None, :], (d, W, n)))
-    # A[w, s, k] = (row k of L^-1, x_s * row k of L^-1, y_k): V^-1 = sum_k Linv[k]^T Linv[k], so one batched
-    # product A^T A over (setups, k) gives every sum at once
+    L, logdet = _factor(Ct, s2)
+    y = _forward(L, np.broadcast_to(mT[:, None, :], (d, W, n)))
+    A = _rows(L, y, x)
+    G = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        # a contiguous copy per group: the same product, in the same memory layout, as a group's own array
+        Ag = np.ascontiguousarray(A[:, lo:hi]).reshape(W, (hi - lo) * d, 2 * d + 1)
+        G.append(np.swapaxes(Ag, 1, 2) @ Ag)  # (W, 2d + 1, 2d + 1)
+    return G, logdet
+
+
+def _rows(L, y, x: np.ndarray) -> np.ndarray:
+    """``A[w, s, k] = (row k of L^-1, x_s * row k of L^-1, y_k)`` (W, n, d, 2d + 1) of the factors of
+    :func:`_factor`, ``y = L^-1 m`` (:func:`_forward`) and the covariate x (n,)."""
+    d = len(L)
+    W, n = y[0].shape
     A = np.zeros((W, n, d, 2 * d + 1))
-    xs = g.x[None, :]
+    xs = x[None, :]
     with np.errstate(invalid="ignore", divide="ignore"):
         Linv = [[None] * d for _ in range(d)]
         for i in range(d):
@@ -155,10 +228,7 @@ def _sums(g: Group, s2: np.ndarray):
                 A[:, :, i, j] = Linv[i][j]
                 A[:, :, i, d + j] = Linv[i][j] * xs
             A[:, :, i, 2 * d] = y[i]
-    A = A.reshape(W, n * d, 2 * d + 1)
-    G = np.swapaxes(A, 1, 2) @ A  # (W, 2d + 1, 2d + 1)
-    S0, S1, S2 = G[:, :d, :d], G[:, :d, d:2 * d], G[:, d:2 * d, d:2 * d]
-    return S0, S1, S2, G[:, :d, 2 * d], G[:, d:2 * d, 2 * d], G[:, 2 * d, 2 * d], np.sum(logdet, axis=1)
+    return A
 
 
 def _split(theta: np.ndarray, T: int, d: int):
@@ -166,42 +236,55 @@ def _split(theta: np.ndarray, T: int, d: int):
     return theta[:, :T * d].reshape(-1, T, d), theta[:, T * d:]
 
 
-def _linear_system(theta: np.ndarray, groups, hyper: Hyperprior):
+def _linear_system(theta: np.ndarray, groups, hyper: Hyperprior, layout: _Layout | None = None):
     """Posterior precision ``P`` (W, K, K), right-hand side ``r`` (W, K) of ``beta`` and the rest of the log
-    marginal likelihood (W,), with ``K = 2 d T + d``; also the prior parts ``(mu0, p0)``."""
-    T, d = len(groups), hyper.ndim
+    marginal likelihood (W,), with ``K = 2 d T + d``; also the prior parts ``(mu0, p0)``.
+
+    ``layout`` (a :class:`_Layout` of ``groups`` and ``hyper``) saves laying the surrogates out on every call."""
+    lay = _Layout(groups, hyper) if layout is None else layout
+    T, d, K = lay.T, lay.d, lay.K
     u, tau_b = _split(theta, T, d)
-    W, K = theta.shape[0], 2 * d * T + d
-    mu0 = np.concatenate([np.tile(hyper.a_mean, T), np.zeros(T * d), np.zeros(d)])
-    p0 = np.concatenate([np.tile(hyper.a_sd ** -2, T), np.ones(T * d), hyper.b_sd ** -2])
-    P = np.zeros((W, K, K))
-    P[:, np.arange(K), np.arange(K)] = p0
-    r = np.broadcast_to(p0 * mu0, (W, K)).copy()
+    W = theta.shape[0]
+    # (W, d, N) variances of every setup: exp of the same numbers as one type at a time
+    s2 = np.exp(2.0 * u)[:, lay.type_of, :].transpose(0, 2, 1)
+    G, logdet = _gram(lay.Ct, lay.mT, lay.x, s2, lay.edges)
+    G = np.stack(G, axis=1)  # (W, T, 2d + 1, 2d + 1)
+    S0, S1, S2 = G[:, :, :d, :d], G[:, :, :d, d:2 * d], G[:, :, d:2 * d, d:2 * d]
+    g0, g1, q = G[:, :, :d, 2 * d], G[:, :, d:2 * d, 2 * d], G[:, :, 2 * d, 2 * d]
+    D = tau_b[:, None, None, :]  # column scaling by tau_b
+    Dr = tau_b[:, None, :, None]  # row scaling
+    S1D = S1 * D
+    # every block a type writes alone (in the order of layout.flat), then the shared (b0, b0) block type by type
+    # (W, T, 8 d, d): the blocks stacked along rows, each (d, d) row-major
+    vals = np.concatenate([S0, S1D, S1D.transpose(0, 1, 3, 2), S1, S1, S2 * D * Dr, S2 * Dr, S2 * D], axis=2)
+    P = np.zeros((W, K * K))
+    P[:, lay.flat] = vals.reshape(W, -1)
+    P[:, lay.ia_diag] += lay.p0[:T * d]
+    P[:, lay.idl_diag] += lay.p0[T * d:2 * T * d]
+    P = P.reshape(W, K, K)
+    ib = lay.ib
+    Pbb = np.broadcast_to(np.diag(lay.p0[ib]), (W, d, d))
+    r = np.broadcast_to(lay.p0mu0, (W, K)).copy()
+    r[:, :T * d] += g0.reshape(W, T * d)
+    r[:, T * d:2 * T * d] += (tau_b[:, None, :] * g1).reshape(W, T * d)
     rest = np.zeros(W)
-    ib = slice(2 * d * T, K)
-    for t, g in enumerate(groups):
-        S0, S1, S2, g0, g1, q, ld = _sums(g, np.exp(2.0 * u[:, t, :]))
-        ia, idl = slice(t * d, (t + 1) * d), slice(T * d + t * d, T * d + (t + 1) * d)
-        D = tau_b[:, None, :]  # column scaling by tau_b
-        P[:, ia, ia] += S0
-        P[:, ia, idl] += S1 * D
-        P[:, idl, ia] += (S1 * D).transpose(0, 2, 1)
-        P[:, ia, ib] += S1
-        P[:, ib, ia] += S1
-        P[:, idl, idl] += S2 * D * tau_b[:, :, None]
-        P[:, idl, ib] += S2 * tau_b[:, :, None]
-        P[:, ib, idl] += S2 * D
-        P[:, ib, ib] += S2
-        r[:, ia] += g0
-        r[:, idl] += tau_b * g1
-        r[:, ib] += g1
-        rest = rest - 0.5 * (q + ld + len(g.names) * d * math.log(2 * math.pi))
-    return P, r, rest, mu0, p0
+    for t in range(T):  # the shared sums in the order of the per-type computation
+        Pbb = Pbb + S2[:, t]
+        r[:, ib] += g1[:, t]
+        ld = np.sum(logdet[:, lay.edges[t]:lay.edges[t + 1]], axis=1)
+        rest = rest - 0.5 * (q[:, t] + ld + lay.const[t])
+    P[:, ib, ib] = Pbb
+    return P, r, rest, lay.mu0, lay.p0
 
 
 def _chol(P: np.ndarray):
     """Batched Cholesky; ``ok`` (W,) marks the walkers whose ``P`` is finite and positive definite."""
     ok = np.all(np.isfinite(P), axis=(1, 2))
+    if np.all(ok):
+        try:  # the common case: every walker's P factors (each matrix is factored on its own either way)
+            return np.linalg.cholesky(P), ok
+        except np.linalg.LinAlgError:
+            pass
     Lp = np.zeros_like(P)
     Lp[:, np.arange(P.shape[1]), np.arange(P.shape[1])] = 1.0
     if np.any(ok):
@@ -216,8 +299,10 @@ def _chol(P: np.ndarray):
     return Lp, ok
 
 
-def log_posterior(theta: np.ndarray, groups, hyper: Hyperprior) -> np.ndarray:
-    """Log posterior (W,) of the sampler coordinates ``(ln sigma_tj, tau_b,j)`` (W, d (T + 1)), beta integrated out."""
+def log_posterior(theta: np.ndarray, groups, hyper: Hyperprior, layout: _Layout | None = None) -> np.ndarray:
+    """Log posterior (W,) of the sampler coordinates ``(ln sigma_tj, tau_b,j)`` (W, d (T + 1)), beta integrated out.
+
+    ``layout``: the groups laid out beforehand (:class:`HyperPosterior` does it once for all its calls)."""
     T, d = len(groups), hyper.ndim
     u, tau_b = _split(theta, T, d)
     lp = hyper.ln_prob_log_sigma(u) + hyper.ln_prob_tau_b(tau_b)
@@ -225,7 +310,7 @@ def log_posterior(theta: np.ndarray, groups, hyper: Hyperprior) -> np.ndarray:
     out = np.full(theta.shape[0], -np.inf)
     if not np.any(ok):
         return out
-    P, r, rest, mu0, p0 = _linear_system(theta[ok], groups, hyper)
+    P, r, rest, mu0, p0 = _linear_system(theta[ok], groups, hyper, layout)
     Lp, good = _chol(P)
     v = np.linalg.solve(Lp, r[..., None])[..., 0] if Lp.shape[0] else r
     diag = np.diagonal(Lp, axis1=1, axis2=2)
@@ -237,9 +322,9 @@ def log_posterior(theta: np.ndarray, groups, hyper: Hyperprior) -> np.ndarray:
     return out
 
 
-def beta_posterior(theta: np.ndarray, groups, hyper: Hyperprior):
+def beta_posterior(theta: np.ndarray, groups, hyper: Hyperprior, layout: _Layout | None = None):
     """Conditional normal of ``beta`` given sampler coordinates: mean (W, K) and Cholesky factor of its precision."""
-    P, r, _, _, _ = _linear_system(theta, groups, hyper)
+    P, r, _, _, _ = _linear_system(theta, groups, hyper, layout)
     Lp, _ = _chol(P)
     mean = np.linalg.solve(np.swapaxes(Lp, 1, 2), np.linalg.solve(Lp, r[..., None]))[..., 0]
     return mean, Lp
@@ -249,9 +334,10 @@ def _type_draws(theta: np.ndarray, groups, hyper: Hyperprior, rng: np.random.Gen
     """Per type (H, 3d) draws of (a_t, b_t, sigma_t), one per row of ``theta`` (H, d (T + 1))."""
     T, d = len(groups), hyper.ndim
     out = [[] for _ in range(T)]
+    layout = _Layout(groups, hyper)
     for lo in range(0, theta.shape[0], 1000):  # bounded memory: K x K per draw
         th = theta[lo:lo + 1000]
-        mean, Lp = beta_posterior(th, groups, hyper)
+        mean, Lp = beta_posterior(th, groups, hyper, layout)
         eps = rng.standard_normal(mean.shape)
         beta = mean + np.linalg.solve(np.swapaxes(Lp, 1, 2), eps[..., None])[..., 0]
         u, tau_b = _split(th, T, d)
@@ -504,10 +590,11 @@ class HyperPosterior:
         self.groups = tuple(groups)
         self.hyper = hyper
         self.ndim = hyper.ndim * (len(self.groups) + 1)
+        self._layout = _Layout(self.groups, hyper)
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:
         """(W,) log posterior of (W, ndim) sampler coordinates."""
-        return log_posterior(np.atleast_2d(theta), self.groups, self.hyper)
+        return log_posterior(np.atleast_2d(theta), self.groups, self.hyper, self._layout)
 
     def check_inside(self, theta: np.ndarray, what: str = "walker start") -> None:
         """Raise :class:`SetupError` naming the first row of theta (n, ndim) outside the hyperprior's support
@@ -543,9 +630,10 @@ def _start(groups, hyper: Hyperprior, rng, n_walkers) -> np.ndarray:
         u0.append(np.log(np.clip(s, 0.02 * s_guess, 20 * s_guess)))
     t0 = np.concatenate([np.concatenate(u0), 0.5 * hyper.tb_scale])
     h = 1e-5 * np.eye(ndim)
+    layout = _Layout(groups, hyper)
 
     def f(t):
-        v = -log_posterior(np.vstack([t, t + h, t - h]), groups, hyper)
+        v = -log_posterior(np.vstack([t, t + h, t - h]), groups, hyper, layout)
         if not np.all(np.isfinite(v)):
             return float(v[0]) if np.isfinite(v[0]) else 1e300, np.zeros(ndim)
         return float(v[0]), (v[1:ndim + 1] - v[ndim + 1:]) / 2e-5
@@ -556,7 +644,7 @@ def _start(groups, hyper: Hyperprior, rng, n_walkers) -> np.ndarray:
     scale = np.concatenate([np.full(T * d, 0.05), 0.05 * hyper.tb_scale])
     start = t + scale * rng.standard_normal((n_walkers, ndim))
     start[:, T * d:] = np.abs(start[:, T * d:])
-    lp = log_posterior(start, groups, hyper)
+    lp = log_posterior(start, groups, hyper, layout)
     start[~np.isfinite(lp)] = t
     return start
 

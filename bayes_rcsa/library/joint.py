@@ -56,17 +56,24 @@ __all__ = ["JointModel", "sample_joint", "gaussian_log_likelihood", "pool_runs",
            "slice_step"]
 
 
+class _GaussianLogLikelihood:
+    """``z -> ln N(m; z, C)`` for z (W, d), with its parts kept (``m`` (d,), ``P = C^-1`` (d, d), ``const``) so
+    that :class:`JointModel` can evaluate all of its Gaussian setups in one batch (the same numbers)."""
+
+    def __init__(self, m: np.ndarray, C: np.ndarray) -> None:
+        self.m = m
+        self.P = np.linalg.inv(C)
+        _, logdet = np.linalg.slogdet(C)
+        self.const = -0.5 * (logdet + len(m) * np.log(2 * np.pi))
+
+    def __call__(self, z: np.ndarray) -> np.ndarray:
+        r = z - self.m
+        return self.const - 0.5 * np.einsum("wi,ij,wj->w", r, self.P, r)
+
+
 def gaussian_log_likelihood(m: np.ndarray, C: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     """``z -> ln N(m; z, C)`` for z (W, d): a setup whose likelihood is exactly Gaussian (the test's stand-in)."""
-    P = np.linalg.inv(C)
-    _, logdet = np.linalg.slogdet(C)
-    const = -0.5 * (logdet + len(m) * np.log(2 * np.pi))
-
-    def f(z: np.ndarray) -> np.ndarray:
-        r = z - m
-        return const - 0.5 * np.einsum("wi,ij,wj->w", r, P, r)
-
-    return f
+    return _GaussianLogLikelihood(m, C)
 
 
 class JointModel:
@@ -102,6 +109,18 @@ class JointModel:
         self.edges = np.cumsum([0] + self.sizes)
         self.v_edges = int(self.edges[-1]) + np.cumsum([0] + self.nuisance)
         self.ndim = int(self.v_edges[-1])
+        # the constants of log_prob, computed once (the same expressions, so the same numbers)
+        half = 0.5 * np.log(2.0 / np.pi)
+        self._c_tb, self._c_ts = half - np.log(hyper.tb_scale), half - np.log(hyper.ts_scale)
+        self._c_normal = 0.5 * (n * d + d * T) * np.log(2 * np.pi)
+        self._c_prior = (0.5 * (2 * T * d + 2 * d) * np.log(2 * np.pi), np.sum(np.log(hyper.a_sd)) * T,
+                         np.sum(np.log(hyper.b_sd)), d * np.log(hyper.ls_sd))
+        self._gaussian = None  # every setup exactly Gaussian, without nuisance: (m, P, const) stacked over setups
+        if n and not any(self.nuisance) and all(isinstance(f, _GaussianLogLikelihood)
+                                               and np.shape(f.m) == (d,) for f in self.log_likelihoods):
+            self._gaussian = (np.stack([np.asarray(f.m, dtype=float) for f in self.log_likelihoods]),
+                              np.stack([f.P for f in self.log_likelihoods]),
+                              np.array([f.const for f in self.log_likelihoods]))
 
     def pack(self, a, delta, b0, tau_b, ls0, tau_s, eta, last, nuisance=()) -> np.ndarray:
         """Sampler coordinates (W, ndim) of the blocks (each with a leading walker axis W; ``nuisance`` a list
@@ -150,12 +169,11 @@ class JointModel:
         """Log joint posterior density (W,) of sampler coordinates (W, ndim), up to the evidence."""
         hyper, types = self.hyper, self.types
         a, dl, b0, tb, ls0, ts, eta, last = self.blocks(theta)
-        half = 0.5 * np.log(2.0 / np.pi)
         lp = (-0.5 * np.sum(((a - hyper.a_mean) / hyper.a_sd) ** 2, axis=(1, 2))
               - 0.5 * np.sum(dl * dl, axis=(1, 2)) - 0.5 * np.sum((b0 / hyper.b_sd) ** 2, axis=1)
-              + np.sum(half - np.log(hyper.tb_scale) - 0.5 * (tb / hyper.tb_scale) ** 2, axis=1)
+              + np.sum(self._c_tb - 0.5 * (tb / hyper.tb_scale) ** 2, axis=1)
               - 0.5 * np.sum(((ls0 - hyper.ls_mean) / hyper.ls_sd) ** 2, axis=1)
-              + np.sum(half - np.log(hyper.ts_scale) - 0.5 * (ts / hyper.ts_scale) ** 2, axis=1)
+              + np.sum(self._c_ts - 0.5 * (ts / hyper.ts_scale) ** 2, axis=1)
               - 0.5 * np.sum(eta * eta, axis=(1, 2)))
         ls = ls0[:, None, :] + ts[:, None, :] * eta
         ok = (np.all(tb >= 0, axis=1) & np.all(ts >= 0, axis=1) & np.all(np.abs(ls) < 50, axis=(1, 2))
@@ -171,9 +189,18 @@ class JointModel:
         else:  # eps ~ N(0, 1), z = mu + s eps
             z = mu + s * last
             lp = lp - 0.5 * np.sum(last * last, axis=(1, 2))
-        lp = lp - 0.5 * (self.n * self.d + self.d * self.T) * np.log(2 * np.pi)  # normal constants of eta, eps/z
-        lp = lp - 0.5 * (2 * self.T * self.d + 2 * self.d) * np.log(2 * np.pi) - np.sum(np.log(hyper.a_sd)) * self.T \
-            - np.sum(np.log(hyper.b_sd)) - self.d * np.log(hyper.ls_sd)  # of a, delta, b0, ln sigma0
+        lp = lp - self._c_normal  # normal constants of eta, eps/z
+        c = self._c_prior  # of a, delta, b0, ln sigma0
+        lp = lp - c[0] - c[1] - c[2] - c[3]
+        if self._gaussian is not None:
+            # every setup's _GaussianLogLikelihood in one batch (the same products and sums, setup by setup),
+            # added to lp in the order of the setups
+            m, P, const = self._gaussian
+            r = np.where(ok[:, None, None], z, 0.0) - m
+            ll = np.where(ok[:, None], const - 0.5 * np.einsum("wki,kij,wkj->wk", r, P, r), 0.0)
+            for k in range(self.n):
+                lp = lp + ll[:, k]
+            return np.where(ok, lp, -np.inf)
         v = self.nuisance_of(theta)
         for k, f in enumerate(self.log_likelihoods):
             zk = np.where(ok[:, None], z[:, k, :], 0.0)

@@ -54,6 +54,7 @@ types.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -190,13 +191,12 @@ class Hyperprior:
         r = u - self.ls_mean  # (..., T, d)
         rr = np.sum(r * r, axis=-2)[..., None]  # (..., d, 1)
         rs = np.sum(r, axis=-2)[..., None]
-        t2 = _TAU_S_GRID ** 2  # (G,)
-        q = (rr - c * rs * rs / (t2 + T * c)) / t2
-        logdet = (T - 1) * np.log(t2) + np.log(t2 + T * c)
+        t2, t2c, logdet, ln_w = _quadrature(T, c, self.ts_scale)
+        q = (rr - c * rs * rs / t2c) / t2
         ln_n = -0.5 * (q + logdet + T * math.log(2 * math.pi))  # (..., d, G)
-        ln_w = _tau_weights(self.ts_scale)
-        top = np.max(ln_n + ln_w, axis=-1, keepdims=True)
-        lse = top[..., 0] + np.log(np.sum(np.exp(ln_n + ln_w - top), axis=-1))
+        ln_nw = ln_n + ln_w
+        top = np.max(ln_nw, axis=-1, keepdims=True)
+        lse = top[..., 0] + np.log(np.sum(np.exp(ln_nw - top), axis=-1))
         return np.sum(lse, axis=-1)
 
     def sample_log_sigma(self, rng: np.random.Generator, n: int, n_types: int) -> np.ndarray:
@@ -217,6 +217,26 @@ class Hyperprior:
                     "sigma": "ln sigma_t ~ normal(ln sigma0, tau_s) per holder type",
                     "unit": coordinate_units(n)}
                 for j, n in enumerate(self.names)}
+
+
+@functools.lru_cache(maxsize=64)
+def _quadrature(n_types: int, c: float, ts_scale: float) -> tuple:
+    """The parts of :meth:`Hyperprior.ln_prob_log_sigma`'s quadrature over ``tau_s`` that do not depend on the
+    log spreads, for ``n_types`` types, ``c = ls_sd^2`` and the half-normal scale ``ts_scale`` (e-folds).
+
+    Returns
+    -------
+    t2 : (G,) squared grid of :data:`_TAU_S_GRID`; t2c : (G,) ``t2 + n_types c``
+    logdet : (G,) ``(n_types - 1) ln t2 + ln t2c``; ln_w : (G,) :func:`_tau_weights`
+        Read-only: the cache (keyed by all three arguments, 64 entries) hands out the same arrays.
+    """
+    t2 = _TAU_S_GRID ** 2
+    t2c = t2 + n_types * c
+    logdet = (n_types - 1) * np.log(t2) + np.log(t2c)
+    out = (t2, t2c, logdet, _tau_weights(ts_scale))
+    for a in out:
+        a.setflags(write=False)
+    return out
 
 
 def _tau_weights(scale: float) -> np.ndarray:
