@@ -24,3 +24,26 @@ import numba  # noqa: E402,F401  (the compiled kernels' runtime)
 import matplotlib  # noqa: E402  (the figures of every step: matplotlib's own start-up, once)
 import matplotlib.backends.backend_agg  # noqa: E402,F401
 import matplotlib.figure  # noqa: E402,F401
+import scipy.signal  # noqa: E402,F401  (predict's peak finding)
+
+
+def _numba_target() -> None:
+    """Build numba's CPU target (its typing and lowering registries) in the server.
+
+    A process builds it at its first kernel call, even when the machine code then comes from numba's on-disk
+    cache: ~0.3 s of imports (``numba.cpython.*``, the typed containers) per worker otherwise.  Nothing is
+    compiled here, so the workers' kernels and numbers are those of a cold process.  numba's registry is not a
+    documented API: if it moves, the workers build the target themselves, as before.
+    """
+    try:
+        from numba.core.registry import cpu_target
+    except ImportError:
+        return
+    for context in ("typing_context", "target_context"):
+        ctx = getattr(cpu_target, context, None)
+        refresh = getattr(ctx, "refresh", None)
+        if callable(refresh):
+            refresh()
+
+
+_numba_target()
