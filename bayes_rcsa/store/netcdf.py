@@ -183,8 +183,111 @@ def read_netcdf(path):
     Returns
     -------
     arviz.InferenceData
+
+    Notes
+    -----
+    The package's own layout (plain compressed arrays with dimension scales, no CF encodings) of up to
+    :data:`_EAGER_READ_BYTES` is read at once with h5py (:func:`_read_plain_groups`), which gives the
+    groups, variables, dims, coordinates, attributes and dtypes :func:`arviz.from_netcdf` gives, in memory; any
+    other file (and any file h5py cannot read as that layout, including a damaged one) goes to
+    :func:`arviz.from_netcdf`, lazily loaded, with its errors.
     """
-    return _az().from_netcdf(str(path))
+    try:
+        plain = _read_plain_groups(path)
+    except Exception:  # not the plain layout, or not readable: ArviZ reads it (or raises its own error)
+        plain = None
+    if plain is None:
+        return _az().from_netcdf(str(path))
+    groups, attrs = plain
+    return _inference_data(groups, attrs)
+
+
+#: Largest file content (bytes, uncompressed) :func:`read_netcdf` reads into memory at once; larger files stay
+#: lazily loaded by ArviZ (a reader that needs one group of a large posterior does not decompress the others).
+_EAGER_READ_BYTES = 64 * 2 ** 20
+
+#: The ``NAME`` netCDF gives a dimension scale that is a dimension only (no coordinate values).
+_PURE_DIMENSION = "This is a netCDF dimension but not a netCDF variable"
+
+
+def _plain_variable(ds, group_name: str):
+    """``(dims, values)`` of one h5py dataset as xarray's netCDF decoding presents it, or None for a dimension
+    without values; :class:`ValueError` for anything the plain layout does not hold (encoded values, attributes
+    that CF decoding reads, dimensions of another group, unnamed dimensions)."""
+    import h5py
+    import numpy as np
+
+    attrs = ds.attrs
+    names = [k for k in attrs if k not in _NETCDF_INTERNAL or k == "_FillValue"]
+    kind = ds.dtype.kind
+    string = h5py.check_string_dtype(ds.dtype)
+    if any(k != "_FillValue" for k in names):
+        raise ValueError("variable attributes")
+    if "_FillValue" in names:
+        fill = np.asarray(attrs["_FillValue"])
+        if kind != "f" or fill.size != 1 or not np.isnan(fill).all():
+            raise ValueError("a fill value that masks values")
+    if not (kind in "fiu" or (kind == "O" and string is not None and string.encoding == "utf-8")):
+        raise ValueError(f"dtype {ds.dtype}")
+    own = ds.name.rsplit("/", 1)[-1]
+    if _attribute(attrs.get("CLASS", b"")) == "DIMENSION_SCALE":
+        if str(_attribute(attrs.get("NAME", b""))).startswith(_PURE_DIMENSION):
+            return None
+        if ds.ndim != 1:
+            raise ValueError("a dimension scale of several dimensions")
+        dims = (own,)
+    elif ds.ndim:
+        if "DIMENSION_LIST" not in attrs:
+            raise ValueError("unnamed dimensions")
+        dims = []
+        f = ds.file
+        for refs in attrs["DIMENSION_LIST"]:
+            if len(refs) != 1:
+                raise ValueError("several scales on one dimension")
+            parent, _, dim = f[refs[0]].name.rpartition("/")
+            if parent != group_name:
+                raise ValueError("a dimension of another group")
+            dims.append(dim)
+        dims = tuple(dims)
+    else:
+        dims = ()
+    # netCDF strings: xarray gives fixed-width unicode
+    return dims, (np.asarray(ds.asstr()[()], dtype=str) if string is not None else ds[()])
+
+
+def _read_plain_groups(path):
+    """The groups (name -> xarray.Dataset, file order) and root attributes of a file in the package's plain
+    layout, read into memory with h5py; None for a file larger than :data:`_EAGER_READ_BYTES` (raises for a
+    file not in that layout, see :func:`_plain_variable`)."""
+    import h5py
+    import xarray as xr
+
+    groups = {}
+    with h5py.File(str(path), "r") as f:
+        members = [(name, node) for name, node in f.items()]
+        if any(isinstance(node, h5py.Dataset) for _, node in members):
+            raise ValueError("variables in the root group")
+        size = 0
+        for name, node in members:
+            for child in node.values():
+                if not isinstance(child, h5py.Dataset):
+                    raise ValueError("nested groups")
+                size += child.size * child.dtype.itemsize
+        if size > _EAGER_READ_BYTES:
+            return None
+        for name, node in members:
+            data, coords = {}, {}
+            for var, ds in node.items():
+                got = _plain_variable(ds, node.name)
+                if got is None:
+                    continue
+                dims, values = got
+                (coords if dims == (var,) else data)[var] = xr.Variable(dims, values)
+            # as xarray's decoding of the group makes it: the data variables in file order, then the variables
+            # named after their one dimension, in file order, as (index) coordinates
+            groups[name] = xr.Dataset(data, coords=coords, attrs=_attributes(node))
+        attrs = _attributes(f)
+    return groups, attrs
 
 
 #: HDF5 attributes that carry netCDF's own bookkeeping (dimension scales, ids), not the file's attributes.
@@ -204,7 +307,10 @@ def _attribute(value):
 
 
 def _attributes(node) -> dict:
-    return {k: _attribute(v) for k, v in node.attrs.items() if k not in _NETCDF_INTERNAL}
+    # the names first: the bookkeeping attributes are skipped unread (a REFERENCE_LIST of object references
+    # takes longer to read than the variable's data)
+    attrs = node.attrs
+    return {k: _attribute(attrs[k]) for k in attrs if k not in _NETCDF_INTERNAL}
 
 
 class ArrayVariable:

@@ -1,0 +1,170 @@
+"""Fast paths of the store and of the zero-order stability method give the numbers of their reference paths.
+
+- :func:`bayes_rcsa.store.read_netcdf` reads the package's plain layout with h5py instead of
+  ``arviz.from_netcdf``: the same groups, variables (in order), dims, coordinates, indexes, attributes (with their
+  types), dtypes and bytes, on files of every writer the package has had; other files still go to ArviZ.
+- :func:`bayes_rcsa.stability.zoa.oriented_eigenvalues` and ``_segment_ends`` work block by block of draws and
+  on the parts of the eigenvalues: bit for bit the stacked eigenvalues of the whole array at once.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import bayes_rcsa.store as store
+from bayes_rcsa.store import netcdf
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from test_store import _idata  # noqa: E402  (the store tests' small posterior)
+
+
+def _arviz():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        import arviz
+
+    return arviz
+
+
+def _assert_same_inference_data(a, b):
+    """``a`` (arviz.from_netcdf) and ``b`` hold the same groups, variables, coordinates, attributes and bytes."""
+    import xarray as xr
+
+    def same_attrs(x, y, where):
+        assert list(x) == list(y), where
+        for k in x:
+            assert type(x[k]) is type(y[k]), (where, k, type(x[k]), type(y[k]))
+            assert np.array_equal(x[k], y[k]), (where, k)
+
+    assert type(a) is type(b) and a.groups() == b.groups()
+    same_attrs(a.attrs, b.attrs, "root")
+    for g in a.groups():
+        x, y = getattr(a, g), getattr(b, g)
+        xr.testing.assert_identical(x, y)
+        assert list(x.variables) == list(y.variables), g
+        assert list(x.coords) == list(y.coords) and list(x.data_vars) == list(y.data_vars), g
+        assert list(x.xindexes) == list(y.xindexes) and dict(x.sizes) == dict(y.sizes), g
+        same_attrs(x.attrs, y.attrs, g)
+        for n in x.variables:
+            u, v = x.variables[n], y.variables[n]
+            assert type(u) is type(v) and u.dims == v.dims and u.dtype == v.dtype, (g, n)
+            assert u.values.tobytes() == v.values.tobytes(), (g, n)
+            same_attrs(u.attrs, v.attrs, (g, n))
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    """Files of every writer: write_posterior, a version-1 file, append_to_posterior, ArviZ's own (xarray's
+    h5netcdf store, the writer of old posterior.nc files), and one with strings, scalars, ints and odd groups."""
+    import xarray as xr
+
+    root = tmp_path_factory.mktemp("fastpaths")
+    idata = _idata(7)
+    out = {"posterior": store.write_posterior(idata, root / "posterior.nc")}
+    out["version1"] = store.write_netcdf(idata, root / "v1.nc")  # no schema attribute: a version-1 file
+    appended = store.write_posterior(idata, root / "appended.nc")
+    store.append_to_posterior(appended, posterior_vars={"cutting_kt_pa": np.linspace(1, 2, 60)},
+                              groups={"extra": xr.Dataset({"note": ("k", np.array([1.0, 2.0]))})},
+                              attrs={"n_cuts": 3, "info": {"a": 1}})
+    out["appended"] = appended
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        idata.to_inference_data().to_netcdf(str(root / "arviz.nc"), engine="h5netcdf")
+        _arviz().InferenceData(posterior=xr.Dataset({"v": (("chain", "draw", "q"), np.ones((1, 2, 3)))})).to_netcdf(
+            str(root / "no_coordinate.nc"), engine="h5netcdf")
+    out["arviz"], out["no_coordinate"] = root / "arviz.nc", root / "no_coordinate.nc"
+    odd = {"names": (("k",), np.array(["alpha", "b"], dtype=object), {}),
+           "k": (("k",), np.array(["x", "yy"], dtype=object), {}),
+           "ival": (("k",), np.array([1, 2], dtype=np.int32), {}), "scalar": ((), np.float64(3.5), {}),
+           "f32": (("k", "m"), np.arange(6, dtype=np.float32).reshape(2, 3), {}), "m": (("m",), np.arange(3), {}),
+           "u8": (("m",), np.arange(3, dtype=np.uint8), {}), "nan": (("m",), np.array([1.0, np.nan, 3.0]), {})}
+    post = {"a": (("chain", "draw"), np.zeros((1, 2)), {}), "chain": (("chain",), np.arange(1), {}),
+            "draw": (("draw",), np.arange(2), {})}
+    netcdf._write_groups({"posterior": netcdf.GroupContent(post, {"x": 1}),
+                          "extra_group": netcdf.GroupContent(odd, {"note": "t", "arr": np.array([1.0, 2.0])})},
+                         {"root": "r", "n": 3, "vec": np.arange(3), "js": json.dumps({"b": 2})}, root / "odd.nc")
+    out["odd"] = root / "odd.nc"
+    return out
+
+
+@pytest.mark.parametrize("name", ["posterior", "version1", "appended", "arviz", "no_coordinate", "odd"])
+def test_read_netcdf_reads_what_arviz_reads(files, name):
+    path = files[name]
+    assert netcdf._read_plain_groups(path) is not None  # the fast path, not the fallback
+    _assert_same_inference_data(_arviz().from_netcdf(str(path)), store.read_netcdf(path))
+
+
+def test_files_outside_the_plain_layout_still_go_to_arviz(tmp_path, monkeypatch):
+    import xarray as xr
+
+    # a boolean variable as xarray encodes it (int8 with a dtype attribute): CF decoding, not the plain layout
+    path = tmp_path / "encoded.nc"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        _arviz().InferenceData(posterior=xr.Dataset({"ok": (("chain", "draw"), np.array([[True, False]]))})).to_netcdf(
+            str(path), engine="h5netcdf")
+    with pytest.raises(ValueError):
+        netcdf._read_plain_groups(path)
+    _assert_same_inference_data(_arviz().from_netcdf(str(path)), store.read_netcdf(path))
+    # a file above the in-memory bound stays lazily loaded by ArviZ, with the same content
+    big = store.write_posterior(_idata(1), tmp_path / "big.nc")
+    monkeypatch.setattr(netcdf, "_EAGER_READ_BYTES", 100)
+    assert netcdf._read_plain_groups(big) is None
+    _assert_same_inference_data(_arviz().from_netcdf(str(big)), store.read_netcdf(big))
+    # an unreadable file fails as ArviZ fails (read_posterior's one line quotes that error)
+    junk = tmp_path / "junk.nc"
+    junk.write_text("not netCDF\n")
+    with pytest.raises(OSError) as want:
+        _arviz().from_netcdf(str(junk))
+    with pytest.raises(OSError) as got:
+        store.read_netcdf(junk)
+    assert type(got.value) is type(want.value) and str(got.value) == str(want.value)
+
+
+def _reference_eigenvalues(h0, frf_x, frf_y):
+    """oriented_eigenvalues as it was: the whole array at once (the arithmetic of ``_eigen_parts``), stacked."""
+    from bayes_rcsa.stability import zoa
+
+    half_tr, root = zoa._eigen_parts(h0, frf_x, frf_y)
+    return np.stack([half_tr + root, half_tr - root], axis=-1)
+
+
+def _reference_segment_ends(h0, gx, gy):
+    mu = _reference_eigenvalues(h0, gx, gy)
+    valid = mu.real > 0
+    safe = np.where(valid, mu.real, 1.0)
+    return np.where(valid, 0.5 / safe, np.inf), np.pi + 2.0 * np.arctan(mu.imag / safe)
+
+
+def test_blocked_eigenvalues_and_segment_ends_are_the_whole_array_s_bit_for_bit():
+    from bayes_rcsa.stability import zoa
+    from bayes_rcsa.stability.cutting import CuttingConditions, mean_directional_matrix
+
+    rng = np.random.default_rng(5)
+    f = np.linspace(100.0, 1600.0, 701)
+    w = 2 * np.pi * f
+
+    def modes(fn, k, zeta):  # two-mode receptances with random natural frequencies: both branches, sign flips
+        wn = 2 * np.pi * fn
+        return 1 / (k * (1 - (w / wn) ** 2 + 2j * zeta * w / wn)) + 1 / (3 * k * (1 - (w / (1.7 * wn)) ** 2 + 0.04j))
+
+    n = 3 * (zoa._EIGEN_BLOCK_CELLS // f.size) + 7  # several blocks and a partial one
+    gx = modes(rng.uniform(400, 900, (n, 1)), 2e7, 0.03)
+    gy = modes(rng.uniform(400, 900, (n, 1)), 2.5e7, 0.02)
+    for cut in (CuttingConditions(kt=790e6, kr=230e6, flutes=4, milling="down", radial_immersion=0.95),
+                CuttingConditions(kt=600e6, kr=300e6, flutes=3, milling="up", radial_immersion=0.3)):
+        h0 = mean_directional_matrix(cut)
+        for shape in ((n, f.size), (3, n // 3, f.size), (1, f.size)):
+            x, y = gx[: int(np.prod(shape[:-1]))].reshape(shape), gy[: int(np.prod(shape[:-1]))].reshape(shape)
+            assert zoa.oriented_eigenvalues(h0, x, y).tobytes() == _reference_eigenvalues(h0, x, y).tobytes()
+        # broadcasting one FRF against many, as before
+        assert zoa.oriented_eigenvalues(h0, gx, gy[0]).tobytes() == _reference_eigenvalues(h0, gx, gy[0]).tobytes()
+        got, want = zoa._segment_ends(h0, gx, gy), _reference_segment_ends(h0, gx, gy)
+        for g, r in zip(got, want):
+            assert g.shape == r.shape and g.tobytes() == r.tobytes()
