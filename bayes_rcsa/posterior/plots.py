@@ -18,7 +18,7 @@ import numpy as np
 
 from ..io.atomic import atomic_path
 from ..io.jsonable import dumps_strict
-from ..io.figures import finish, lower_triangle, new_figure as _figure
+from ..io.figures import finish, lower_triangle, new_figure as _figure, write_png
 
 __all__ = [
     "METADATA_KEY",
@@ -51,7 +51,7 @@ def _save(fig, path, numbers: dict) -> dict:
     path = Path(path)
     text = dumps_strict(numbers)
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", metadata={METADATA_KEY: text})
+        write_png(fig, tmp, metadata={METADATA_KEY: text})
     return numbers
 
 

@@ -19,7 +19,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import DataError
-from ..io.figures import finish, new_figure
+from ..io.figures import finish, new_figure, write_png
 
 __all__ = ["png_data_uri", "figure_data_uri", "geometry_figure", "frf_zoom_figure", "p_stable_figure"]
 
@@ -43,7 +43,7 @@ def figure_data_uri(fig, dpi: int = 90) -> str:
     figures 10.4 s -> 6.7 s to build).
     """
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
+    write_png(fig, buf, dpi=dpi)
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
