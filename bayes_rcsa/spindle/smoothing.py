@@ -72,7 +72,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConvergenceError, ModelError
-from .inverse import forward_artifact, forward_jacobian
+from .inverse import forward_jacobian
 from .substructure import ArtifactReceptances
 
 __all__ = [
@@ -375,24 +375,68 @@ def _evaluate(x: np.ndarray, n: int, wt: np.ndarray, sc: _Scaling, derivatives: 
     return ent, d
 
 
+def _entries(x: np.ndarray, n: int, wt: np.ndarray, sc: _Scaling, cache: dict) -> tuple:
+    """Scaled (h, l, p) entries (n_freq, 3) complex and ``G = Z^-1 Phi^T`` (n_freq, n, 2), compiled.
+
+    The values of :func:`_evaluate` (its reference) to round-off.  ``cache`` (a dict owned by the caller)
+    keeps them for the last ``x``: Levenberg-Marquardt asks for the Jacobian at the point whose residuals
+    it has just evaluated.
+    """
+    if cache.get("x") is not None and np.array_equal(cache["x"], x):
+        return cache["ent"], cache["g"]
+    # numba loads with the first fit, not with the package
+    from ._modal_kernel import modal_entries
+
+    lw, phi, lc, u, low = _unpack(x, n, sc)[:5]
+    ent = np.broadcast_to(u - low / (wt**2)[:, None], (wt.size, 3)).astype(complex)
+    g = np.empty((wt.size, n, 2), dtype=complex)
+    if n and modal_entries(np.exp(2 * lw), np.ascontiguousarray(phi), lc @ lc.T, np.ascontiguousarray(wt, dtype=float),
+                           ent, g):
+        raise np.linalg.LinAlgError("Singular matrix")
+    cache.update(x=np.array(x, dtype=float), ent=ent, g=g)
+    return ent, g
+
+
+def _jacobian_rows(x: np.ndarray, n: int, wt: np.ndarray, sc: _Scaling, cache: dict, kmat: np.ndarray,
+                   row_scale: np.ndarray) -> np.ndarray:
+    """Real Jacobian (2 n_freq m, n_par) of the residuals ``row_scale K (S~(x) - ...)``, compiled.
+
+    ``kmat`` (n_freq, m, 3) complex maps the scaled entries to the m residuals of a line, ``row_scale``
+    (n_freq, m) float scales them; the real parts of all lines come first, then the imaginary parts (the
+    layout of the residual vector).  Equals ``matmul(kmat, d) * row_scale`` with ``d`` the derivatives of
+    :func:`_evaluate` (its reference) to round-off.
+    """
+    from ._modal_kernel import modal_jacobian
+
+    _, g = _entries(x, n, wt, sc, cache)
+    lw, _, lc, _, _, dlw, ddiag = _unpack(x, n, sc)
+    j, k = np.tril_indices(n)
+    out = np.empty((2,) + kmat.shape[:2] + (n_parameters(n),))
+    modal_jacobian(g, -2 * np.exp(2 * lw) * dlw, lc, j, k, np.where(j == k, ddiag[j], 1.0),
+                   np.ascontiguousarray(wt, dtype=float), np.ascontiguousarray(kmat, dtype=complex),
+                   np.ascontiguousarray(row_scale, dtype=float), out)
+    return out.reshape(-1, out.shape[-1])
+
+
 class _Problem:
     """Whitened residuals ``W (S_model - S_raw)`` and their Jacobian for a fixed mode count."""
 
     def __init__(self, data: FitData, sc: _Scaling, n: int):
         self.n, self.sc = n, sc
         self.wt = 2 * np.pi * data.frequency_hz / sc.w0
-        self.w = data.weight * sc.entry  # acts on scaled entries
+        self.w = np.ascontiguousarray(data.weight * sc.entry)  # acts on scaled entries
         self.target = data.target / sc.entry
         self.cache: dict = {}
+        self.ones = None  # unit row scales of the compiled Jacobian, made on its first call
 
     def residual(self, x) -> np.ndarray:
-        r = np.einsum("fke,fe->fk", self.w, _evaluate(x, self.n, self.wt, self.sc, cache=self.cache) - self.target)
+        r = np.einsum("fke,fe->fk", self.w, _entries(x, self.n, self.wt, self.sc, self.cache)[0] - self.target)
         return np.concatenate([r.real.ravel(), r.imag.ravel()])
 
     def jacobian(self, x) -> np.ndarray:
-        _, d = _evaluate(x, self.n, self.wt, self.sc, derivatives=True, cache=self.cache)
-        jac = np.matmul(self.w, d).reshape(-1, d.shape[-1])  # (nf, k, e) @ (nf, e, p)
-        return np.concatenate([jac.real, jac.imag], axis=0)
+        if self.ones is None:
+            self.ones = np.ones(self.w.shape[:2])
+        return _jacobian_rows(x, self.n, self.wt, self.sc, self.cache, self.w, self.ones)
 
 
 @dataclass(frozen=True)
@@ -428,6 +472,7 @@ class _MeasurementProblem:
         self.wt = data.artifact.omega / sc.w0
         self.scale = math.sqrt(2.0) / data.sigma
         self.cache: dict = {}
+        self.matrix = None  # the artifact's receptances, contiguous, made on the first evaluation
 
     def _block(self, ent: np.ndarray) -> np.ndarray:
         e = ent * self.sc.entry
@@ -435,16 +480,34 @@ class _MeasurementProblem:
         b[..., 0, 0], b[..., 0, 1], b[..., 1, 0], b[..., 1, 1] = e[..., 0], e[..., 1], e[..., 1], e[..., 2]
         return b
 
+    def _tests(self, x) -> tuple:
+        """Predicted (H11, H12, H22) (n_freq, 3) and their derivatives (n_freq, 3, 3) by the block entries.
+
+        The values of :func:`.inverse.forward_artifact` and :func:`.inverse.forward_jacobian` (the
+        references) to round-off, both from one compiled pass; kept for the last ``x`` like the entries.
+        """
+        c = self.cache
+        if c.get("tests_x") is not None and np.array_equal(c["tests_x"], x):
+            return c["h"], c["k"]
+        from ._modal_kernel import artifact_lines
+
+        ent = _entries(x, self.n, self.wt, self.sc, c)[0]
+        if self.matrix is None:
+            self.matrix = np.ascontiguousarray(self.data.artifact.matrix, dtype=complex)
+        h = np.empty(ent.shape, dtype=complex)
+        k = np.empty(ent.shape + (3,), dtype=complex)
+        artifact_lines(self.matrix, ent, np.ascontiguousarray(self.sc.entry, dtype=float), h, k)
+        c.update(tests_x=np.array(x, dtype=float), h=h, k=k)
+        return h, k
+
     def residual(self, x) -> np.ndarray:
-        g = forward_artifact(self._block(_evaluate(x, self.n, self.wt, self.sc, cache=self.cache)), self.data.artifact)
+        g = self._tests(x)[0]
         r = (g[:, self.data.component] - self.data.measured) * self.scale
         return np.concatenate([r.real.ravel(), r.imag.ravel()])
 
     def jacobian(self, x) -> np.ndarray:
-        ent, d = _evaluate(x, self.n, self.wt, self.sc, derivatives=True, cache=self.cache)
-        k = forward_jacobian(self.data.artifact, self._block(ent))[:, self.data.component, :] * self.sc.entry
-        jac = (np.matmul(k, d) * self.scale[..., None]).reshape(-1, d.shape[-1])
-        return np.concatenate([jac.real, jac.imag], axis=0)
+        k = self._tests(x)[1][:, self.data.component, :] * self.sc.entry
+        return _jacobian_rows(x, self.n, self.wt, self.sc, self.cache, k, self.scale)
 
 
 @dataclass(frozen=True)
