@@ -95,3 +95,32 @@ def test_tick_memo_follows_the_view_and_the_dpi():
         assert [t.get_loc() for t in ax.xaxis._update_ticks()] == coarse
     fig.set_dpi(100)
     assert [t.get_loc() for t in ax.xaxis._update_ticks()] == moved
+
+
+def _boxes(fig, renderer) -> list:
+    out = []
+    for ax in fig.axes:
+        out.append(tuple(ax.get_position().bounds))
+        for t in (ax.title, ax.xaxis.label, ax.yaxis.label, *ax.texts):
+            out.append(tuple(t.get_window_extent(renderer).bounds))
+        for axis in (ax.xaxis, ax.yaxis):
+            out += [tuple(tk.label1.get_window_extent(renderer).bounds) for tk in axis._update_ticks()]
+    return out
+
+
+def test_texts_placed_without_a_draw_are_where_a_draw_puts_them():
+    """finish's annotation pass places titles, labels, ticks and aspect-bound axes as draw_without_rendering does
+    (a log panel with a title, an equal-aspect panel and a colorbar, whose axes has a locator)."""
+    figs = []
+    for _ in range(2):
+        fig = _figure()
+        ax = fig.axes[1]
+        ax.set_aspect("equal")
+        ax.set_xlim(1000.0, 1400.0)
+        ax.set_ylim(0.0, 100.0)
+        fig.colorbar(ax.scatter([1100.0, 1200.0], [20.0, 40.0], c=[0.0, 1.0]), ax=ax, label="c")
+        F._layout(fig, None)
+        figs.append(fig)
+    figs[0].draw_without_rendering()
+    renderer = F._place_texts(figs[1])
+    assert _boxes(figs[1], renderer) == _boxes(figs[0], figs[0].canvas.get_renderer())

@@ -278,14 +278,41 @@ def _thin_ticks(fig) -> bool:
     return changed
 
 
+def _place_texts(fig):
+    """Put the axes, their titles, axis labels and tick labels where a draw puts them; returns the renderer.
+
+    What ``fig.draw_without_rendering()`` does to those texts (the same calls, axes by axes in drawing order)
+    without walking every line, patch and collection of the figure.  Figures whose axes depend on each other
+    at drawing time (subfigures, twinned or child axes) get the whole draw.
+    """
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    if fig.subfigs or any(ax.child_axes or len(ax._twinned_axes.get_siblings(ax)) > 1 for ax in axes):
+        fig.draw_without_rendering()
+        return fig.canvas.get_renderer()
+    renderer = fig.canvas.get_renderer()
+    for ax in fig.axes:  # the figure applies every aspect before it draws the first axes
+        locator = ax.get_axes_locator()
+        ax.apply_aspect(locator(ax, renderer) if locator else None)
+    for ax in sorted(axes, key=lambda a: a.get_zorder()):
+        ax.viewLim  # noqa: B018 -- the property applies pending autoscaling, as the draw does first
+        locator = ax.get_axes_locator()
+        ax.apply_aspect(locator(ax, renderer) if locator else None)
+        ax._update_title_position(renderer)
+        if ax.axison:
+            for axis in (ax.xaxis, ax.yaxis):
+                if axis.get_visible():
+                    axis._update_ticks()
+                    axis._update_label_position(renderer)
+    return renderer
+
+
 def _separate(fig) -> None:
     """Move the axes' annotations off every earlier text, and back inside their axes (display pixels)."""
     moving = [t for ax in fig.axes if ax.get_visible() for t in ax.texts if t.get_visible() and t.get_text().strip()]
     if not moving:
         return
     with _ticks_once(fig):  # moving annotations changes no tick
-        fig.draw_without_rendering()  # titles and ticks in their final places (no pixels rendered)
-        renderer = fig.canvas.get_renderer()
+        renderer = _place_texts(fig)
         placed = _fixed_boxes(fig, renderer, moving)
     for t in moving:
         inside = t.axes.get_window_extent(renderer)
