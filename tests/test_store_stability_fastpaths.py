@@ -5,6 +5,8 @@
   types), dtypes and bytes, on files of every writer the package has had; other files still go to ArviZ.
 - :func:`bayes_rcsa.stability.zoa.oriented_eigenvalues` and ``_segment_ends`` work block by block of draws and
   on the parts of the eigenvalues: bit for bit the stacked eigenvalues of the whole array at once.
+- :func:`bayes_rcsa.stability.simulate_milling` forms the cutter-angle factors and modal constants once and
+  reuses each step's delayed motion at the next step's start: the numbers of the stage-by-stage version.
 """
 
 from __future__ import annotations
@@ -168,3 +170,34 @@ def test_blocked_eigenvalues_and_segment_ends_are_the_whole_array_s_bit_for_bit(
         got, want = zoa._segment_ends(h0, gx, gy), _reference_segment_ends(h0, gx, gy)
         for g, r in zip(got, want):
             assert g.shape == r.shape and g.tobytes() == r.tobytes()
+
+
+#: simulate_milling's growth, residual and the samples of periods 12 and 6 for the cases of
+#: :func:`test_simulate_milling_gives_the_numbers_of_the_stage_by_stage_version`, as the version that formed every
+#: factor in every stage computed them (bit for bit equal to the current one on the development machine; the
+#: tolerance leaves room for another BLAS only, far below what a changed formula or delayed value moves).
+_SIMULATION_REFERENCE = [
+    [[1.0195813543576198, 1.5602576229551735], [0.8254698921301324, 1.7215308332744428], [[7.263532034404457e-07, 7.0907929947664e-06], [-0.0007363269012933472, -2.946614285947584e-05]], [[-3.0259779210445274e-06, 5.166547888578503e-06], [1.3713481236425474e-05, 4.4027763528978734e-05]]],
+    [[1.0126741953130303, 1.3073594866081266], [0.7912519997376462, 1.7319665581227555], [[7.34359789376296e-07, 6.826674803303926e-06], [-0.00025273331608476393, 0.00018348076947815597]], [[-2.995387350874605e-06, 5.2084255019084175e-06], [1.4012583097630727e-05, 3.327627627007347e-05]]],
+    [[0.6491617245166197, 5.864709097206607], [0.021873238004273876, 1.3125122615600469], [[-8.422457827049426e-06, 5.094772340312722e-06], [13479.991135441092, 9838.1778049522]], [[-8.476776195797511e-06, 4.578721568892777e-06], [-0.31577723437502153, -0.11089615856024757]]],
+    [[0.440131444079915, 1.4834222220535545], [0.0014726918615767834, 1.952885350667546], [[-8.388393066864103e-06, 5.162094825040742e-06], [-0.003450570543816341, -0.010955932749420316]], [[-8.490131069660486e-06, 4.972713516989277e-06], [0.0006764007455685318, -0.00013423996929188048]]],
+]
+
+
+def test_simulate_milling_gives_the_numbers_of_the_stage_by_stage_version():
+    from bayes_rcsa.stability import CuttingConditions, ModalModel, simulate_milling
+
+    mx = ModalModel([1287.0, 2600.0], [0.02, 0.03], [1.0e6, 3e6])
+    my = ModalModel([1340.0], [0.03], [1.3e6])
+    cuts = [CuttingConditions(kt=790e6, kr=230e6, flutes=4, milling="up", radial_immersion=0.5),
+            CuttingConditions(kt=790e6, kr=230e6, flutes=4, radial_immersion=0.7,
+                              pitch_angles=tuple(np.radians([80.0, 100.0, 80.0, 100.0])))]  # fractional delays
+    got = []
+    for cut in cuts:
+        for nonlinear in (False, True):
+            r = simulate_milling(mx, my, cut, [9000.0, 15000.0], [2e-4, 5e-4], periods=12, nonlinear=nonlinear,
+                                 rng=np.random.default_rng(3))
+            got.append([r.growth.tolist(), r.residual.tolist(), r.samples[:, -1].tolist(), r.samples[:, 5].tolist()])
+    for g, want in zip(got, _SIMULATION_REFERENCE):
+        for a, b in zip(g, want):
+            np.testing.assert_allclose(a, b, rtol=1e-12, atol=0)
