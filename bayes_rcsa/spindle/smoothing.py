@@ -682,11 +682,15 @@ class _Projector:
 
 def _orthonormal(a: np.ndarray) -> np.ndarray:
     """Orthonormal basis (m, k') of the column space of ``a`` (m, k)."""
-    norm = np.linalg.norm(a, axis=0)
-    a = a[:, norm > 0] / norm[norm > 0]
+    # the sums of np.linalg.norm(a, axis=0), without its conjugate copy; the masks only copy when they drop
+    # something.  Column-major like the masked copies, so that BLAS sums in the same order (the Gram matrix
+    # of near-dependent columns has ill-conditioned eigenvectors: its round-off shows in the basis)
+    norm = np.sqrt(np.add.reduce(a * a, axis=0))
+    pos = norm > 0
+    a = np.divide(a, norm, order="F") if pos.all() else a[:, pos] / norm[pos]
     ev, vec = np.linalg.eigh(a.T @ a)
     keep = ev > 1e-12 * ev[-1]
-    q = a @ (vec[:, keep] / np.sqrt(ev[keep]))
+    q = a @ (np.divide(vec, np.sqrt(ev), order="F") if keep.all() else vec[:, keep] / np.sqrt(ev[keep]))
     # one re-orthogonalisation pass restores orthonormality lost to the Gram matrix's rounding
     ev2, vec2 = np.linalg.eigh(q.T @ q)
     return q @ (vec2 / np.sqrt(ev2))
