@@ -72,7 +72,7 @@ def _reference_linear_system(theta, groups, hyper):
     return P, r, rest, mu0, p0
 
 
-@pytest.mark.parametrize("d, sizes", [(1, (2, 2)), (2, (3, 4, 4)), (2, (5,)), (3, (2, 9, 4))])
+@pytest.mark.parametrize("d, sizes", [(1, (2, 2)), (2, (3, 4, 4)), (2, (4, 4, 4)), (2, (5,)), (3, (2, 9, 4)), (3, (9, 9))])
 def test_linear_system_and_log_posterior_match_the_per_type_computation_bit_for_bit(d, sizes):
     rng = np.random.default_rng(11 + d)
     groups, hyper = _groups(rng, d, sizes), _hyper(d)

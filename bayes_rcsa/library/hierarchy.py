@@ -158,10 +158,15 @@ class _Layout:
         self.mT = np.concatenate([g.mT for g in groups], axis=1)  # (d, N)
         self.Ct = np.concatenate([g.Ct for g in groups], axis=2)  # (d, d, N)
         self.x = np.concatenate([g.x for g in groups])
-        self.const = [k * d * math.log(2 * math.pi) for k in n]
+        # every type with the same number of setups: the per-type sums are one batched product over a view
+        self.equal = len(set(n)) == 1
+        self.const = np.array([k * d * math.log(2 * math.pi) for k in n])
         self.mu0 = np.concatenate([np.tile(hyper.a_mean, T), np.zeros(T * d), np.zeros(d)])
         self.p0 = np.concatenate([np.tile(hyper.a_sd ** -2, T), np.ones(T * d), hyper.b_sd ** -2])
         self.p0mu0 = self.p0 * self.mu0
+        # the prior's terms of the log marginal likelihood (log_posterior)
+        self.prior_quad = 0.5 * float(np.sum(self.p0 * self.mu0 * self.mu0))
+        self.prior_logdet = 0.5 * float(np.sum(np.log(self.p0)))
         # flat indices into P (K * K) of the blocks each type writes alone, in the order of the stacked values of
         # _linear_system: (a, a), (a, delta), (delta, a), (a, b0), (b0, a), (delta, delta), (delta, b0), (b0, delta)
         j = np.arange(d)
@@ -174,11 +179,12 @@ class _Layout:
         self.ia_diag = (np.arange(T * d) * (K + 1))
         self.idl_diag = ((T * d + np.arange(T * d)) * (K + 1))
         self.ib = slice(2 * d * T, K)
-        for v in (self.edges, self.type_of, self.mT, self.Ct, self.x, self.mu0, self.p0, self.p0mu0, self.flat):
+        for v in (self.edges, self.type_of, self.mT, self.Ct, self.x, self.const, self.mu0, self.p0, self.p0mu0,
+                  self.flat):
             v.setflags(write=False)  # handed out to every call (mu0, p0 to the caller): never written
 
 
-def _gram(Ct: np.ndarray, mT: np.ndarray, x: np.ndarray, s2: np.ndarray, edges):
+def _gram(Ct: np.ndarray, mT: np.ndarray, x: np.ndarray, s2: np.ndarray, edges, equal: bool = False):
     """The Gram matrices of the setups between consecutive ``edges``, and ``ln det V`` (W, n) of every setup.
 
     Parameters
@@ -186,10 +192,12 @@ def _gram(Ct: np.ndarray, mT: np.ndarray, x: np.ndarray, s2: np.ndarray, edges):
     Ct : (d, d, n) surrogate covariances; mT : (d, n) means; x : (n,) covariate (setup axis last)
     s2 : (W, d) population variances, or (W, d, n) per setup
     edges : sequence of int, the setups ``edges[k]:edges[k + 1]`` form group k
+    equal : bool, every group has the same number of setups (then one batched product over a view of A; its
+        matrices, strides and hence products are those of the group-by-group copies)
 
     Returns
     -------
-    G : list of (W, 2d + 1, 2d + 1), one per group: with ``A[w, s, k] = (row k of L^-1, x_s * row k of L^-1,
+    G : (W, groups, 2d + 1, 2d + 1), one Gram matrix per group: with ``A[w, s, k] = (row k of L^-1, x_s * row k of L^-1,
         y_k)`` and ``V^-1 = sum_k Linv[k]^T Linv[k]``, ``G = A^T A`` over (setups of the group, k) holds every
         sum at once: ``S_p = sum_s x^p V^-1`` (p = 0, 1, 2), ``g_p = sum_s x^p V^-1 m`` (p = 0, 1) and
         ``q = sum_s m^T V^-1 m``
@@ -200,12 +208,15 @@ def _gram(Ct: np.ndarray, mT: np.ndarray, x: np.ndarray, s2: np.ndarray, edges):
     L, logdet = _factor(Ct, s2)
     y = _forward(L, np.broadcast_to(mT[:, None, :], (d, W, n)))
     A = _rows(L, y, x)
+    if equal:
+        Ag = A.reshape(W, len(edges) - 1, -1, 2 * d + 1)
+        return np.swapaxes(Ag, 2, 3) @ Ag, logdet
     G = []
     for lo, hi in zip(edges[:-1], edges[1:]):
         # a contiguous copy per group: the same product, in the same memory layout, as a group's own array
         Ag = np.ascontiguousarray(A[:, lo:hi]).reshape(W, (hi - lo) * d, 2 * d + 1)
         G.append(np.swapaxes(Ag, 1, 2) @ Ag)  # (W, 2d + 1, 2d + 1)
-    return G, logdet
+    return np.stack(G, axis=1), logdet
 
 
 def _rows(L, y, x: np.ndarray) -> np.ndarray:
@@ -246,9 +257,8 @@ def _linear_system(theta: np.ndarray, groups, hyper: Hyperprior, layout: _Layout
     u, tau_b = _split(theta, T, d)
     W = theta.shape[0]
     # (W, d, N) variances of every setup: exp of the same numbers as one type at a time
-    s2 = np.exp(2.0 * u)[:, lay.type_of, :].transpose(0, 2, 1)
-    G, logdet = _gram(lay.Ct, lay.mT, lay.x, s2, lay.edges)
-    G = np.stack(G, axis=1)  # (W, T, 2d + 1, 2d + 1)
+    s2 = np.exp(2.0 * u).transpose(0, 2, 1)[:, :, lay.type_of]
+    G, logdet = _gram(lay.Ct, lay.mT, lay.x, s2, lay.edges, lay.equal)  # (W, T, 2d + 1, 2d + 1), (W, N)
     S0, S1, S2 = G[:, :, :d, :d], G[:, :, :d, d:2 * d], G[:, :, d:2 * d, d:2 * d]
     g0, g1, q = G[:, :, :d, 2 * d], G[:, :, d:2 * d, 2 * d], G[:, :, 2 * d, 2 * d]
     D = tau_b[:, None, None, :]  # column scaling by tau_b
@@ -267,12 +277,16 @@ def _linear_system(theta: np.ndarray, groups, hyper: Hyperprior, layout: _Layout
     r = np.broadcast_to(lay.p0mu0, (W, K)).copy()
     r[:, :T * d] += g0.reshape(W, T * d)
     r[:, T * d:2 * T * d] += (tau_b[:, None, :] * g1).reshape(W, T * d)
+    if lay.equal:  # (W, T) sums over each type's setups, as np.sum of each type's own (W, n) array adds them
+        ld = np.sum(logdet.reshape(W, T, -1), axis=2)
+    else:
+        ld = np.stack([np.sum(logdet[:, lay.edges[t]:lay.edges[t + 1]], axis=1) for t in range(T)], axis=1)
+    h = 0.5 * (q + ld + lay.const)
     rest = np.zeros(W)
     for t in range(T):  # the shared sums in the order of the per-type computation
         Pbb = Pbb + S2[:, t]
         r[:, ib] += g1[:, t]
-        ld = np.sum(logdet[:, lay.edges[t]:lay.edges[t + 1]], axis=1)
-        rest = rest - 0.5 * (q[:, t] + ld + lay.const[t])
+        rest = rest - h[:, t]
     P[:, ib, ib] = Pbb
     return P, r, rest, lay.mu0, lay.p0
 
@@ -307,17 +321,20 @@ def log_posterior(theta: np.ndarray, groups, hyper: Hyperprior, layout: _Layout 
     u, tau_b = _split(theta, T, d)
     lp = hyper.ln_prob_log_sigma(u) + hyper.ln_prob_tau_b(tau_b)
     ok = np.isfinite(lp) & np.all(np.abs(u) < 50, axis=(1, 2))  # exp(2u) stays finite
-    out = np.full(theta.shape[0], -np.inf)
-    if not np.any(ok):
-        return out
-    P, r, rest, mu0, p0 = _linear_system(theta[ok], groups, hyper, layout)
+    every = bool(np.all(ok))
+    if not every and not np.any(ok):
+        return np.full(theta.shape[0], -np.inf)
+    lay = _Layout(groups, hyper) if layout is None else layout
+    P, r, rest, _, _ = _linear_system(theta if every else theta[ok], groups, hyper, lay)
     Lp, good = _chol(P)
     v = np.linalg.solve(Lp, r[..., None])[..., 0] if Lp.shape[0] else r
     diag = np.diagonal(Lp, axis1=1, axis2=2)
     with np.errstate(invalid="ignore", divide="ignore"):
-        ll = (rest - 0.5 * float(np.sum(p0 * mu0 * mu0)) + 0.5 * np.sum(v * v, axis=1) + 0.5 * float(np.sum(np.log(p0)))
-              - np.sum(np.log(diag), axis=1))
+        ll = rest - lay.prior_quad + 0.5 * np.sum(v * v, axis=1) + lay.prior_logdet - np.sum(np.log(diag), axis=1)
     ll = np.where(good & np.isfinite(ll), ll, -np.inf)
+    if every:
+        return lp + ll
+    out = np.full(theta.shape[0], -np.inf)
     out[ok] = lp[ok] + ll
     return out
 

@@ -192,11 +192,18 @@ class Hyperprior:
         rr = np.sum(r * r, axis=-2)[..., None]  # (..., d, 1)
         rs = np.sum(r, axis=-2)[..., None]
         t2, t2c, logdet, ln_w = _quadrature(T, c, self.ts_scale)
-        q = (rr - c * rs * rs / t2c) / t2
-        ln_n = -0.5 * (q + logdet + T * math.log(2 * math.pi))  # (..., d, G)
-        ln_nw = ln_n + ln_w
-        top = np.max(ln_nw, axis=-1, keepdims=True)
-        lse = top[..., 0] + np.log(np.sum(np.exp(ln_nw - top), axis=-1))
+        # one (..., d, G) buffer updated in place, operation for operation:
+        # ln_n + ln_w with q = (rr - c rs^2 / t2c) / t2 and ln_n = -0.5 (q + logdet + T ln 2 pi)
+        x = c * rs * rs / t2c
+        np.subtract(rr, x, out=x)
+        x /= t2
+        x += logdet
+        x += T * math.log(2 * math.pi)
+        x *= -0.5
+        x += ln_w
+        top = np.max(x, axis=-1, keepdims=True)
+        x -= top
+        lse = top[..., 0] + np.log(np.sum(np.exp(x, out=x), axis=-1))
         return np.sum(lse, axis=-1)
 
     def sample_log_sigma(self, rng: np.random.Generator, n: int, n_types: int) -> np.ndarray:
