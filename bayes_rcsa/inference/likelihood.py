@@ -198,6 +198,20 @@ def noise_variance(abs2: np.ndarray, coherence: np.ndarray, eps2: float, slices)
     return (abs2 + eps2 * np.repeat(peak, [sl.stop - sl.start for sl in slices], axis=1)) / coherence
 
 
+# The compiled terms are loaded on the first evaluation: importing numba costs 0.3-0.6 s that reading a setup or
+# reporting an error should not pay.
+_TERMS = None
+
+
+def _terms_kernel():
+    global _TERMS
+    if _TERMS is None:
+        from ._likelihood_jit import likelihood_terms
+
+        _TERMS = likelihood_terms
+    return _TERMS
+
+
 class FRFLikelihood:
     """Vectorised log-likelihood of all measurements for a batch of parameter vectors.
 
@@ -254,12 +268,16 @@ class FRFLikelihood:
         self.weight = 1.0 / v  # data-only weights (the optimiser's grid stage)
         self._floor_eps2 = float(noise.floor) ** 2
         self._starts = np.array([sl.start for sl in self.stack.slices])
+        self._starts_all = np.array([sl.start for sl in self.stack.slices] + [self.stack.n_lines], dtype=np.int64)
+        self._data_f = np.array(self.data, dtype=np.complex128).view(np.float64)
         if not self._floor_eps2 > 0:
             # a model receptance of zero on any line would make a variance zero
             raise DataError("noise_floor = 0 needs a non-zero model receptance everywhere; set a positive noise floor")
         self.coherence = np.concatenate(
             [o.coherence if o.coherence is not None else np.ones(o.n_lines) for o in self.observations]
         )
+        # the compiled terms' inputs: fresh C-contiguous float64 arrays (numba compiles one version per array type)
+        self._coherence_f = np.array(self.coherence, dtype=np.float64)
         # Grid weights on the float view (re, im interleaved) of the complex residuals.
         self._w2 = np.repeat(self.weight, 2)
         self._float_slices = [slice(2 * s.start, 2 * s.stop) for s in self.stack.slices]
@@ -302,8 +320,24 @@ class FRFLikelihood:
         return var
 
     def _terms(self, v):
-        """|r_n|^2 / v_n and v_n for parameter values ``v``: two (n, n_lines) arrays."""
+        """|r_n|^2 / v_n and v_n for parameter values ``v``: two (n, n_lines) arrays.
+
+        One compiled pass over the lines (:func:`._likelihood_jit.likelihood_terms`) where the model FRFs are a
+        fresh C-contiguous array (always, from :class:`.ForwardModel`); the numpy expressions of
+        :meth:`_terms_numpy`, the same numbers bit for bit, otherwise.  On the sampler's walker halves the
+        numpy expressions' eight full-size temporaries cost about as much as the compiled FRF itself.
+        """
         h = self._model_frf(v)
+        if not (h.ndim == 2 and h.dtype == np.complex128 and h.flags.c_contiguous and h.flags.writeable):
+            return self._terms_numpy(h)
+        n, n_lines = h.shape
+        q, var = np.empty((n, n_lines)), np.empty((n, n_lines))
+        (_TERMS or _terms_kernel())(h.view(np.float64), self._data_f, self._coherence_f, self._starts_all,
+                                    self._floor_eps2, q, var)
+        return q, var
+
+    def _terms_numpy(self, h):
+        """:meth:`_terms` from model FRFs ``h`` (n, n_lines) complex (modified in place), with numpy."""
         hv = h.view(np.float64)
         var = hv[:, 0::2] ** 2 + hv[:, 1::2] ** 2  # |H_model|^2
         var += self._floor2(var)

@@ -340,7 +340,11 @@ class ConfigurationStack:
             if v.ndim == 1:
                 v = v[:, None]
             params.append(v)
-        n_sets = int(np.prod(np.broadcast_shapes(*(v.shape[:-1] if v.ndim else () for v in params)) or (1,)))
+        lead = {v.shape[:-1] for v in params if v.ndim > 1}
+        if len(lead) == 1 and len(shape := next(iter(lead))) == 1:
+            n_sets = shape[0]  # the sampler's case, one batch shape: without broadcast_shapes' Python-level set-up
+        else:
+            n_sets = int(np.prod(np.broadcast_shapes(*(v.shape[:-1] if v.ndim else () for v in params)) or (1,)))
         shape = (n_sets, n_cfg)
         # filled blocks, not np.broadcast_to views: this runs once per sampler step, and broadcast_to's
         # Python-level set-up cost more than the kernel itself on the calibration test's two-length problems
