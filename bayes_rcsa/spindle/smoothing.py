@@ -66,6 +66,7 @@ all lines.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -298,6 +299,14 @@ def _sym(v) -> np.ndarray:
     return np.array([[v[0], v[1]], [v[1], v[2]]], dtype=float)
 
 
+@functools.lru_cache(maxsize=32)
+def _tril(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.tril_indices(n)``, read-only and made once per mode count (every evaluation needs them)."""
+    j, k = np.tril_indices(n)
+    j.flags.writeable = k.flags.writeable = False
+    return j, k
+
+
 def _unpack(x: np.ndarray, n: int, sc: _Scaling):
     """Parameters from x: log w_r (n, boxed), Phi (2, n), Cholesky factor of C (boxed log diagonal), U (3), L (3).
 
@@ -306,7 +315,7 @@ def _unpack(x: np.ndarray, n: int, sc: _Scaling):
     y = x[:n]
     lw = sc.log_w.value(y)
     phi = x[n : 3 * n].reshape(2, n)
-    tri = np.tril_indices(n)
+    tri = _tril(n)
     k = 3 * n + tri[0].size
     lc = np.zeros((n, n))
     lc[tri] = x[3 * n : k]
@@ -318,7 +327,7 @@ def _unpack(x: np.ndarray, n: int, sc: _Scaling):
 
 def _pack(lw, phi, lc, u, low, sc: _Scaling) -> np.ndarray:
     n = len(lw)
-    tri = np.tril_indices(n)
+    tri = _tril(n)
     c = np.array(lc, dtype=float)
     c[np.diag_indices(n)] = sc.log_d.inverse(np.log(np.diag(c)))
     return np.concatenate([sc.log_w.inverse(lw), np.asarray(phi).ravel(), c[tri], u, low])
@@ -358,7 +367,7 @@ def _evaluate(x: np.ndarray, n: int, wt: np.ndarray, sc: _Scaling, derivatives: 
             for i in (0, 1):  # d / d Phi[i, r]: delta_ai G_rb + G_ra delta_bi
                 d[:, e, n + i * n : n + (i + 1) * n] = (ga[b] if a == i else 0) + (ga[a] if b == i else 0)
         ltg = np.einsum("kj,fka->fja", lc, g)  # (L_c^T G)[j, a]
-        j, k = np.tril_indices(n)
+        j, k = _tril(n)
         # chain rule of the boxed log diagonal (1 off the diagonal); all (j, k) pairs at once: the
         # element-wise operations and their order are those of a loop over the pairs, so the
         # values are the same to the last bit
@@ -410,7 +419,7 @@ def _jacobian_rows(x: np.ndarray, n: int, wt: np.ndarray, sc: _Scaling, cache: d
 
     _, g = _entries(x, n, wt, sc, cache)
     lw, _, lc, _, _, dlw, ddiag = _unpack(x, n, sc)
-    j, k = np.tril_indices(n)
+    j, k = _tril(n)
     out = np.empty((2,) + kmat.shape[:2] + (n_parameters(n),))
     modal_jacobian(g, -2 * np.exp(2 * lw) * dlw, lc, j, k, np.where(j == k, ddiag[j], 1.0),
                    np.ascontiguousarray(wt, dtype=float), np.ascontiguousarray(kmat, dtype=complex),
