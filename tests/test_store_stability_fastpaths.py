@@ -201,3 +201,31 @@ def test_simulate_milling_gives_the_numbers_of_the_stage_by_stage_version():
     for g, want in zip(got, _SIMULATION_REFERENCE):
         for a, b in zip(g, want):
             np.testing.assert_allclose(a, b, rtol=1e-12, atol=0)
+
+
+def test_sdm_discretisations_shared_between_calls_give_the_same_limits(monkeypatch):
+    from bayes_rcsa.stability import CuttingConditions, ModalModel, sdm
+
+    mx, my = ModalModel([1287.0], [0.02], [1.0e6]), ModalModel([1340.0], [0.03], [1.3e6])
+    cuts = [CuttingConditions(kt=790e6, kr=230e6, flutes=4, milling="up", radial_immersion=0.5),
+            CuttingConditions(kt=790e6, kr=230e6, flutes=4, radial_immersion=0.7,
+                              pitch_angles=tuple(np.radians([80.0, 100.0, 80.0, 100.0])))]
+    speeds = np.array([12000.0])
+
+    def limits():
+        return [sdm.sdm_depth_limit(mx, my, cut, speeds, (1e-5, 2e-2), intervals=12, rtol=1e-2) for cut in cuts]
+
+    sdm._DISCRETISED.clear()
+    shared = limits()
+    assert sdm._DISCRETISED  # the searches went through the shared discretisations
+    disc = next(iter(sdm._DISCRETISED.values()))[0]
+    assert not disc.h_current.flags.writeable  # nobody can change a shared one
+    monkeypatch.setattr(sdm, "_discretise", sdm._discretise_uncached)
+    for a, b in zip(shared, limits()):
+        assert a.tobytes() == b.tobytes()
+    # equal cuts of other field types are other keys (a float32 coefficient computes in float32)
+    monkeypatch.undo()
+    cut = CuttingConditions(kt=np.float32(790e6), kr=230e6, flutes=4, radial_immersion=0.5)
+    assert sdm._discretise(cut, 20) is not sdm._discretise(CuttingConditions(kt=790e6, kr=230e6, flutes=4,
+                                                                            radial_immersion=0.5), 20)
+    assert len(sdm._DISCRETISED) <= sdm._DISCRETISED_MAX

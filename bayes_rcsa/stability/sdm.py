@@ -77,7 +77,7 @@ O(Δt^2)).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -287,7 +287,33 @@ def _delay_groups(delayed, m):
     return tuple(groups), L
 
 
+#: :func:`_discretise` results of the latest (cut, intervals) pairs: a search over depth asks for the same ones at
+#: every step (about 15 % of a lobes run's SDM work).  Keyed by the cut (frozen, compared by value) with the types
+#: of its fields (a float32 coefficient computes differently from an equal float), bounded, arrays read-only.
+_DISCRETISED: dict = {}
+_DISCRETISED_MAX = 16
+
+
 def _discretise(cutting: CuttingConditions, m_tooth: int) -> tuple[_Discretisation, float]:
+    """Interval matrices of a cut and the principal period as a multiple of 60/n (s·rpm / 60), shared between
+    calls (:data:`_DISCRETISED`; the arrays are read-only)."""
+    try:
+        key = (cutting, int(m_tooth), tuple(type(getattr(cutting, f.name)) for f in fields(cutting)))
+        hit = _DISCRETISED.get(key)
+    except TypeError:  # a cut with an unhashable field: computed every time
+        return _discretise_uncached(cutting, m_tooth)
+    if hit is None:
+        hit = _discretise_uncached(cutting, m_tooth)
+        disc = hit[0]
+        for a in (disc.h_current, *(H for H, _, _ in disc.groups)):
+            a.setflags(write=False)
+        while len(_DISCRETISED) >= _DISCRETISED_MAX:
+            _DISCRETISED.pop(next(iter(_DISCRETISED)), None)
+        _DISCRETISED[key] = hit
+    return hit
+
+
+def _discretise_uncached(cutting: CuttingConditions, m_tooth: int) -> tuple[_Discretisation, float]:
     """Interval matrices of a cut and the principal period as a multiple of 60/n (s·rpm / 60)."""
     N = cutting.flutes
     if cutting.equal_pitch:
