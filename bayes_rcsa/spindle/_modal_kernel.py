@@ -40,10 +40,11 @@ def modal_entries(wr2, phi, cmat, wt, ent, g):  # pragma: no cover - compiled
             x[i, 0] = phi[0, i]
             x[i, 1] = phi[1, i]
         for c in range(n):
+            # the pivot of LAPACK's izamax: largest |re| + |im| (no squares to underflow)
             piv = c
-            best = a[c, c].real ** 2 + a[c, c].imag ** 2
+            best = abs(a[c, c].real) + abs(a[c, c].imag)
             for i in range(c + 1, n):
-                v = a[i, c].real ** 2 + a[i, c].imag ** 2
+                v = abs(a[i, c].real) + abs(a[i, c].imag)
                 if v > best:
                     piv, best = i, v
             if best == 0.0:
