@@ -1,8 +1,8 @@
 """The inference's fast paths give the numbers of the reference computations they replace, bit for bit.
 
-* the sampler driver's emcee subclass, which does not copy the generator's state after every step: the chain is
-  the one emcee's own sampler draws from the same state and seed, and a checkpoint stores the state emcee would
-  have stored;
+* the sampler driver's emcee subclass, which does not copy the generator's state after every step, and the moves'
+  batched accept step: the chain is the one emcee's own sampler and ``propose`` draw from the same state and seed,
+  and a checkpoint stores the state emcee would have stored;
 * the autocorrelation time's transforms along the contiguous axis (``_tau`` against the former layout, with a
   stuck walker too), and a converged run's final tau taken from its last check;
 * the likelihood's compiled per-line terms against the numpy expressions (NaN and infinity included);
@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import math
+import types
 
 import numpy as np
 import pytest
@@ -38,12 +39,23 @@ class _Gaussian:
         pass
 
 
-def _reference_chain(density, initial, seed_rng, n_steps):
-    """emcee's own EnsembleSampler from the state run_ensemble seeds: (coords per step, state after the last)."""
+def _emcees_moves(move: str = "differential"):
+    """The default moves with emcee's own walker-by-walker accept step (``RedBlueMove.propose``)."""
+    from emcee.moves.red_blue import RedBlueMove
+
+    moves = default_moves(move)
+    for m, _ in moves:
+        m.propose = types.MethodType(RedBlueMove.propose, m)
+    return moves
+
+
+def _reference_chain(density, initial, seed_rng, n_steps, move: str = "differential"):
+    """emcee's own EnsembleSampler and accept step from the state run_ensemble seeds: (coords per step, log
+    densities, generator state after the last step)."""
     import emcee
 
     rstate = np.random.RandomState(int(seed_rng.integers(0, 2**32 - 1))).get_state()
-    sampler = emcee.EnsembleSampler(initial.shape[0], initial.shape[1], density, moves=default_moves(),
+    sampler = emcee.EnsembleSampler(initial.shape[0], initial.shape[1], density, moves=_emcees_moves(move),
                                     vectorize=True)
     state = emcee.State(initial, log_prob=density(initial), random_state=rstate)
     coords, log_prob = [], []
@@ -66,6 +78,15 @@ def test_the_driver_draws_emcees_chain_and_checkpoints_emcees_generator_state(tm
     assert stored.iteration == 120 and np.array_equal(stored.chain, ref_c)
     assert stored.random_state[0] == ref_state[0] and np.array_equal(stored.random_state[1], ref_state[1])
     assert tuple(stored.random_state[2:]) == tuple(ref_state[2:])
+
+
+def test_the_stretch_moves_batched_accept_step_draws_emcees_chain():
+    density = _Gaussian(4, 0.3)
+    initial = 0.1 * np.random.default_rng(5).standard_normal((12, 4))
+    ref_c, ref_l, _ = _reference_chain(density, initial, np.random.default_rng(6), 80, "stretch")
+    run = run_ensemble(density, SamplerSettings(n_steps=80, check_every=40, progress=False, move="stretch"),
+                       initial=initial, rng=np.random.default_rng(6))
+    assert np.array_equal(run.chain, ref_c) and np.array_equal(run.log_prob, ref_l)
 
 
 def test_a_converged_runs_tau_is_its_last_checks_and_equals_tau_of_the_chain():
