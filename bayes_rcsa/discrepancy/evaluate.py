@@ -57,6 +57,24 @@ def _quantiles(x: np.ndarray) -> dict:
     return {"q05": float(q[0]), "q50": float(q[1]), "q95": float(q[2])}
 
 
+def _with_noise(hd: np.ndarray, sd: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """:data:`NOISE_REPLICATES` noisy copies of each draw: (n_draws * NOISE_REPLICATES, n) complex.
+
+    Draw ``d``'s copies are rows ``d * NOISE_REPLICATES ...``; the noise is circular complex Gaussian of sd ``sd``
+    (n_draws, n), its real parts drawn first, then its imaginary parts, as ``hd_rep + (a + 1j b) sd_rep / sqrt 2``
+    with ``hd_rep``, ``sd_rep`` the rows repeated, whose real and imaginary parts are those computed here (without
+    the repeated arrays and complex temporaries).
+    """
+    shape = (hd.shape[0] * NOISE_REPLICATES, hd.shape[1])
+    a, b = rng.standard_normal(shape), rng.standard_normal(shape)
+    scale = (sd / math.sqrt(2.0))[:, None, :]  # the same for every copy of a draw
+    grouped = (hd.shape[0], NOISE_REPLICATES, hd.shape[1])
+    out = np.empty(grouped, dtype=complex)
+    out.real = hd.real[:, None, :] + a.reshape(grouped) * scale
+    out.imag = hd.imag[:, None, :] + b.reshape(grouped) * scale
+    return out.reshape(shape)
+
+
 def _noise_sd(prob: Problem, vals, measured: list, parts_map: list) -> list:
     """Per measurement (fitted and held out): (n_draws, 1) relative noise scale, the squared relative noise floor
     ``eps^2`` and (n,) coherence.
@@ -212,10 +230,8 @@ def evaluate(fit: ModelFit, rng: np.random.Generator, n_draws: int = 200, correc
         # NOISE_REPLICATES noise realisations per draw: the measured peak's scatter (the bias's observation
         # variance, the predictive interval) is a 90 % range of the tracked peak, which one realisation per draw
         # leaves 10 % uncertain and biased low
-        hd_rep, sd_rep = np.repeat(hd, NOISE_REPLICATES, axis=0), np.repeat(sd, NOISE_REPLICATES, axis=0)
-        eps = (rng.standard_normal(hd_rep.shape) + 1j * rng.standard_normal(hd_rep.shape)) * (sd_rep / math.sqrt(2.0))
         sigma_own = relative_noise_scale(hm)
-        me = mode_entries(f, hm, hp, hd, hd_rep + eps, sigma_own, truncated)
+        me = mode_entries(f, hm, hp, hd, _with_noise(hd, sd, rng), sigma_own, truncated)
         z2.append(predictive_z2(hm, hd, sigma_own))
         z2_win.append(predictive_window_statistic(hm, hd, sigma_own) if scan else None)
         tracked.append(me.pop("tracked"))

@@ -82,6 +82,7 @@ contain the measured peak itself.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -107,6 +108,48 @@ BIAS_RULE = ("mode-frequency bias of the final model: per direction and mode ord
 def _quantiles(x: np.ndarray) -> dict:
     q = np.nanquantile(x, [0.05, 0.5, 0.95]) if np.isfinite(x).any() else [math.nan] * 3
     return {"q05": float(q[0]), "q50": float(q[1]), "q95": float(q[2])}
+
+
+def _row_quantiles(x: np.ndarray) -> list:
+    """:func:`_quantiles` of every row of ``x`` (n_rows, n): one batched call over the rows without NaN.
+
+    The batched quantiles are the same numbers as the row-by-row ones (the same partition and interpolation
+    per row; tests/test_discrepancy_fastpaths.py); a row with NaN goes through :func:`_quantiles`.
+    """
+    finite = np.isfinite(x).all(axis=1)
+    out = [None] * x.shape[0]
+    if finite.any():
+        q = np.quantile(x[finite], [0.05, 0.5, 0.95], axis=1)
+        for c, r in enumerate(np.flatnonzero(finite)):
+            out[r] = {"q05": float(q[0, c]), "q50": float(q[1, c]), "q95": float(q[2, c])}
+    for r in np.flatnonzero(~finite):
+        out[r] = _quantiles(x[r])
+    return out
+
+
+def _row_nanstd(x: np.ndarray) -> list:
+    """``float(np.nanstd(row))`` of every row of ``x`` (n_rows, n), in one call (the same per-row reductions)."""
+    return [float(v) for v in np.nanstd(x, axis=1)]
+
+
+def _robust_vars(values: list) -> list:
+    """Each entry of ``values`` as is (a float), or :func:`_robust_var` of it (an array), the arrays batched.
+
+    Arrays of one length without NaN share one :func:`numpy.quantile` call over their rows (the same
+    partition and interpolation per row as one call each); any other goes through :func:`_robust_var`.
+    """
+    arrays = [k for k, v in enumerate(values) if isinstance(v, np.ndarray)]
+    out = list(values)
+    rows = [values[k] for k in arrays]
+    if rows and len({r.shape for r in rows}) == 1 and rows[0].ndim == 1 and rows[0].size >= 2 \
+            and all(np.isfinite(r).all() for r in rows):
+        q = np.quantile(np.stack(rows), [0.05, 0.95], axis=1)
+        for c, k in enumerate(arrays):
+            out[k] = float(((q[1, c] - q[0, c]) / (2.0 * 1.6448536269514722)) ** 2)
+        return out
+    for k in arrays:
+        out[k] = _robust_var(values[k])
+    return out
 
 
 def _robust_var(x: np.ndarray) -> float:
@@ -165,6 +208,23 @@ def _gp_weights(x_obs, noise_var, x_new, amp2, lam: float, degree: int = 1):
 AMPLITUDE_GRID = np.logspace(-2.0, 2.5, 121)
 
 
+@functools.lru_cache(maxsize=64)
+def _contrasts(x: tuple, degree: int, lam: float) -> tuple[np.ndarray, np.ndarray]:
+    """Orthonormal contrasts ``P`` (n, n - degree - 1) of the fitted lengths ``x`` (m) that the polynomial mean
+    cannot produce, and the unit kernel between them, ``P^T K P`` (length scale ``lam`` m).
+
+    A function of the lengths alone (the same for every draw and every mode of a setup): cached, read-only.
+    """
+    xa = np.array(x, dtype=float)
+    h = _basis(xa, float(np.mean(xa)), max(float(np.ptp(xa)), 1e-3), degree)
+    q, _ = np.linalg.qr(h, mode="complete")
+    p = q[:, h.shape[1]:]
+    a = p.T @ np.exp(-0.5 * ((xa[:, None] - xa[None, :]) / lam) ** 2) @ p
+    p.flags.writeable = False
+    a.flags.writeable = False
+    return p, a
+
+
 def _change_seen2(change: tuple[np.ndarray, np.ndarray] | None) -> float | None:
     """Square of how much the bias was seen to change over the fitted lengths (Hz²), or None.
 
@@ -180,8 +240,8 @@ def _change_seen2(change: tuple[np.ndarray, np.ndarray] | None) -> float | None:
 
 
 def _amplitude2_posterior(x: np.ndarray, y: np.ndarray, noise_var: np.ndarray, lam: float,
-                          degree: int = 1, change: tuple[np.ndarray, np.ndarray] | None = None
-                          ) -> tuple[np.ndarray, np.ndarray]:
+                          degree: int = 1, change: tuple[np.ndarray, np.ndarray] | None = None,
+                          y_median: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The kernel's amplitude² (Hz²) given the per-draw biases ``y`` (n_draws, n_fitted): values and weights.
 
     How far the bias departs from its mean's polynomial between lengths.  Its posterior on a grid, from the
@@ -213,7 +273,7 @@ def _amplitude2_posterior(x: np.ndarray, y: np.ndarray, noise_var: np.ndarray, l
         value: the change seen (``change`` given) or else the noise variance (two lengths cannot show a
         departure: the outputs say that the bias's course between them is untested).
     """
-    ym = np.median(y, axis=0)
+    ym = np.median(y, axis=0) if y_median is None else y_median
     noise_var = np.asarray(noise_var, dtype=float)
     nv = float(np.mean(noise_var))
     x = np.asarray(x, dtype=float)
@@ -223,11 +283,8 @@ def _amplitude2_posterior(x: np.ndarray, y: np.ndarray, noise_var: np.ndarray, l
     if ym.size - degree - 1 <= 0:
         seen2 = _change_seen2(change)
         return np.array([nv if seen2 is None else seen2]), np.ones(1)
-    h = _basis(x, float(np.mean(x)), max(float(np.ptp(x)), 1e-3), degree)
-    q, _ = np.linalg.qr(h, mode="complete")
-    p = q[:, h.shape[1]:]  # orthonormal contrasts that the polynomial mean cannot produce
+    p, a = _contrasts(tuple(x.tolist()), degree, lam)
     z = p.T @ ym
-    a = p.T @ np.exp(-0.5 * ((x[:, None] - x[None, :]) / lam) ** 2) @ p
     n = p.T @ np.diag(noise_var) @ p
     scale = math.sqrt(nv) if nv > 0 else math.sqrt(float(z @ z) / max(float(np.trace(a)), 1e-12) + 1e-24)
     amp = scale * AMPLITUDE_GRID
@@ -291,7 +348,8 @@ def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Gen
             # the bias *of each draw*: a draw whose contact is stiffer sits higher at every length, and its
             # bias is correspondingly lower, so the parameter spread shared by all lengths cancels (K&O'H)
             b = (f_obs if whole else md["measured_hz"]) - fd
-            cols.append(np.where(np.isfinite(b), b, np.nanmedian(b)))
+            finite = np.isfinite(b)
+            cols.append(b if finite.all() else np.where(finite, b, np.nanmedian(b)))
             # the same bias from the whole resonance, whatever the observation: with two fitted lengths, how
             # much it changes between them is the amplitude of its departure from the line (_amplitude2_posterior)
             ok = math.isfinite(f_obs) and math.isfinite(sd_obs) and sd_obs > 0 and bool(np.isfinite(fd).any())
@@ -301,11 +359,14 @@ def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Gen
             # the peak alone; a difference of the two spreads is swamped by the parameter spread), from its
             # central 90 % range: a few noisy draws whose tracked peak jumps to a noise spike at the edge of the
             # mode's window would otherwise set the variance of every draw
-            nv.append(sd_obs**2 if whole else _robust_var(fp - fd))
+            nv.append(sd_obs**2 if whole else fp - fd)
+        nv = _robust_vars(nv)
         y, nv = np.column_stack(cols), np.array(nv)  # (n_draws, n_fitted), (n_fitted,)
+        y_median = np.median(y, axis=0)  # (n_fitted,): the median draw's bias
         span = max(xl) - min(xl)
         lam = 0.5 * span if span > 0 else 0.01
-        amp2, amp_w = _amplitude2_posterior(np.array(xl), y, nv, lam, change=(np.array(res_b), np.array(res_v)))
+        amp2, amp_w = _amplitude2_posterior(np.array(xl), y, nv, lam, change=(np.array(res_b), np.array(res_v)),
+                                            y_median=y_median)
         if not np.all(amp2 > 0):
             continue
         xs = [measurements[j]["clamping_length"] for j, _ in members]
@@ -313,16 +374,22 @@ def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Gen
         # the amplitude marginalised: each replicate of each draw takes its own amplitude from the posterior
         g = rng.choice(amp2.size, size=(y.shape[0], BIAS_REPLICATES), p=amp_w)
         means = np.einsum("do,dron->drn", y, gw[g])  # (n_draws, replicates, n_members)
-        ym = np.median(y, axis=0) @ gw  # (n_grid, n_members): the median draw's bias under each amplitude
+        ym = y_median @ gw  # (n_grid, n_members): the median draw's bias under each amplitude
+        # every member's Gaussian replicates in one call: the same stream as one call per member in turn
+        normal = rng.standard_normal((len(members),) + means.shape[:2])
+        shift = np.moveaxis(means, -1, 0) + np.sqrt(np.moveaxis(gv[g], -1, 0)) * normal  # (n_members, d, r)
+        fd_all = np.stack([draws[j][0][:, i] for j, i in members])  # (n_members, n_draws)
+        fp_all = np.stack([draws[j][1][:, i] for j, i in members])
+        corrected = np.concatenate([(fd_all[:, :, None] + shift).reshape(len(members), -1),
+                                    (fp_all[:, :, None] + shift).reshape(len(members), -1)])
+        qs = _row_quantiles(corrected)
+        sds = _row_nanstd(corrected[len(members):])
         for k, (j, i) in enumerate(members):
             md = measurements[j]["modes"][i]
-            fd, fp = draws[j][0][:, i], draws[j][1][:, i]
             mu = means[:, :, k]
-            shift = mu + np.sqrt(gv[g, k]) * rng.standard_normal(mu.shape)
-            fdc, fpc = (fd[:, None] + shift).ravel(), (fp[:, None] + shift).ravel()
             m_k = float(amp_w @ ym[:, k])
             bias_sd = math.sqrt(float(amp_w @ gv[:, k] + amp_w @ (ym[:, k] - m_k) ** 2))
-            q, qp = _quantiles(fdc), _quantiles(fpc)
+            q, qp = qs[k], qs[len(members) + k]
             fm = md["measured_hz"]
             md.update({"uncorrected_model_hz": md["model_hz"], "model_hz": q["q50"],
                        "error_pct": 100.0 * (q["q50"] - fm) / fm,
@@ -330,10 +397,10 @@ def correct_mode_frequencies(measurements: list, draws: list, rng: np.random.Gen
                        "uncorrected_predictive_interval": md["predictive_interval"],
                        "bias_hz": {"mean": float(np.mean(mu)), "sd": bias_sd},
                        "model_interval": q, "predictive_interval": qp,
-                       "predictive_sd_hz": float(np.nanstd(fpc)),
+                       "predictive_sd_hz": sds[k],
                        "covered_model_90": bool(q["q05"] <= fm <= q["q95"]),
                        "covered_predictive_90": bool(qp["q05"] <= fm <= qp["q95"])})
-        y = np.median(y, axis=0)
+        y = y_median
         amp_median = math.sqrt(float(amp2[min(np.searchsorted(np.cumsum(amp_w), 0.5), amp2.size - 1)]))
         source = ""
         if np.unique(xl).size == 2 and len(xl) == 2:  # the amplitude is assumed, not estimated: say from what

@@ -467,21 +467,23 @@ class FlutedSection(ModelTerm):
         tool = subs.tool
         out = {k: np.array(np.broadcast_to(getattr(tool, k), (n_sets,) + getattr(tool, k).shape[1:]))
                for k in ("r11", "r12", "r21", "r22")}
-        done: dict = {}  # the two directions of one clamping length share the tool two-port (same lines): once
-        for j, cfg in enumerate(ctx.configurations):  # a few configurations, each batched over sets and lines
+        # the configurations of one tool and clamping length (the two directions, repeated taps) share the tool
+        # two-port: it is computed once on the union of their lines (each line's two-port is its own solve, the
+        # same numbers whatever other lines are in the batch) and scattered to each configuration's lines
+        groups: dict = {}
+        for j, cfg in enumerate(ctx.configurations):
             lines = np.flatnonzero(ctx.line_config == j)
-            if lines.size == 0:
-                continue
-            key = (cfg.tool, cfg.clamping_length, ctx.omega[lines].tobytes())
-            tp = done.get(key)
-            if tp is None:
-                tp = done[key] = self._tool_two_port(u_values, ua, ua[:, None], ui[:, None], cfg, ctx.model,
-                                                     ctx.omega[lines])
-            if tp is None:  # nothing acted on at this configuration
+            if lines.size:
+                groups.setdefault((cfg.tool, cfg.clamping_length), (cfg, []))[1].append(lines)
+        for cfg, members in groups.values():  # a few clamping lengths, each batched over sets and lines
+            lines = np.concatenate(members)
+            omega, at = np.unique(ctx.omega[lines], return_inverse=True)
+            tp = self._tool_two_port(u_values, ua, ua[:, None], ui[:, None], cfg, ctx.model, omega)
+            if tp is None:  # nothing acted on at this clamping length
                 continue
             for k in out:
-                new = np.broadcast_to(getattr(tp, k), (uniq.shape[0], lines.size, 2, 2))
-                out[k][np.ix_(acting, lines)] = new[inv]
+                new = np.broadcast_to(getattr(tp, k), (uniq.shape[0], omega.size, 2, 2))
+                out[k][np.ix_(acting, lines)] = new[inv[:, None], at.reshape(-1)[None, :]]
         return subs.replace(tool=TwoPort(**out))
 
     @staticmethod
