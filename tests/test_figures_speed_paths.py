@@ -124,3 +124,39 @@ def test_texts_placed_without_a_draw_are_where_a_draw_puts_them():
     figs[0].draw_without_rendering()
     renderer = F._place_texts(figs[1])
     assert _boxes(figs[1], renderer) == _boxes(figs[0], figs[0].canvas.get_renderer())
+
+
+@pytest.mark.parametrize("lims", [(3.6e-9, 3.6e-6), (2e-3, 7e-3), (1e-12, 1e3), (0.5, 1.0)])
+def test_in_view_log_locator_keeps_every_tick_the_axis_draws(lims):
+    from matplotlib.ticker import LogLocator
+
+    from bayes_rcsa.io._log_ticks import in_view
+
+    fig = F.new_figure(4.0, 3.0)
+    ax = fig.add_subplot(1, 1, 1)
+    ax.set_yscale("log")
+    ax.set_ylim(*lims)
+    lo, hi = np.log10(lims)
+    tol = 1e-10 * (hi - lo)
+    for subs in ((1.0,), "auto"):
+        plain = LogLocator(10.0, subs)
+        plain.set_axis(ax.yaxis)
+        trimmed = in_view(plain)
+        trimmed.set_axis(ax.yaxis)
+        ref = plain()
+        drawn = ref[(np.log10(ref) >= lo - tol) & (np.log10(ref) <= hi + tol)]
+        assert np.array_equal(trimmed(), drawn)
+
+
+def test_finished_log_panels_paint_as_with_the_plain_log_locators():
+    """finish swaps a log axis' LogLocator for the in-view one: same pixels."""
+    from matplotlib.ticker import LogLocator
+
+    fast = F.finish(_figure(title=False))
+    ref = F.finish(_figure(title=False))
+    for ax in ref.axes:
+        if ax.get_yscale() == "log":
+            assert type(ax.yaxis.get_minor_locator()) is not LogLocator
+            ax.yaxis.set_major_locator(LogLocator(10.0))
+            ax.yaxis.set_minor_locator(LogLocator(10.0, "auto"))
+    assert np.array_equal(_pixels(fast), _pixels(ref))

@@ -206,6 +206,23 @@ def _memo_tightbbox(measure):
     return get_tightbbox
 
 
+def _trim_log_ticks(ax) -> None:
+    """Log axes make only the ticks inside the view (:class:`~bayes_rcsa.io._log_ticks.InViewLogLocator`)."""
+    from matplotlib.ticker import LogLocator
+
+    from ._log_ticks import in_view
+
+    for axis in (ax.xaxis, ax.yaxis):
+        if axis.get_scale() != "log":
+            continue
+        defaults = (axis.isDefault_majloc, axis.isDefault_minloc)
+        if type(axis.get_major_locator()) is LogLocator:
+            axis.set_major_locator(in_view(axis.get_major_locator()))
+        if type(axis.get_minor_locator()) is LogLocator:
+            axis.set_minor_locator(in_view(axis.get_minor_locator()))
+        axis.isDefault_majloc, axis.isDefault_minloc = defaults  # still the scale's own (a new scale replaces them)
+
+
 def _layout(fig, rect) -> None:
     with warnings.catch_warnings(), _tightbbox_once(fig):
         # "not compatible with tight_layout" for colorbars/subfigures: the layout is still the best available
@@ -349,6 +366,7 @@ def finish(fig, rect=None, layout: bool = True):
     """
     for ax in fig.axes:
         _plain_axes(ax)
+        _trim_log_ticks(ax)
         ax.tick_params(axis="both", which="both", labelsize=TICK_FONT_PT)
     for t in _texts(fig):
         if t.get_fontsize() < MIN_FONT_PT:
