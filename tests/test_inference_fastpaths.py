@@ -168,3 +168,37 @@ def test_the_stacks_batch_size_fast_path_matches_broadcasting(likelihood):
     assert np.array_equal(stack.frf(kx, kt, np.full(5, 10.0), 5e-4, 0.0, np.zeros((1, 2))), full)
     with pytest.raises(ValueError):
         stack.frf(kx, kt[:3])
+
+
+def _natural_frequency_reference(f, h):
+    """The former rule's evaluation: the log of every line, then the three around the maximum."""
+    with np.errstate(divide="ignore"):
+        y = np.log(np.abs(h))
+    i = np.argmax(np.abs(h), axis=-1)
+    ic = np.clip(i, 1, f.size - 2)
+    y0, y1, y2 = (np.take_along_axis(y, (ic + k)[..., None], axis=-1)[..., 0] for k in (-1, 0, 1))
+    u0, u2 = f[ic - 1] - f[ic], f[ic + 1] - f[ic]
+    d0, d2 = y0 - y1, y2 - y1
+    det = u0 * u2 * (u0 - u2)
+    a, b = (d0 * u2 - d2 * u0) / det, (d2 * u0**2 - d0 * u2**2) / det
+    with np.errstate(divide="ignore", invalid="ignore"):
+        shift = np.where(a < 0, -b / (2 * a), 0.0)
+    out = f[ic] + np.where(np.isfinite(shift), shift, 0.0)
+    return np.where((i == 0) | (i == f.size - 1), np.nan, out)
+
+
+def test_natural_frequency_logs_three_lines_with_the_numbers_of_logging_all():
+    from bayes_rcsa.model.natural_frequencies import natural_frequency
+
+    rng = np.random.default_rng(7)
+    for k in range(60):
+        f = np.unique(rng.uniform(100.0, 5000.0, rng.integers(3, 300)))
+        shape = tuple(rng.integers(1, 5, k % 3)) + (f.size,)
+        h = rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
+        if k % 3 == 0:
+            h[..., rng.integers(0, f.size)] = 0.0  # ln 0 = -inf next to the maximum
+        if k % 4 == 0:
+            h[..., 0] = 100.0  # the maximum on the band edge: NaN
+        if k % 5 == 0:
+            h = np.abs(h)
+        assert np.array_equal(natural_frequency(f, h), _natural_frequency_reference(f, h), equal_nan=True)

@@ -58,13 +58,15 @@ def natural_frequency(frequency_hz, h, band: tuple[float, float] | None = None) 
         h = h[..., mask]
     if f.size < 3:
         raise DataError(f"natural frequency: {f.size} lines in the band, at least 3 are needed")
-    with np.errstate(divide="ignore"):
-        y = np.log(np.abs(h))
-    i = np.argmax(np.abs(h), axis=-1)
+    mag = np.abs(h)
+    i = np.argmax(mag, axis=-1)
     edge = (i == 0) | (i == f.size - 1)
     ic = np.clip(i, 1, f.size - 2)  # edge cases are replaced by NaN below
-    take = lambda k: np.take_along_axis(y, (ic + k)[..., None], axis=-1)[..., 0]  # noqa: E731
-    y0, y1, y2 = take(-1), take(0), take(1)
+    # ln|h| of the three lines only (an elementwise log: the values of the log of every line, at a fraction of it)
+    y3 = np.take_along_axis(mag, ic[..., None] + np.arange(-1, 2), axis=-1)
+    with np.errstate(divide="ignore"):
+        y3 = np.log(y3)
+    y0, y1, y2 = y3[..., 0], y3[..., 1], y3[..., 2]
     u0 = f[ic - 1] - f[ic]
     u2 = f[ic + 1] - f[ic]
     d0, d2 = y0 - y1, y2 - y1
