@@ -95,6 +95,12 @@ def test_tick_memo_follows_the_view_and_the_dpi():
         assert [t.get_loc() for t in ax.xaxis._update_ticks()] == coarse
     fig.set_dpi(100)
     assert [t.get_loc() for t in ax.xaxis._update_ticks()] == moved
+    with F._ticks_once(fig):  # nested blocks: the inner one hands the outer one's memo back
+        outer = vars(ax.xaxis)["_update_ticks"]
+        with F._ticks_once(fig):
+            assert vars(ax.xaxis)["_update_ticks"] is not outer
+        assert vars(ax.xaxis)["_update_ticks"] is outer
+    assert "_update_ticks" not in vars(ax.xaxis)
 
 
 def _boxes(fig, renderer) -> list:

@@ -144,16 +144,8 @@ def _tightbbox_once(fig):
     of every axis laid out, several times over).  The memo lives on the axes only for the block (one layout
     of one figure, one renderer), so it cannot outlive the state it measured.
     """
-    patched = []
-    try:
-        for ax in fig.axes:
-            ax.get_tightbbox = _memo_tightbbox(ax.get_tightbbox)
-            patched.append(ax)
-        with _ticks_once(fig):
-            yield
-    finally:
-        for ax in patched:
-            del ax.get_tightbbox  # the instance attribute: the class' method shows through again
+    with _patched(fig.axes, "get_tightbbox", _memo_tightbbox), _ticks_once(fig):
+        yield
 
 
 @contextmanager
@@ -165,16 +157,27 @@ def _ticks_once(fig):
     moving every tick again, with nothing changed in between.  The memo is keyed by what the ticks depend on
     within a pass (view limits, the axes' place in pixels, the dpi) and lives on the axis only for the block.
     """
-    patched = []
+    axes = [axis for ax in fig.axes for axis in (ax.xaxis, ax.yaxis)]
+    with _patched(axes, "_update_ticks", _memo_ticks):
+        yield
+
+
+@contextmanager
+def _patched(objects, name: str, memo):
+    """Within the block, ``obj.name`` of every object is ``memo(obj, obj.name)`` (an instance attribute); after
+    it, whatever was there before (the class' method, or an enclosing block's memo)."""
+    before = []
     try:
-        for ax in fig.axes:
-            for axis in (ax.xaxis, ax.yaxis):
-                axis._update_ticks = _memo_ticks(axis, axis._update_ticks)
-                patched.append(axis)
+        for obj in objects:
+            before.append((obj, vars(obj).get(name)))
+            setattr(obj, name, memo(obj, getattr(obj, name)))
         yield
     finally:
-        for axis in patched:
-            del axis._update_ticks
+        for obj, old in before:
+            if old is None:
+                vars(obj).pop(name, None)
+            else:
+                setattr(obj, name, old)
 
 
 def _memo_ticks(axis, update):
@@ -190,7 +193,7 @@ def _memo_ticks(axis, update):
     return _update_ticks
 
 
-def _memo_tightbbox(measure):
+def _memo_tightbbox(ax, measure):
     boxes = {}
 
     def get_tightbbox(renderer=None, *args, **kwargs):
