@@ -202,3 +202,39 @@ def test_natural_frequency_logs_three_lines_with_the_numbers_of_logging_all():
         if k % 5 == 0:
             h = np.abs(h)
         assert np.array_equal(natural_frequency(f, h), _natural_frequency_reference(f, h), equal_nan=True)
+
+
+def _snooker_reference(s, c, random, gamma=1.7):
+    """The snooker proposal walker by walker with np.linalg.norm (the former evaluation's operations)."""
+    ns, nd = s.shape
+    idx = [random.randint(len(c[j]), size=ns) for j in range(3)]
+    order = np.argsort(random.rand(ns, 3), axis=1)
+    q, factor = s.copy(), np.zeros(ns)
+    for i in range(ns):
+        z, z1, z2 = (c[k][idx[k][i]] for k in order[i])
+        norm = np.linalg.norm((s[i] - z)[None, :], axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            e = (s[i] - z)[None, :] / norm[:, None]
+            qi = s[i][None, :] + gamma * e * np.sum(e * (z1 - z2)[None, :], axis=1, keepdims=True)
+            fi = (nd - 1.0) * (np.log(np.linalg.norm(qi - z[None, :], axis=1)) - np.log(norm))
+        if np.isfinite(fi[0]):
+            q[i], factor[i] = qi[0], fi[0]
+    return q, factor
+
+
+def test_the_snooker_proposal_is_the_walker_by_walker_reference():
+    from bayes_rcsa.inference.sampler import snooker_move
+
+    move, rng = snooker_move(), np.random.default_rng(8)
+    for k in range(200):
+        n, nd = int(rng.integers(1, 12)), int(rng.integers(1, 8))
+        c = [rng.standard_normal((int(rng.integers(1, 12)), nd)) for _ in range(3)]
+        s = rng.standard_normal((n, nd))
+        if k % 4 == 0:
+            s[0] = c[0][0]
+            c[1][:], c[2][:] = c[0][0], c[0][0]  # a walker on top of every z: it stays
+        seed = int(rng.integers(0, 2**31))
+        got, ref = np.random.RandomState(seed), np.random.RandomState(seed)
+        q, f = move.get_proposal(s, c, got)
+        q_ref, f_ref = _snooker_reference(s, c, ref)
+        assert np.array_equal(q, q_ref) and np.array_equal(f, f_ref) and got.rand() == ref.rand()

@@ -718,16 +718,19 @@ def snooker_move(gamma: float = 1.7):
             # one walker of each of the three other splits per walker, in random order
             w = np.stack([c[j][random.randint(len(c[j]), size=ns)] for j in range(3)], axis=1)  # (ns, 3, nd)
             order = np.argsort(random.rand(ns, 3), axis=1)
-            w = np.take_along_axis(w, order[:, :, None], axis=1)
+            w = w[np.arange(ns)[:, None], order]
             z, z1, z2 = w[:, 0], w[:, 1], w[:, 2]
             delta = s - z
-            norm = np.linalg.norm(delta, axis=1)
+            # Euclidean norms as np.linalg.norm evaluates them for real rows, without its argument handling
+            norm = np.sqrt(np.add.reduce(delta * delta, axis=1))
             with np.errstate(invalid="ignore", divide="ignore"):
                 e = delta / norm[:, None]
                 q = s + gamma * e * np.sum(e * (z1 - z2), axis=1, keepdims=True)
-                factor = (nd - 1.0) * (np.log(np.linalg.norm(q - z, axis=1)) - np.log(norm))
+                dq = q - z
+                factor = (nd - 1.0) * (np.log(np.sqrt(np.add.reduce(dq * dq, axis=1))) - np.log(norm))
             bad = ~np.isfinite(factor)  # a walker on top of z: no direction, stay
-            q[bad], factor[bad] = s[bad], 0.0
+            if bad.any():
+                q[bad], factor[bad] = s[bad], 0.0
             return q, factor
 
     return _Snooker()
