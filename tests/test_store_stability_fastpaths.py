@@ -229,3 +229,27 @@ def test_sdm_discretisations_shared_between_calls_give_the_same_limits(monkeypat
     assert sdm._discretise(cut, 20) is not sdm._discretise(CuttingConditions(kt=790e6, kr=230e6, flutes=4,
                                                                             radial_immersion=0.5), 20)
     assert len(sdm._DISCRETISED) <= sdm._DISCRETISED_MAX
+
+
+def test_a_small_envelope_runs_compiled_once_the_kernel_is_loaded(monkeypatch):
+    from bayes_rcsa.stability import _zoa_kernel, zoa
+    from bayes_rcsa.stability.cutting import CuttingConditions, mean_directional_matrix
+
+    f = np.linspace(100.0, 1600.0, 301)
+    w = 2 * np.pi * f
+    g = 1 / (2e7 * (1 - (w / (2 * np.pi * 700)) ** 2 + 0.06j * w / (2 * np.pi * 700)))
+    cut = CuttingConditions(kt=790e6, kr=230e6, flutes=4, milling="down", radial_immersion=0.95)
+    ends = zoa._segment_ends(mean_directional_matrix(cut), np.stack([g, 1.1 * g]), np.stack([g, 0.9 * g]))
+    speeds = np.array([6000.0, 8000.0, 10000.0, 12000.0, 15000.0, 18000.0])
+    K = zoa.lobe_count(f, 4, speeds[0])
+    want = zoa._envelope_numpy(*ends, f, 4, speeds, K)
+    # the kernel's machine code in this process (as after a large job or the lobes warm-up)
+    _zoa_kernel.lower_envelope(np.full((1, 2, 2), np.inf), np.zeros((1, 2, 2)), np.ones(2), np.ones(2), 1, 1,
+                               np.ones(2), True, np.full((1, 2), np.inf), np.zeros((1, 1)),
+                               np.zeros((1, 1), dtype=np.int64), False)
+    assert zoa._compiled_envelope_loaded()
+    monkeypatch.setattr(zoa, "_envelope_numpy", None)  # a call of the numpy version would fail
+    got = zoa._envelope_of_ends(*ends, f, 4, speeds, K)
+    assert np.isfinite(want[0]).any()
+    for a, b in zip(got, want):
+        assert a.tobytes() == b.tobytes()
