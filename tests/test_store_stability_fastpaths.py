@@ -172,22 +172,22 @@ def test_blocked_eigenvalues_and_segment_ends_are_the_whole_array_s_bit_for_bit(
             assert g.shape == r.shape and g.tobytes() == r.tobytes()
 
 
-#: simulate_milling's growth, residual and the samples of periods 12 and 6 for the cases of
+#: simulate_milling's growth, residual and the samples of periods 8 and 4 for the cases of
 #: :func:`test_simulate_milling_gives_the_numbers_of_the_stage_by_stage_version`, as the version that formed every
 #: factor in every stage computed them (bit for bit equal to the current one on the development machine; the
 #: tolerance leaves room for another BLAS only, far below what a changed formula or delayed value moves).
 _SIMULATION_REFERENCE = [
-    [[1.0195813543576198, 1.5602576229551735], [0.8254698921301324, 1.7215308332744428], [[7.263532034404457e-07, 7.0907929947664e-06], [-0.0007363269012933472, -2.946614285947584e-05]], [[-3.0259779210445274e-06, 5.166547888578503e-06], [1.3713481236425474e-05, 4.4027763528978734e-05]]],
-    [[1.0126741953130303, 1.3073594866081266], [0.7912519997376462, 1.7319665581227555], [[7.34359789376296e-07, 6.826674803303926e-06], [-0.00025273331608476393, 0.00018348076947815597]], [[-2.995387350874605e-06, 5.2084255019084175e-06], [1.4012583097630727e-05, 3.327627627007347e-05]]],
-    [[0.6491617245166197, 5.864709097206607], [0.021873238004273876, 1.3125122615600469], [[-8.422457827049426e-06, 5.094772340312722e-06], [13479.991135441092, 9838.1778049522]], [[-8.476776195797511e-06, 4.578721568892777e-06], [-0.31577723437502153, -0.11089615856024757]]],
-    [[0.440131444079915, 1.4834222220535545], [0.0014726918615767834, 1.952885350667546], [[-8.388393066864103e-06, 5.162094825040742e-06], [-0.003450570543816341, -0.010955932749420316]], [[-8.490131069660486e-06, 4.972713516989277e-06], [0.0006764007455685318, -0.00013423996929188048]]],
+    [[1.0210065142877234, 1.713884550661098], [0.8821756981341903, 1.7787348752085683], [[2.2608339977289388e-06, 5.814895938473287e-06], [0.00019112791892380855, 5.0558716327028116e-05]], [[2.449833567735349e-06, 3.6150267105815388e-06], [-2.9719905275719934e-05, 2.7548760549106045e-05]]],
+    [[1.0161854798941254, 1.4294751317252767], [0.8528137913487862, 1.873117500598835], [[2.1218836033904516e-06, 5.637468894248813e-06], [9.697617641881571e-05, -1.6420419112138473e-05]], [[2.2580962164879887e-06, 3.5947401558447978e-06], [-2.691417009057765e-05, 2.7981439299636444e-05]]],
+    [[0.7753490293395475, 7.519270730864989], [0.2656166582555554, 1.3516766540181289], [[-6.531656789613126e-06, 4.472071920819956e-06], [-113.62988982919705, -114.74045141019289]], [[-3.842416701096163e-06, 7.788730417523967e-06], [0.002190214540499498, 0.042547174701744586]]],
+    [[0.6007880183991753, 1.6367167500938768], [0.07188479396015117, 1.9179395190477853], [[-5.9289207475068985e-06, 4.595400854526895e-06], [0.00032897592952661726, -0.0029478921956151505]], [[-4.894892622019202e-06, 5.858495631622795e-06], [0.0005307164835876093, 0.00017705387636862523]]],
 ]
 
 
 def test_simulate_milling_gives_the_numbers_of_the_stage_by_stage_version():
     from bayes_rcsa.stability import CuttingConditions, ModalModel, simulate_milling
 
-    mx = ModalModel([1287.0, 2600.0], [0.02, 0.03], [1.0e6, 3e6])
+    mx = ModalModel([1287.0], [0.02], [1.0e6])
     my = ModalModel([1340.0], [0.03], [1.3e6])
     cuts = [CuttingConditions(kt=790e6, kr=230e6, flutes=4, milling="up", radial_immersion=0.5),
             CuttingConditions(kt=790e6, kr=230e6, flutes=4, radial_immersion=0.7,
@@ -195,9 +195,9 @@ def test_simulate_milling_gives_the_numbers_of_the_stage_by_stage_version():
     got = []
     for cut in cuts:
         for nonlinear in (False, True):
-            r = simulate_milling(mx, my, cut, [9000.0, 15000.0], [2e-4, 5e-4], periods=12, nonlinear=nonlinear,
+            r = simulate_milling(mx, my, cut, [9000.0, 15000.0], [2e-4, 5e-4], periods=8, nonlinear=nonlinear,
                                  rng=np.random.default_rng(3))
-            got.append([r.growth.tolist(), r.residual.tolist(), r.samples[:, -1].tolist(), r.samples[:, 5].tolist()])
+            got.append([r.growth.tolist(), r.residual.tolist(), r.samples[:, -1].tolist(), r.samples[:, 3].tolist()])
     for g, want in zip(got, _SIMULATION_REFERENCE):
         for a, b in zip(g, want):
             np.testing.assert_allclose(a, b, rtol=1e-12, atol=0)
