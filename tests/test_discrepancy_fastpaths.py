@@ -173,3 +173,24 @@ def test_a_start_given_twice_is_polished_once_with_the_same_fit(example, monkeyp
     ref = fit_mod._finish("baseline", p, best, 0.5, 3 + 2 * refs[0][1] + refs[1][1])
     assert np.array_equal(fit.theta, ref.theta) and fit.n_evaluations == ref.n_evaluations
     assert fit.log_evidence == ref.log_evidence and np.array_equal(fit.cov, ref.cov)
+
+
+def test_fluted_two_port_with_cached_unchanged_segments_is_the_computed_one(example, monkeypatch):
+    from bayes_rcsa.params.terms import fluted_section as fs
+
+    setup, _ = example
+    model = setup.model()
+    values = {"flute_area_ratio": np.array([0.8, 0.9]), "flute_inertia_ratio": np.array([0.6, 0.75])}
+    f = np.arange(700.0, 1500.0, 4.0)
+    ctx = _context(model, [(Configuration(0.025, "x"), f), (Configuration(0.040, "y"), f + 2.0)])
+    term = make_term("fluted_section")
+    fs._CONSTANT_PIECES.clear()
+    cold = term.substructures(values, _tool_substructures(model, ctx, 2), ctx).tool
+    warm = term.substructures(values, _tool_substructures(model, ctx, 2), ctx).tool  # from the cache
+    assert fs._CONSTANT_PIECES  # the unfluted segments were cached
+    # the reference: every segment computed afresh
+    monkeypatch.setattr(fs, "_constant_piece",
+                        lambda length, props, omega: fs.batched_segment_stiffness(length, *props, omega))
+    ref = term.substructures(values, _tool_substructures(model, ctx, 2), ctx).tool
+    for k in ("r11", "r12", "r21", "r22"):
+        assert np.array_equal(getattr(cold, k), getattr(ref, k)) and np.array_equal(getattr(warm, k), getattr(ref, k))

@@ -184,6 +184,7 @@ the holder.
 
 from __future__ import annotations
 
+import threading
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -266,7 +267,7 @@ def batched_segment_stiffness(length, EI, kGA, rhoA, rhoI, omega) -> np.ndarray:
     return np.swapaxes(np.linalg.solve(np.swapaxes(d, -1, -2), np.swapaxes(f, -1, -2)), -1, -2)
 
 
-def batched_free_free(pieces: Sequence[tuple[float, tuple]], omega) -> TwoPort:
+def batched_free_free(pieces: Sequence[tuple[float, tuple]], omega, blocks: Sequence | None = None) -> TwoPort:
     """End receptances of a free-free stepped beam whose sections vary over a batch.
 
     Parameters
@@ -274,12 +275,16 @@ def batched_free_free(pieces: Sequence[tuple[float, tuple]], omega) -> TwoPort:
     pieces : sequence of (length, (EI, kGA, rhoA, rhoI)), end 1 to end 2;
         each property a (B, 1) array (or broadcastable); each length a float or a (B,) array, m.
     omega : (n,) rad/s
+    blocks : sequence or None
+        Per piece, its :func:`batched_segment_stiffness` at ``omega`` when already known, else None (computed here).
 
     Returns
     -------
     TwoPort with blocks (B, n, 2, 2)
     """
-    blocks = [batched_segment_stiffness(length, *props, omega) for length, props in pieces]
+    known = list(blocks) if blocks is not None else [None] * len(pieces)
+    blocks = [batched_segment_stiffness(length, *props, omega) if blk is None else blk
+              for (length, props), blk in zip(pieces, known)]
     shape = np.broadcast_shapes(*(k.shape[:-2] for k in blocks))
     n_dof = 2 * (len(pieces) + 1)
     k = np.zeros(shape + (n_dof, n_dof), dtype=complex)
@@ -290,6 +295,33 @@ def batched_free_free(pieces: Sequence[tuple[float, tuple]], omega) -> TwoPort:
     rhs[ends, np.arange(4)] = 1.0
     cols = np.linalg.solve(k, np.broadcast_to(rhs, shape + rhs.shape))
     return TwoPort.from_matrix(cols[..., ends, :])
+
+
+#: Stiffness blocks of pieces no parameter changes (an unfluted segment of a declared tool), by their exact inputs.
+_CONSTANT_PIECES: dict = {}
+_CONSTANT_PIECES_MAX = 32
+_CONSTANT_PIECES_LOCK = threading.Lock()
+
+
+def _constant_piece(length: float, props: tuple, omega: np.ndarray) -> np.ndarray:
+    """:func:`batched_segment_stiffness` of one section (props (1, 1) each), cached on its exact inputs.
+
+    The same computation on the same numbers: a fit evaluates the unchanged segments of the overhang at every
+    parameter set, and the least-squares loops of a fit call the term once or a few sets at a time.
+    """
+    arrays = [np.asarray(a) for a in props]
+    key = (float(length), tuple((a.dtype.str, a.shape, a.tobytes()) for a in arrays),
+           np.asarray(omega, dtype=float).tobytes())
+    with _CONSTANT_PIECES_LOCK:
+        blk = _CONSTANT_PIECES.get(key)
+    if blk is None:
+        blk = batched_segment_stiffness(length, *arrays, omega)
+        blk.flags.writeable = False  # shared by every later call with these inputs
+        with _CONSTANT_PIECES_LOCK:
+            if len(_CONSTANT_PIECES) >= _CONSTANT_PIECES_MAX:
+                _CONSTANT_PIECES.pop(next(iter(_CONSTANT_PIECES)))
+            _CONSTANT_PIECES[key] = blk
+    return blk
 
 
 def acted_segments(tool) -> list[bool]:
@@ -506,11 +538,14 @@ class FlutedSection(ModelTerm):
                 raise ModelError(f"fluted_section: could not match the overhang segments of tool {t.name!r}")
             if not any(flags):
                 return None
-            pieces = []
+            pieces, blocks = [], []
             for seg, fluted in zip(segs, flags):
                 p = seg.section
                 if fluted:
                     pieces.append((seg.length, (p.EI * ri1, p.kGA * ra1, p.rhoA * ra1, p.rhoI * ri1)))
+                    blocks.append(None)
                 else:
                     pieces.append((seg.length, (p.EI * one, p.kGA * one, p.rhoA * one, p.rhoI * one)))
+                    blocks.append(_constant_piece(*pieces[-1], omega))
+            return batched_free_free(pieces, omega, blocks)
         return batched_free_free(pieces, omega)
