@@ -1,4 +1,8 @@
-"""The compiled line loops of the spindle modal fit give the numbers of the numpy reference to round-off."""
+"""The compiled line loops of the spindle modal fit give the numbers of the numpy reference to round-off.
+
+Problems of fewer than ``_COMPILED_LINES`` lines use the numpy reference itself; these small ones are compiled on
+request (``compiled=True``).
+"""
 
 from __future__ import annotations
 
@@ -29,7 +33,7 @@ def test_compiled_entries_and_whitened_jacobian_equal_the_numpy_reference(n):
     rng = np.random.default_rng(20 + n)
     data = _data(rng)
     sc = _Scaling(data.frequency_hz, data.target)
-    prob = _Problem(data, sc, n)
+    prob = _Problem(data, sc, n, compiled=True)
     for _ in range(3):
         # spread natural frequencies across the band (and some poles close to lines): ill-conditioned Z too
         x = rng.standard_normal(n_parameters(n)) * 0.5
@@ -54,7 +58,7 @@ def test_compiled_measurement_jacobian_equals_the_numpy_reference():
     component = np.array([0, 1, 1, 2])
     measured = (rng.standard_normal((nf, 4)) + 1j * rng.standard_normal((nf, 4))) * 1e-7
     data = MeasurementData(ar, measured, component, rng.uniform(1e-9, 2e-9, (nf, 4)))
-    prob = _MeasurementProblem(data, sc, n)
+    prob = _MeasurementProblem(data, sc, n, compiled=True)
     for _ in range(3):
         x = rng.standard_normal(n_parameters(n)) * 0.5
         ent, d = _evaluate(x, n, prob.wt, sc, derivatives=True)
@@ -65,3 +69,12 @@ def test_compiled_measurement_jacobian_equals_the_numpy_reference():
         k = forward_jacobian(ar, prob._block(ent))[:, component, :] * sc.entry
         ref = _reference_rows(k, d, prob.scale)
         np.testing.assert_allclose(prob.jacobian(x), ref, rtol=1e-10, atol=1e-13 * np.abs(ref).max())
+
+
+def test_the_compiled_loops_are_used_from_the_line_count_up():
+    from bayes_rcsa.spindle.smoothing import _COMPILED_LINES
+
+    rng = np.random.default_rng(1)
+    for nf in (_COMPILED_LINES - 1, _COMPILED_LINES):
+        data = _data(rng, nf)
+        assert _Problem(data, _Scaling(data.frequency_hz, data.target), 2).compiled == (nf >= _COMPILED_LINES)

@@ -73,7 +73,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConvergenceError, ModelError
-from .inverse import forward_jacobian
+from .inverse import forward_artifact, forward_jacobian
 from .substructure import ArtifactReceptances
 
 __all__ = [
@@ -97,6 +97,11 @@ _CHI2_STALL = 0.1
 _SEARCH_NFEV = 100
 # Lines used while searching the mode count (every k-th line).
 _SEARCH_LINES = 600
+# Problems with at least this many lines use the compiled loops (:mod:`._modal_kernel`); smaller ones the numpy
+# reference.  Loading numba and the cached kernels costs about 1 s of CPU per process; the whole identification
+# of 276 lines (two directions, three modes, two samples) takes under 1 s either way, so a spawned worker
+# process on such data would only pay the load.  On 3801 lines the compiled loops cut it from 22 s to 9 s.
+_COMPILED_LINES = 512
 
 
 def n_parameters(n_modes: int) -> int:
@@ -430,19 +435,28 @@ def _jacobian_rows(x: np.ndarray, n: int, wt: np.ndarray, sc: _Scaling, cache: d
 class _Problem:
     """Whitened residuals ``W (S_model - S_raw)`` and their Jacobian for a fixed mode count."""
 
-    def __init__(self, data: FitData, sc: _Scaling, n: int):
+    def __init__(self, data: FitData, sc: _Scaling, n: int, compiled: bool | None = None):
         self.n, self.sc = n, sc
         self.wt = 2 * np.pi * data.frequency_hz / sc.w0
         self.w = np.ascontiguousarray(data.weight * sc.entry)  # acts on scaled entries
         self.target = data.target / sc.entry
         self.cache: dict = {}
+        self.compiled = self.wt.size >= _COMPILED_LINES if compiled is None else compiled
         self.ones = None  # unit row scales of the compiled Jacobian, made on its first call
 
     def residual(self, x) -> np.ndarray:
-        r = np.einsum("fke,fe->fk", self.w, _entries(x, self.n, self.wt, self.sc, self.cache)[0] - self.target)
+        if self.compiled:
+            ent = _entries(x, self.n, self.wt, self.sc, self.cache)[0]
+        else:
+            ent = _evaluate(x, self.n, self.wt, self.sc, cache=self.cache)
+        r = np.einsum("fke,fe->fk", self.w, ent - self.target)
         return np.concatenate([r.real.ravel(), r.imag.ravel()])
 
     def jacobian(self, x) -> np.ndarray:
+        if not self.compiled:
+            _, d = _evaluate(x, self.n, self.wt, self.sc, derivatives=True, cache=self.cache)
+            jac = np.matmul(self.w, d).reshape(-1, d.shape[-1])  # (nf, k, e) @ (nf, e, p)
+            return np.concatenate([jac.real, jac.imag], axis=0)
         if self.ones is None:
             self.ones = np.ones(self.w.shape[:2])
         return _jacobian_rows(x, self.n, self.wt, self.sc, self.cache, self.w, self.ones)
@@ -476,11 +490,12 @@ class MeasurementData:
 class _MeasurementProblem:
     """Residuals ``sqrt(2) (H_k(S_model) - H_k^measured) / sigma_k`` of every measured FRF, and their Jacobian."""
 
-    def __init__(self, data: MeasurementData, sc: _Scaling, n: int):
+    def __init__(self, data: MeasurementData, sc: _Scaling, n: int, compiled: bool | None = None):
         self.n, self.sc, self.data = n, sc, data
         self.wt = data.artifact.omega / sc.w0
         self.scale = math.sqrt(2.0) / data.sigma
         self.cache: dict = {}
+        self.compiled = self.wt.size >= _COMPILED_LINES if compiled is None else compiled
         self.matrix = None  # the artifact's receptances, contiguous, made on the first evaluation
 
     def _block(self, ent: np.ndarray) -> np.ndarray:
@@ -510,11 +525,20 @@ class _MeasurementProblem:
         return h, k
 
     def residual(self, x) -> np.ndarray:
-        g = self._tests(x)[0]
+        if self.compiled:
+            g = self._tests(x)[0]
+        else:
+            g = forward_artifact(self._block(_evaluate(x, self.n, self.wt, self.sc, cache=self.cache)),
+                                 self.data.artifact)
         r = (g[:, self.data.component] - self.data.measured) * self.scale
         return np.concatenate([r.real.ravel(), r.imag.ravel()])
 
     def jacobian(self, x) -> np.ndarray:
+        if not self.compiled:
+            ent, d = _evaluate(x, self.n, self.wt, self.sc, derivatives=True, cache=self.cache)
+            k = forward_jacobian(self.data.artifact, self._block(ent))[:, self.data.component, :] * self.sc.entry
+            jac = (np.matmul(k, d) * self.scale[..., None]).reshape(-1, d.shape[-1])
+            return np.concatenate([jac.real, jac.imag], axis=0)
         k = self._tests(x)[1][:, self.data.component, :] * self.sc.entry
         return _jacobian_rows(x, self.n, self.wt, self.sc, self.cache, k, self.scale)
 
