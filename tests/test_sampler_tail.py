@@ -50,10 +50,18 @@ def test_the_snooker_move_samples_a_one_sided_tail_where_emcees_does_not():
     assert new[0] == pytest.approx(Q95, abs=0.25) and new[1] == pytest.approx(Q99, abs=0.6), new
 
 
+#: independent identify runs of the tail case.  One 2,500-step run's 95 % point of log10 k_thetaM scatters by
+#: about 0.05 (measured 6.796-6.893 over seeds 9101-9104), about the tail check's own 0.4-sd threshold (~0.09
+#: here): a single run is flagged or not by its Monte Carlo luck (seed 9101: 0.52 sd after a library version
+#: change moved its stream; 0.11-0.23 sd for the others).  Three pooled runs have a third of the variance.
+TAIL_SEEDS = (9101, 9102, 9103)
+
+
 @pytest.fixture(scope="module")
 def tail_case(tmp_path_factory):
     """The benchmark's tail case: ER32_d16_1 of the library bench's seed-5001 library (its ER32 combinations are
-    drawn first, so a one-combination library reproduces its data), identified with the default moves."""
+    drawn first, so a one-combination library reproduces its data), identified with the default moves, three
+    independent runs."""
     from bayes_rcsa.inference.identify import identify
     from bayes_rcsa.inference.problem import IdentificationOptions, build_problem_from_setup
     from bayes_rcsa.io.setup import load_setup
@@ -64,31 +72,44 @@ def tail_case(tmp_path_factory):
     setup = load_setup(root / "lib" / "ER32_d16_1" / "setup.toml")
     problem = build_problem_from_setup(setup, IdentificationOptions.from_setup(setup.extra, method="multi",
                                                                               lengths=None, band=None))
-    # a fixed 2,500 steps (converged by the rule at ~2,000-3,000; the verdicts, not the stopping rule, are tested)
-    result = identify(problem, seed=9101, sampler="mcmc",
-                      settings=SamplerSettings(n_walkers=24, n_steps=2500, check_every=250, progress=False))
-    return problem, result
+    # a fixed 2,500 steps each (converged by the rule at ~2,000-3,000; the verdicts, not the stopping rule, are
+    # tested)
+    results = [identify(problem, seed=seed, sampler="mcmc",
+                        settings=SamplerSettings(n_walkers=24, n_steps=2500, check_every=250, progress=False))
+               for seed in TAIL_SEEDS]
+    return problem, results
 
 
-def test_the_default_tail_check_flags_the_old_moves_and_passes_the_new_default(tail_case):
-    from bayes_rcsa.inference.tail_check import check_identification, importance_tail_check
+def test_the_default_passes_the_tail_check_and_the_old_moves_undersample_the_tail(tail_case):
+    from bayes_rcsa.inference.tail_check import importance_tail_check
 
-    problem, result = tail_case
+    problem, results = tail_case
     names = list(problem.priors.names)
-    new = check_identification(result, np.random.default_rng([9101, 7]), n=40_000)
+    lp = problem.log_posterior(results[0].tempering)
+    new = importance_tail_check(lp, np.concatenate([r.flat_theta for r in results]), names,
+                                np.random.default_rng([9101, 7]), n=40_000)
+    # measured 0.13 sd pooled (0.11-0.52 sd for the single runs; threshold 0.4)
     assert new["verdict"] == "consistent", new["reason"]
-    # the old default moves from the same draws, as long a chain: its own diagnostics pass, the check does not
-    lp = problem.log_posterior(result.tempering)
-    theta = result.flat_theta
-    rng = np.random.default_rng(3)
-    old_moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
-    old = run_ensemble(lp, SamplerSettings(n_steps=result.summary["n_steps"], progress=False),
-                       initial=theta[rng.choice(theta.shape[0], 24, replace=False)], rng=rng, moves=old_moves)
-    # (R-hat measured 1.003-1.017 at this length, below 1.01 with the benchmark's 20,000 steps)
-    assert np.all(old.diagnostics["rhat"] < 1.02) and np.all(old.diagnostics["ess_bulk"] > 400), old.diagnostics
-    draws = old.chain[old.burn::old.thin].reshape(-1, len(names))
-    verdict = importance_tail_check(lp, draws, names, np.random.default_rng([9101, 7]), n=40_000)
-    assert verdict["verdict"] == "disagrees" and "k_thetaM:" in verdict["reason"], verdict["reason"]
-    # the missed end is the upper one of k_thetaM, the chain's below the importance estimate
-    chain_hi, is_hi = verdict["parameters"]["k_thetaM"]["chain"][1], verdict["parameters"]["k_thetaM"]["importance"][1]
-    assert chain_hi < is_hi
+    # the old default moves, as long a chain from each run's draws: their own diagnostics pass, and every run puts
+    # the upper end of k_thetaM's 90 % interval below the importance estimate (measured 0.056-0.069 below; the
+    # default's runs scatter around theirs, 0.016-0.08 above).  Whether the check's verdict flags a single old run
+    # is not asserted: the old moves' shift, 0.27-0.55 sd over seven runs, straddles its 0.4-sd threshold.
+    old_hi, new_hi = [], []
+    for seed, result in zip(TAIL_SEEDS, results):
+        theta = result.flat_theta
+        rng = np.random.default_rng([3, seed])
+        old = run_ensemble(lp, SamplerSettings(n_steps=result.summary["n_steps"], progress=False),
+                           initial=theta[rng.choice(theta.shape[0], 24, replace=False)], rng=rng,
+                           moves=[(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)])
+        # (R-hat measured 1.003-1.017 at this length, below 1.01 with the benchmark's 20,000 steps)
+        assert np.all(old.diagnostics["rhat"] < 1.02) and np.all(old.diagnostics["ess_bulk"] > 400), old.diagnostics
+        draws = old.chain[old.burn::old.thin].reshape(-1, len(names))
+        verdict = importance_tail_check(lp, draws, names, np.random.default_rng([9101, 7]), n=40_000)
+        k = verdict["parameters"]["k_thetaM"]
+        assert k["chain"][1] < k["importance"][1], (seed, k)
+        old_hi.append(k["chain"][1])
+        new_hi.append(importance_tail_check(lp, theta, names, np.random.default_rng([9101, 7]),
+                                            n=40_000)["parameters"]["k_thetaM"]["chain"][1])
+    # pooled, the old moves' upper end lies below the default's by more than three of its Monte Carlo errors
+    # (each mean of three has ~0.03; measured difference 0.12)
+    assert np.mean(new_hi) - np.mean(old_hi) > 0.06, (new_hi, old_hi)
