@@ -18,23 +18,20 @@ from bayes_rcsa.data import example_dir
 
 
 # The slowest test files (seconds of work each on the two-core development machine, measured with
-# --durations=0 on 2026-11-30, session 10: 832 s of work in 1187 tests, 438 s wall).  xdist's loadfile mode hands out
+# --durations=0 on 2026-11-30, session 11: 644 s of work in 1242 tests, 346 s wall).  xdist's loadfile mode hands out
 # whole files in collection order, so a slow file collected late leaves one worker running alone at the end;
 # scheduling the longest first (the classic longest-processing-time rule) balances the two workers.  Files not
 # listed keep their order after these.
 _SLOW_FILES = {
-    "test_discrepancy_workflow.py": 65, "test_library.py": 50, "test_discrepancy_stiffer_structure.py": 42,
-    "test_discrepancy_generators.py": 30, "test_demo.py": 30, "test_spindle_acceptance.py": 28, "test_batch.py": 25,
-    "test_notebook.py": 20, "test_reliability_property.py": 19, "test_identifiability_acceptance.py": 19,
-    "test_examples.py": 19, "test_library_cli.py": 18, "test_reliability_fs.py": 18, "test_sampler_tail.py": 17,
-    "test_modes.py": 16, "test_sbc.py": 16, "test_library_exact.py": 16, "test_checkpoint_resume.py": 15,
-    "test_importance_identify.py": 15, "test_api_tools.py": 15, "test_cli_startup.py": 14,
-    "test_term_generators.py": 13, "test_api_identify.py": 13, "test_cuts_cli.py": 13,
-    "test_term_spindle_rotation.py": 12, "test_reliability_checks.py": 12, "test_store.py": 11,
-    "test_figures_legible.py": 11, "test_reliability_families.py": 10, "test_stability_warmup.py": 10,
-    "test_lobes_measured.py": 9, "test_inference_calibration.py": 9, "test_inference_identify.py": 9,
-    "test_api_predict.py": 9, "test_report_html.py": 8, "test_discrepancy_terms.py": 8,
-    "test_discrepancy_screen_switch.py": 7,
+    "test_discrepancy_workflow.py": 54, "test_library.py": 37, "test_discrepancy_stiffer_structure.py": 33,
+    "test_discrepancy_generators.py": 27, "test_sampler_tail.py": 25, "test_notebook.py": 20, "test_demo.py": 18,
+    "test_examples.py": 17, "test_reliability_property.py": 16, "test_reliability_fs.py": 15,
+    "test_spindle_acceptance.py": 15, "test_sbc.py": 15, "test_batch.py": 14,
+    "test_identifiability_acceptance.py": 14, "test_term_spindle_rotation.py": 13, "test_api_tools.py": 12,
+    "test_api_identify.py": 12, "test_library_cli.py": 11, "test_library_exact.py": 11, "test_modes.py": 10,
+    "test_checkpoint_resume.py": 10, "test_term_generators.py": 10, "test_reliability_families.py": 9,
+    "test_importance_identify.py": 9, "test_cuts_cli.py": 9, "test_reliability_checks.py": 9,
+    "test_inference_identify.py": 8, "test_discrepancy_screen_switch.py": 7, "test_stability_warmup.py": 7,
 }
 
 
