@@ -253,3 +253,16 @@ def test_a_small_envelope_runs_compiled_once_the_kernel_is_loaded(monkeypatch):
     assert np.isfinite(want[0]).any()
     for a, b in zip(got, want):
         assert a.tobytes() == b.tobytes()
+
+
+def test_a_half_imported_envelope_kernel_counts_as_not_loaded(monkeypatch):
+    """A batch or Dask worker thread may look while another thread imports the kernel module (in sys.modules
+    before its functions exist): the small job then runs the numpy version, never an AttributeError (a Dask
+    batch lost every setup to it once)."""
+    import sys
+    import types
+
+    from bayes_rcsa.stability import zoa
+
+    monkeypatch.setitem(sys.modules, "bayes_rcsa.stability._zoa_kernel", types.ModuleType("bayes_rcsa.stability._zoa_kernel"))
+    assert zoa._compiled_envelope_loaded() is False

@@ -280,7 +280,10 @@ def _compiled_envelope_loaded() -> bool:
     warm-up, loaded it): small jobs then run it too, 3-6x faster than the numpy version and with the same numbers,
     as the cost the threshold avoids (loading numba and the code) is paid."""
     kernel = sys.modules.get(__name__.rpartition(".")[0] + "._zoa_kernel")
-    return kernel is not None and bool(getattr(kernel.lower_envelope, "signatures", None))
+    # getattr with a default: another thread (a Dask worker's, a batch worker's) may be importing the module, which
+    # sits in sys.modules half-initialised until its functions are defined; such a module counts as not loaded
+    envelope = getattr(kernel, "lower_envelope", None)
+    return bool(getattr(envelope, "signatures", None))
 
 
 def _envelope_of_ends(depth_pts, eps, f, flutes, speeds, K, track=True):
