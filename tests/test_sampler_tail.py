@@ -108,8 +108,7 @@ def test_the_default_passes_the_tail_check_and_the_old_moves_undersample_the_tai
         k = verdict["parameters"]["k_thetaM"]
         assert k["chain"][1] < k["importance"][1], (seed, k)
         old_hi.append(k["chain"][1])
-        new_hi.append(importance_tail_check(lp, theta, names, np.random.default_rng([9101, 7]),
-                                            n=40_000)["parameters"]["k_thetaM"]["chain"][1])
+        new_hi.append(float(np.quantile(theta[:, names.index("k_thetaM")], 0.95)))  # the check's chain end
     # pooled, the old moves' upper end lies below the default's by more than three of its Monte Carlo errors
     # (each mean of three has ~0.03; measured difference 0.12)
     assert np.mean(new_hi) - np.mean(old_hi) > 0.06, (new_hi, old_hi)
