@@ -15,7 +15,7 @@ PACKAGE = ROOT / "bayes_rcsa"
 
 #: Layer of every top-level part of the package; a module may import from its own or a lower layer only.
 LAYERS = {
-    "errors": 0, "registry": 0, "messages": 0, "stats": 0, "units": 0, "vocabulary": 0, "threads": 0,
+    "errors": 0, "registry": 0, "messages": 0, "stats": 0, "units": 0, "vocabulary": 0, "threads": 0, "caching": 0,
     "model": 1,
     "io": 2, "synthetic": 2, "spindle": 2,
     "params": 3, "store": 3,

@@ -921,8 +921,7 @@ def _sample_loop(sampler, start: _Start, settings: SamplerSettings, decide: _Con
         nonlocal buf_c, buf_l, acc_batch, last_flush
         if checkpoint is not None and buf_c:
             # the state after the batch's last step: read here, at the yield of that step (see _quiet_sampler_class)
-            rs = sampler.exact_random_state() if hasattr(sampler, "exact_random_state") else state.random_state
-            checkpoint.append(np.array(buf_c), np.array(buf_l), acc_batch, rs)
+            checkpoint.append(np.array(buf_c), np.array(buf_l), acc_batch, sampler.exact_random_state())
         buf_c, buf_l = [], []
         acc_batch = np.zeros(n_walkers)
         last_flush = time.monotonic()

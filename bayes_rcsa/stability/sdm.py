@@ -81,6 +81,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from ..caching import BoundedCache
 from ..errors import SetupError
 from .cutting import CuttingConditions, interval_directional_matrices
 from ._sdm_kernel import apply_monodromy
@@ -290,8 +291,8 @@ def _delay_groups(delayed, m):
 #: :func:`_discretise` results of the latest (cut, intervals) pairs: a search over depth asks for the same ones at
 #: every step (about 15 % of a lobes run's SDM work).  Keyed by the cut (frozen, compared by value) with the types
 #: of its fields (a float32 coefficient computes differently from an equal float), bounded, arrays read-only.
-_DISCRETISED: dict = {}
 _DISCRETISED_MAX = 16
+_DISCRETISED = BoundedCache(_DISCRETISED_MAX)
 
 
 def _discretise(cutting: CuttingConditions, m_tooth: int) -> tuple[_Discretisation, float]:
@@ -307,9 +308,7 @@ def _discretise(cutting: CuttingConditions, m_tooth: int) -> tuple[_Discretisati
         disc = hit[0]
         for a in (disc.h_current, *(H for H, _, _ in disc.groups)):
             a.setflags(write=False)
-        while len(_DISCRETISED) >= _DISCRETISED_MAX:
-            _DISCRETISED.pop(next(iter(_DISCRETISED)), None)
-        _DISCRETISED[key] = hit
+        _DISCRETISED.put(key, hit)
     return hit
 
 

@@ -32,13 +32,14 @@ from typing import Sequence
 
 import numpy as np
 
+from ...caching import BoundedCache
 from ...errors import ModelError
 
 __all__ = ["BlockModes", "block_modes", "model_block_modes", "fit_poles", "peaks", "ZETA_BOUNDS"]
 
 ZETA_BOUNDS = (1e-4, 0.3)
-_CACHE: dict[bytes, "BlockModes"] = {}
-_CACHE_SIZE = 16
+#: Fits by the exact bytes of the spindle file's lines and values (the arrays read-only).
+_CACHE = BoundedCache(16)
 #: Lines used for the pole search of :func:`block_modes` (a 2 Hz file is searched on every second line).
 _POLE_LINES = 400
 
@@ -214,8 +215,9 @@ def block_modes(receptance, max_modes: int = 5, n_modes: int | None = None,
     s = np.asarray(receptance.block, dtype=complex)
     key = hashlib.blake2b(f.tobytes() + s.tobytes() + repr((max_modes, n_modes, start_hz)).encode(),
                           digest_size=16).digest()
-    if key in _CACHE:
-        return _CACHE[key]
+    hit = _CACHE.get(key)
+    if hit is not None:
+        return hit
     src = getattr(receptance, "source", "<spindle>")
     h, l, p = s[:, 0, 0], 0.5 * (s[:, 0, 1] + s[:, 1, 0]), s[:, 1, 1]
     if not np.all(np.isfinite(s)) or not np.any(np.abs(h) > 0) or f.size < 8:
@@ -274,10 +276,7 @@ def block_modes(receptance, max_modes: int = 5, n_modes: int | None = None,
                      source=src)
     for arr in (out.omega, out.zeta, out.eta, out.residue):
         arr.flags.writeable = False  # shared through the cache
-    if len(_CACHE) >= _CACHE_SIZE:
-        _CACHE.pop(next(iter(_CACHE)))
-    _CACHE[key] = out
-    return out
+    return _CACHE.put(key, out)
 
 
 def model_block_modes(model, max_modes: int = 5) -> dict[str, BlockModes]:

@@ -184,11 +184,11 @@ the holder.
 
 from __future__ import annotations
 
-import threading
 from typing import Mapping, Sequence
 
 import numpy as np
 
+from ...caching import BoundedCache
 from ...errors import ModelError
 from ...model.geometry import tool_overhang_segments
 from ...model.timoshenko import TwoPort
@@ -298,9 +298,7 @@ def batched_free_free(pieces: Sequence[tuple[float, tuple]], omega, blocks: Sequ
 
 
 #: Stiffness blocks of pieces no parameter changes (an unfluted segment of a declared tool), by their exact inputs.
-_CONSTANT_PIECES: dict = {}
-_CONSTANT_PIECES_MAX = 32
-_CONSTANT_PIECES_LOCK = threading.Lock()
+_CONSTANT_PIECES = BoundedCache(32)
 
 
 def _constant_piece(length: float, props: tuple, omega: np.ndarray) -> np.ndarray:
@@ -312,15 +310,11 @@ def _constant_piece(length: float, props: tuple, omega: np.ndarray) -> np.ndarra
     arrays = [np.asarray(a) for a in props]
     key = (float(length), tuple((a.dtype.str, a.shape, a.tobytes()) for a in arrays),
            np.asarray(omega, dtype=float).tobytes())
-    with _CONSTANT_PIECES_LOCK:
-        blk = _CONSTANT_PIECES.get(key)
+    blk = _CONSTANT_PIECES.get(key)
     if blk is None:
         blk = batched_segment_stiffness(length, *arrays, omega)
         blk.flags.writeable = False  # shared by every later call with these inputs
-        with _CONSTANT_PIECES_LOCK:
-            if len(_CONSTANT_PIECES) >= _CONSTANT_PIECES_MAX:
-                _CONSTANT_PIECES.pop(next(iter(_CONSTANT_PIECES)))
-            _CONSTANT_PIECES[key] = blk
+        _CONSTANT_PIECES.put(key, blk)
     return blk
 
 

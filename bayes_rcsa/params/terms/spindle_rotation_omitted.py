@@ -146,6 +146,7 @@ from typing import Mapping
 import numpy as np
 
 from ... import messages
+from ...caching import BoundedCache
 from ...errors import ModelError
 from ..parameter import Parameter
 from ..priors import Uniform
@@ -167,8 +168,8 @@ UPPER_SLOPE = "rotation_slope_upper_per_m"
 UPPER_COMPLIANCE = "rotation_compliance_upper_urad_per_Nm"
 #: Below this residue scale the fitted modes carry clearly more damping than the file: warn.
 GAMMA_WARN = 0.5
-_CACHE: dict[bytes, "FlangeModes"] = {}
-_CACHE_SIZE = 16
+#: Fits by the exact bytes of the spindle file's lines and values (the arrays read-only).
+_CACHE = BoundedCache(16)
 
 
 @dataclass(frozen=True)
@@ -244,8 +245,9 @@ def flange_modes(receptance, max_modes: int = MAX_MODES, n_modes: int | None = N
     h = np.asarray(receptance.block, dtype=complex)[:, 0, 0]
     key = hashlib.blake2b(f.tobytes() + h.tobytes() + repr((max_modes, n_modes, start_hz)).encode(),
                           digest_size=16).digest()
-    if key in _CACHE:
-        return _CACHE[key]
+    hit = _CACHE.get(key)
+    if hit is not None:
+        return hit
     src = getattr(receptance, "source", "<spindle>")
     mag = np.abs(h)
     if not np.all(np.isfinite(h)) or not np.any(mag > 0) or f.size < 8:
@@ -283,10 +285,7 @@ def flange_modes(receptance, max_modes: int = MAX_MODES, n_modes: int | None = N
     out = FlangeModes(omega=wr, zeta=z, residue=gamma * a, residual_static=float(c[n]), residual_mass=float(c[n + 1]),
                       gamma=gamma, rel_rms=float(np.sqrt(chi2 / n_res)), source=src)
     out.residue.flags.writeable = False
-    if len(_CACHE) >= _CACHE_SIZE:
-        _CACHE.pop(next(iter(_CACHE)))
-    _CACHE[key] = out
-    return out
+    return _CACHE.put(key, out)
 
 
 def model_flange_modes(model) -> dict[str, FlangeModes]:
