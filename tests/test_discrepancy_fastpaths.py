@@ -92,26 +92,6 @@ def test_fluted_two_port_of_a_one_cylinder_tool_on_the_union_of_lines(tmp_path):
     _check_fluted_union(model, values, 3)
 
 
-def test_jacobian_batch_frfs_reused_across_noise_coordinates_are_the_recomputed_ones(example):
-    setup, base_opts = example
-    for terms in (["fluted_section"], ["spindle_rotation_omitted"]):
-        p = _problem(setup, base_opts, terms)
-        cols = fit_mod._physical_columns(p)
-        noise = [j for j in range(len(p.parameters.names)) if j not in cols]
-        b = np.array(p.priors.optimisation_bounds(), dtype=float)
-        theta = b[:, 0] + 0.4 * (b[:, 1] - b[:, 0])
-        step = 1e-6 * (b[cols, 1] - b[cols, 0])
-        frfs = fit_mod._BatchFrfs(cols)
-        z0, j0 = fit_mod._jacobian(p, theta, cols, step, frfs)
-        moved = theta.copy()
-        moved[noise] = b[noise, 0] + 0.7 * (b[noise, 1] - b[noise, 0])  # a new round's noise scales
-        for t in (theta, moved):
-            z_ref, j_ref = fit_mod._jacobian(p, t, cols, step)
-            z, j = fit_mod._jacobian(p, t, cols, step, frfs)  # a hit: the batch's FRFs from the first call
-            assert np.array_equal(z, z_ref) and np.array_equal(j, j_ref)
-        assert not np.array_equal(z0, fit_mod._jacobian(p, moved, cols, step)[0])  # the whitening did change
-
-
 def test_mode_bias_batched_row_statistics_are_the_row_by_row_ones():
     rng = np.random.default_rng(3)
     x = rng.normal(1000.0, 5.0, (6, 1600))

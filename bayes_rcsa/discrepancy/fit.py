@@ -100,13 +100,9 @@ def _noise_index(problem: Problem) -> list[int]:
 
 def whitened_residuals(problem: Problem, theta: np.ndarray) -> np.ndarray:
     """``(H_model - H_meas) / sigma_n`` as floats (re, im interleaved), (n, 2 n_lines)."""
-    theta = np.atleast_2d(theta)
-    return _whiten(problem, problem.likelihood.model_frf(theta), theta)
-
-
-def _whiten(problem: Problem, h: np.ndarray, theta: np.ndarray) -> np.ndarray:
-    """:func:`whitened_residuals` from the model FRFs ``h`` (n, n_lines) of the sets ``theta`` (n, ndim)."""
     lik = problem.likelihood
+    theta = np.atleast_2d(theta)
+    h = lik.model_frf(theta)
     var = lik.variance_of(h)
     s = problem.parameters.noise(problem.parameters.values(theta))[:, lik.stack.index]
     z = (h - lik.data) / (s * np.sqrt(var))
@@ -118,47 +114,18 @@ def profile_noise(problem: Problem, theta: np.ndarray) -> np.ndarray:
     return search.profile_noise(problem.likelihood, problem.priors, theta, exact=True)
 
 
-class _BatchFrfs:
-    """Model FRFs of the Jacobian batches of one fit, keyed by the batch's exact physical coordinates.
-
-    The model FRF does not depend on the noise coordinates, which are all a new Gauss-Newton round (noise
-    re-profiled) or the Laplace approximation at the MAP changes: their batch at the previous round's solution
-    is the one that round evaluated there, the same sets in the same order, so its FRFs are reused and only
-    the whitening is redone.  Bounded to the ``size`` most recent batches; local to one fit.
-    """
-
-    def __init__(self, cols: list[int], size: int = 8) -> None:
-        self.cols, self.size = list(cols), size
-        self._frfs: dict = {}
-
-    def __call__(self, problem: Problem, pts: np.ndarray) -> np.ndarray:
-        """(n, n_lines) model FRF of the sets ``pts`` (n, ndim)."""
-        key = (pts.shape, pts[:, self.cols].tobytes())
-        h = self._frfs.pop(key, None)
-        if h is None:
-            h = problem.likelihood.model_frf(pts)  # only ever read (by _whiten), never handed out
-            if len(self._frfs) >= self.size:
-                self._frfs.pop(next(iter(self._frfs)))
-        self._frfs[key] = h  # most recent last
-        return h
-
-
 def _physical_columns(problem: Problem) -> list[int]:
     """Indices of the non-noise sampled coordinates."""
     noise = set(_noise_index(problem))
     return [j for j in range(len(problem.parameters.names)) if j not in noise]
 
 
-def _jacobian(problem: Problem, theta: np.ndarray, cols: list[int], step: np.ndarray,
-              frfs: _BatchFrfs | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Whitened residuals at ``theta`` and forward-difference Jacobian in ``cols``, one batched call.
-
-    ``frfs``: the fit's cache of batch FRFs (:class:`_BatchFrfs`, for the columns ``cols``), or None.
-    """
+def _jacobian(problem: Problem, theta: np.ndarray, cols: list[int], step: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Whitened residuals at ``theta`` and forward-difference Jacobian in ``cols``, one batched call."""
     pts = np.repeat(theta[None], len(cols) + 1, axis=0)
     for k, j in enumerate(cols):
         pts[k + 1, j] += step[k]
-    z = whitened_residuals(problem, pts) if frfs is None else _whiten(problem, frfs(problem, pts), pts)
+    z = whitened_residuals(problem, pts)
     return z[0], ((z[1:] - z[0]) / step[:, None]).T
 
 
@@ -188,17 +155,11 @@ def _gaussian_prior_terms(problem: Problem, cols: list[int]):
 GN_FTOL = 1e-6
 
 
-def _gauss_newton(problem: Problem, theta0: np.ndarray, max_nfev: int = 60,
-                  frfs: _BatchFrfs | None = None) -> tuple[np.ndarray, int]:
-    """Minimise the whitened residual norm over the physical coordinates (noise re-profiled each round).
-
-    ``frfs``: the fit's cache of batch FRFs (:class:`_BatchFrfs` over the physical columns), filled here.
-    """
+def _gauss_newton(problem: Problem, theta0: np.ndarray, max_nfev: int = 60) -> tuple[np.ndarray, int]:
+    """Minimise the whitened residual norm over the physical coordinates (noise re-profiled each round)."""
     from scipy.optimize import least_squares
 
     cols = _physical_columns(problem)
-    if frfs is None:
-        frfs = _BatchFrfs(cols)
     lo, hi = _bounds(problem, cols)
     width = hi - lo
     step = 1e-6 * width
@@ -222,7 +183,7 @@ def _gauss_newton(problem: Problem, theta0: np.ndarray, max_nfev: int = 60,
             if key not in cache:
                 # the forward step is taken inwards on the upper bound so no point leaves the support
                 h = np.where(x + step > hi, -step, step)
-                z, jac = _jacobian(problem, full(x), cols, h, frfs)
+                z, jac = _jacobian(problem, full(x), cols, h)
                 cache.clear()
                 cache[key] = (z, jac)
             z, _ = cache[key]
@@ -244,14 +205,12 @@ def _gauss_newton(problem: Problem, theta0: np.ndarray, max_nfev: int = 60,
     return theta, n_eval
 
 
-def _laplace(problem: Problem, theta: np.ndarray, beta: float,
-             frfs: _BatchFrfs | None = None) -> tuple[np.ndarray, float, np.ndarray]:
+def _laplace(problem: Problem, theta: np.ndarray, beta: float) -> tuple[np.ndarray, float, np.ndarray]:
     cols = _physical_columns(problem)
     lo, hi = _bounds(problem, cols)
     step = 1e-6 * (hi - lo)
     h = np.where(theta[cols] + step > hi, -step, step)
-    # at the Gauss-Newton solution the batch is the last round's there (same steps): its FRFs are reused
-    _, jac = _jacobian(problem, theta, cols, h, frfs)
+    _, jac = _jacobian(problem, theta, cols, h)
     hess = 2.0 * beta * jac.T @ jac
     for k, g in enumerate(_gaussian_prior_terms(problem, cols)):
         if g is not None:
@@ -269,11 +228,10 @@ def _laplace(problem: Problem, theta: np.ndarray, beta: float,
     return cov, float(logdet) if sign > 0 else math.inf, np.array(cols)
 
 
-def _finish(label: str, problem: Problem, theta: np.ndarray, beta: float, n_eval: int,
-            frfs: _BatchFrfs | None = None) -> ModelFit:
+def _finish(label: str, problem: Problem, theta: np.ndarray, beta: float, n_eval: int) -> ModelFit:
     lik = problem.likelihood
     loglik = float(lik(theta[None])[0])  # untempered likelihood object (beta = 1)
-    cov, logdet, cols = _laplace(problem, theta, beta, frfs)
+    cov, logdet, cols = _laplace(problem, theta, beta)
     lp_prior = float(problem.priors.ln_prob(theta[None])[0])
     d = len(cols)
     log_z = beta * loglik + lp_prior + 0.5 * d * math.log(2 * math.pi) - 0.5 * logdet
@@ -299,13 +257,12 @@ def fit_baseline(problem: Problem, tempering: float | str = "auto") -> ModelFit:
 
     lp = problem.log_posterior()
     opt = find_optimum(lp)
-    frfs = _BatchFrfs(_physical_columns(problem))
-    theta, n_eval = _gauss_newton(problem, opt.x, frfs=frfs)
+    theta, n_eval = _gauss_newton(problem, opt.x)
     if lp(theta[None])[0] < opt.log_posterior:
         theta = opt.x  # Gauss-Newton ignores the ln v term; keep the exact optimum if it is better
     z = problem.likelihood.normalised_residuals(theta)
     beta = 1.0 / residual_correlation_length(z, problem.likelihood.stack.slices) if tempering == "auto" else float(tempering)
-    return _finish("baseline", problem, theta, beta, opt.n_evaluations + n_eval, frfs)
+    return _finish("baseline", problem, theta, beta, opt.n_evaluations + n_eval)
 
 
 def fit_variant(label: str, problem: Problem, starts: np.ndarray, tempering: float, n_polish: int = 2) -> ModelFit:
@@ -326,21 +283,20 @@ def fit_variant(label: str, problem: Problem, starts: np.ndarray, tempering: flo
     order = [i for i in np.argsort(-v) if np.isfinite(v[i])][:n_polish]
     if not order:
         raise ConvergenceError(f"{label}: no starting point has a finite posterior density")
-    best, best_v, best_frfs, n_eval = None, -np.inf, None, starts.shape[0]
+    best, best_v, n_eval = None, -np.inf, starts.shape[0]
     # a start given twice (the score test's step is also its best grid start) is polished once: the same
     # Gauss-Newton run from the same point; the count of evaluations is kept as if it ran again
     polished: dict = {}
     for i in order:
         key = starts[i].tobytes()
         if key not in polished:
-            frfs = _BatchFrfs(_physical_columns(problem))
-            theta, n = _gauss_newton(problem, starts[i], frfs=frfs)
-            polished[key] = (theta, n, float(lp(theta[None])[0]), frfs)
-        theta, n, val, frfs = polished[key]
+            theta, n = _gauss_newton(problem, starts[i])
+            polished[key] = (theta, n, float(lp(theta[None])[0]))
+        theta, n, val = polished[key]
         n_eval += n
         if val > best_v:
-            best, best_v, best_frfs = theta, val, frfs
-    return _finish(label, problem, best, tempering, n_eval, best_frfs)
+            best, best_v = theta, val
+    return _finish(label, problem, best, tempering, n_eval)
 
 
 #: Contact stiffnesses of the tool/holder joint; in series with the tool, so the FRF is smooth in their compliance.
