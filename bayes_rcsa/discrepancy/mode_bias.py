@@ -145,7 +145,7 @@ def _robust_vars(values: list) -> list:
             and all(np.isfinite(r).all() for r in rows):
         q = np.quantile(np.stack(rows), [0.05, 0.95], axis=1)
         for c, k in enumerate(arrays):
-            out[k] = float(((q[1, c] - q[0, c]) / (2.0 * 1.6448536269514722)) ** 2)
+            out[k] = _range_variance(q[0, c], q[1, c])
         return out
     for k in arrays:
         out[k] = _robust_var(values[k])
@@ -163,6 +163,11 @@ def _robust_var(x: np.ndarray) -> float:
     if x.size < 2:
         return 0.0
     q05, q95 = np.quantile(x, [0.05, 0.95])
+    return _range_variance(q05, q95)
+
+
+def _range_variance(q05: float, q95: float) -> float:
+    """Variance of the normal whose central 90 % range is ``[q05, q95]``: ``((q95 - q05) / (2 z_0.95))^2``."""
     return float(((q95 - q05) / (2.0 * 1.6448536269514722)) ** 2)
 
 
