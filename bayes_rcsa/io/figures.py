@@ -62,9 +62,19 @@ def plain_formatter():
     Ticks between 1e-3 and 1e6 in magnitude get the fewest decimals that tell the ticks apart (``0.2942``,
     ``0.2944``); smaller or larger magnitudes get the fewest significant digits in ``1.5e-06`` form.
     """
+    return _plain_formatter_class()()
+
+
+def _plain_formatter_class():
+    """The formatter's class, built on first use (matplotlib is imported only by the figures that need it) and
+    kept as the module attribute ``PlainFormatter``, so that a finished figure pickles and unpickles (the module's
+    ``__getattr__`` builds it in a fresh process)."""
+    cls = globals().get("PlainFormatter")
+    if cls is not None:
+        return cls
     from matplotlib.ticker import Formatter
 
-    class _Plain(Formatter):
+    class PlainFormatter(Formatter):
         plain = True  # marks the formatters :func:`finish` may thin out
 
         def __init__(self):
@@ -80,7 +90,16 @@ def plain_formatter():
                 return "0"
             return self.fmt.format(x).replace("-", "\u2212")
 
-    return _Plain()
+    PlainFormatter.__qualname__ = "PlainFormatter"
+    PlainFormatter.__module__ = __name__
+    globals()["PlainFormatter"] = PlainFormatter
+    return PlainFormatter
+
+
+def __getattr__(name: str):
+    if name == "PlainFormatter":
+        return _plain_formatter_class()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _choose_format(locs) -> str:
