@@ -10,8 +10,8 @@ The algorithm (:func:`importance_posterior`)
 --------------------------------------------
 1. **Laplace covariance** at the optimum (:func:`laplace_covariance`): the inverse finite-difference Hessian of
    ``-log p`` (:func:`.search.derivatives`), its eigenvalues bounded in prior-width-scaled coordinates so that no
-   direction is narrower than 1e-4 or wider than :data:`MAX_SD_OF_WIDTH` of its prior width (a flat direction, an
-   optimum on a bound).
+   direction is wider than :data:`MAX_SD_OF_WIDTH` of its prior width (a flat direction, an optimum on a bound);
+   a direction narrower than the finite-difference step is measured again with a step below its width.
 2. **Pilot**: :data:`N_PILOT` draws from a multivariate t (:data:`DF` degrees of freedom) centred on the optimum,
    shape :data:`SCALE` times the Laplace covariance.
 3. **Adaptation** (adaptive importance sampling, Cappé et al. 2004): a second t with the pilot's
@@ -65,7 +65,7 @@ from .search import derivatives, optimum_noise_scale
 
 __all__ = ["ImportanceResult", "importance_posterior", "laplace_covariance", "systematic_resample", "optimum_noise_scale",
            "DF", "SCALE", "N_PILOT", "N_BATCH", "MAX_REFITS", "MAX_PROPOSALS", "TARGET_ESS", "MAX_SD_OF_WIDTH",
-           "MAX_NOISE_SCALE", "ACCEPTANCE_RULE"]
+           "MAX_NOISE_SCALE", "ACCEPTANCE_RULE", "FD_STEP_OF_WIDTH", "FINE_STEP_OF_SD", "MIN_SD_OF_WIDTH"]
 
 #: Degrees of freedom of the t proposals (finite variance of the weights needs heavier tails than the posterior).
 DF = 4.0
@@ -86,6 +86,14 @@ TARGET_ESS = 2 * MIN_ESS_INTERVAL_END
 #: Widest proposal standard deviation in a coordinate, as a fraction of its prior width: a uniform prior's own
 #: sd is 0.29 of its width, so no posterior is wider; beyond this the Hessian is flat there, not informative.
 MAX_SD_OF_WIDTH = 0.3
+#: Finite-difference step of the Laplace Hessian, as a fraction of each prior width; also the narrowest proposal
+#: sd unless a narrower direction is measured again (:func:`laplace_covariance`).
+FD_STEP_OF_WIDTH = 1e-4
+#: The second measurement's step as a fraction of the narrowest sd the first one found.
+FINE_STEP_OF_SD = 0.3
+#: Narrowest proposal sd (fraction of the prior width) after the second measurement: below it the finite
+#: differences of a log posterior of order 1e3 lose their digits to round-off.
+MIN_SD_OF_WIDTH = 1e-8
 #: Largest relative noise scale (noise rms / model |H| on every line) at the optimum for which importance sampling is
 #: tried.  Above it the noise exceeds the signal on every line: the data no longer resolve the resonance, and the
 #: posterior is the prior's box cut by a bent ridge of the two stiffnesses (an L: a soft translational joint with
@@ -177,10 +185,14 @@ class _T:
 def laplace_covariance(log_post, x: np.ndarray, bounds) -> tuple[np.ndarray, str]:
     """Covariance (ndim, ndim) of the Laplace approximation of ``log_post`` at its optimum ``x``.
 
-    The inverse finite-difference Hessian of ``-log_post`` (steps 1e-4 of each prior width, the point moved
-    two steps inside the bounds), computed in coordinates scaled by the prior widths with its eigenvalues
-    bounded so that every direction's sd lies in ``[1e-4, MAX_SD_OF_WIDTH]`` prior widths: a negative or zero
-    curvature (a flat direction, an optimum on a bound) then gives the widest proposal, not a failure.
+    The inverse finite-difference Hessian of ``-log_post`` (steps :data:`FD_STEP_OF_WIDTH` of each prior width,
+    the point moved two steps inside the bounds), computed in coordinates scaled by the prior widths with its
+    eigenvalues bounded so that every direction's sd lies in ``[FD_STEP_OF_WIDTH, MAX_SD_OF_WIDTH]`` prior widths:
+    a negative or zero curvature (a flat direction, an optimum on a bound) then gives the widest proposal, not a
+    failure.  When a direction is narrower than the step, every coordinate whose own curvature says so is
+    measured again with a step of :data:`FINE_STEP_OF_SD` times its sd (the others keep theirs), and the lower
+    bound becomes :data:`MIN_SD_OF_WIDTH`: the proposal follows the measured
+    curvature of a very precisely identified coordinate instead of a floor tied to its prior's width.
 
     Parameters
     ----------
@@ -194,13 +206,30 @@ def laplace_covariance(log_post, x: np.ndarray, bounds) -> tuple[np.ndarray, str
     """
     lo, hi = np.asarray(bounds, dtype=float).T
     width = hi - lo
-    step = 1e-4 * width
-    _, _, h = derivatives(log_post, np.clip(x, lo + 2 * step, hi - 2 * step), step)
-    if not np.all(np.isfinite(h)):
-        h = np.where(np.isfinite(h), h, 0.0)
-    hs = h * np.outer(width, width)  # Hessian in prior-width units
-    lam, vec = np.linalg.eigh(0.5 * (hs + hs.T))
-    lam_min, lam_max = MAX_SD_OF_WIDTH ** -2, 1e8
+
+    def curvature(step_of_width):
+        step = step_of_width * width
+        _, _, h = derivatives(log_post, np.clip(x, lo + 2 * step, hi - 2 * step), step)
+        if not np.all(np.isfinite(h)):
+            h = np.where(np.isfinite(h), h, 0.0)
+        hs = h * np.outer(width, width)  # Hessian in prior-width units
+        return np.linalg.eigh(0.5 * (hs + hs.T))
+
+    lam, vec = curvature(FD_STEP_OF_WIDTH)
+    lam_min, lam_max = MAX_SD_OF_WIDTH ** -2, FD_STEP_OF_WIDTH ** -2
+    if lam.max() > lam_max:
+        # A direction narrower than the step (a coefficient known to 1e-5 of its prior range at very low noise):
+        # the floor tied to the prior's width made the proposal far too wide there and refused importance
+        # sampling with Pareto k of 7-50 (docs/calibration.md).  Measured again per coordinate with the usual
+        # finite-difference rule, step ~ 1/sqrt(curvature): a coordinate the data barely constrain keeps the
+        # coarse step, whose curvature a small step would lose to round-off.
+        hs = (vec * lam) @ vec.T
+        diag = np.diag(hs)
+        fine = np.full(x.size, FD_STEP_OF_WIDTH)
+        steep = diag > lam_max
+        fine[steep] = np.maximum(FINE_STEP_OF_SD / np.sqrt(diag[steep]), MIN_SD_OF_WIDTH)
+        lam, vec = curvature(fine)
+        lam_max = MIN_SD_OF_WIDTH ** -2
     clipped = int(np.sum((lam < lam_min) | (lam > lam_max)))
     lam = np.clip(lam, lam_min, lam_max)
     cov = (vec / lam) @ vec.T * np.outer(width, width)
