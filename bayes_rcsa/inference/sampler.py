@@ -293,7 +293,11 @@ def find_optimum(log_post: LogPosterior, n_candidates: int = 3, max_lines: int =
     signal the data-weighted grid ranks a wrong resonance (a far softer or
     stiffer contact with a larger noise scale) first, 40-300 log units
     below the mode that generated the data (simulation-based calibration,
-    docs/calibration.md).
+    docs/calibration.md).  When the noise scale stays above that limit and
+    the model samples a term's parameters (a tip mass), the grid is also
+    searched with those parameters at their prior's quartiles
+    (:func:`.search.term_levels`) and the best of those candidates are
+    polished.
 
     Parameters
     ----------
@@ -303,7 +307,7 @@ def find_optimum(log_post: LogPosterior, n_candidates: int = 3, max_lines: int =
     max_lines : int
         Lines per measurement in the grid stage.
     """
-    from .search import EXACT_PROFILE_NOISE, grid_candidates, optimum_noise_scale, polish
+    from .search import EXACT_PROFILE_NOISE, grid_candidates, optimum_noise_scale, polish, term_levels
 
     n0 = log_post.n_evaluations
     bounds = log_post.priors.optimisation_bounds()
@@ -323,6 +327,18 @@ def find_optimum(log_post: LogPosterior, n_candidates: int = 3, max_lines: int =
                 best_x, best_v = x, v
         message += (f"; noise scale {noise:.2g} > {EXACT_PROFILE_NOISE:g}: grid searched again with the "
                     f"likelihood's own profile, {n_candidates} more candidates polished")
+        noise = optimum_noise_scale(log_post, best_x)
+        levels = term_levels(log_post.likelihood, log_post.priors) if noise > EXACT_PROFILE_NOISE else []
+        if levels:
+            cands = np.array([x0 for held in levels for x0 in grid_candidates(
+                log_post.likelihood, log_post.priors, max_lines, n_candidates, held_values=held)])
+            values = np.asarray(log_post(cands), dtype=float)
+            for j in np.argsort(-values)[:n_candidates]:
+                x, v = polish(log_post, cands[j], bounds)
+                if v > best_v:
+                    best_x, best_v = x, v
+            message += (f"; still {noise:.2g}: grid searched at {len(levels)} levels of the model terms' "
+                        f"parameters, the best {min(n_candidates, len(cands))} polished")
     return Optimum(best_x, float(best_v), log_post.n_evaluations - n0, True, message)
 
 

@@ -42,6 +42,12 @@ The search
    ranked a wrong resonance (a soft joint with a larger noise scale) first,
    40-300 log units below the mode that generated the data
    (docs/calibration.md).
+5. When the noise scale at the optimum is still above
+   :data:`EXACT_PROFILE_NOISE` and the model samples the parameters of a
+   model term, the grid is searched again with those parameters held at
+   their prior's quartiles instead of the baseline (:func:`term_levels`),
+   and the best of those candidates are polished too: a large tip mass
+   moves the tool mode off the ridge the term-free grid finds.
 
 Sampled damping is held at the centre of its prior during the grid stage
 and freed in the polish.  Sampled model-term parameters are held at their
@@ -60,7 +66,8 @@ from ..errors import ConvergenceError
 from .likelihood import FRFLikelihood, noise_variance, weighted_sums
 from ..params.priors import PriorSet
 
-__all__ = ["grid_candidates", "polish", "peak_bandwidth", "profile_noise", "optimum_noise_scale", "EXACT_PROFILE_NOISE"]
+__all__ = ["grid_candidates", "polish", "peak_bandwidth", "profile_noise", "optimum_noise_scale", "term_levels",
+           "EXACT_PROFILE_NOISE", "TERM_QUANTILES", "MAX_TERM_COMBINATIONS"]
 
 #: Relative noise scale above which :func:`.sampler.find_optimum` searches the grid again with the likelihood's
 #: own profile (``grid_candidates(..., exact=True)``).  The fast path's weights ``1 / |H_meas|^2`` stand for the
@@ -69,6 +76,11 @@ __all__ = ["grid_candidates", "polish", "peak_bandwidth", "profile_noise", "opti
 #: decide between resonances (docs/calibration.md: with noise above the signal the fast grid ranked a wrong
 #: resonance first).  Below it the two grids rank the same mode first.
 EXACT_PROFILE_NOISE = 0.1
+#: Prior quantiles (sampling coordinate) of each sampled model-term parameter at which the grid is searched again
+#: when the optimum's noise scale stays above :data:`EXACT_PROFILE_NOISE` (:func:`term_levels`).
+TERM_QUANTILES = (0.25, 0.5, 0.75)
+#: Most combinations of term-parameter levels searched (two parameters at three levels each).
+MAX_TERM_COMBINATIONS = 9
 
 
 def peak_bandwidth(frequency_hz: np.ndarray, values: np.ndarray) -> float:
@@ -244,7 +256,7 @@ def _separated_top(values: np.ndarray, n: int, min_sep: tuple[int, ...]) -> list
 
 
 def grid_candidates(likelihood: FRFLikelihood, priors: PriorSet, max_lines: int = 64, n_best: int = 3,
-                    exact: bool = False) -> list[np.ndarray]:
+                    exact: bool = False, held_values=None) -> list[np.ndarray]:
     """Best well-separated grid points of the profile posterior, best first.
 
     Two stages keep the search cheap on priors spanning several decades:
@@ -260,6 +272,11 @@ def grid_candidates(likelihood: FRFLikelihood, priors: PriorSet, max_lines: int 
     max_lines : int
         Lines per measurement used by the grid (evenly spread over the band).
     n_best : int
+    exact : bool
+        The likelihood's own profile instead of the measured-``|H|`` weights (step 4 of the module docstring).
+    held_values : mapping name -> physical value, optional
+        Values of parameters the grid does not search (model-term parameters), instead of their baselines
+        (:func:`term_levels`).
 
     Returns
     -------
@@ -310,6 +327,7 @@ def grid_candidates(likelihood: FRFLikelihood, priors: PriorSet, max_lines: int 
 
     searched = {"k_xf", "k_thetaM", "g_xf", "g_thetaM"}
     held = {n: held_value(n) for n in pm.all_names if n not in searched and n not in pm.noise_names}
+    held.update(held_values or {})
 
     # ridge width in log10 k is about log10(1 + 2 df/f); three grid points across it
     rel = min(peak_bandwidth(o.frequency_hz, o.values) for o in likelihood.observations)
@@ -367,6 +385,37 @@ def grid_candidates(likelihood: FRFLikelihood, priors: PriorSet, max_lines: int 
     if not out:
         raise ConvergenceError("grid search: no grid point has a finite posterior density")
     return out
+
+
+def term_levels(likelihood: FRFLikelihood, priors: PriorSet, quantiles=TERM_QUANTILES,
+                max_combinations: int = MAX_TERM_COMBINATIONS) -> list[dict[str, float]]:
+    """Values of the sampled model-term parameters at which :func:`.sampler.find_optimum` searches the grid again.
+
+    The grid holds a term's parameters at its baseline (the term off).  A large effect of the term (a 15 g tip
+    mass lowers the tool mode by more than its half-power bandwidth) then puts the grid's best stiffnesses on
+    another ridge, and the polish from there stops at a local mode hundreds of log units below the data's
+    (simulation-based calibration, docs/calibration.md).  Each sampled parameter that has a baseline takes the
+    prior's ``quantiles`` (in its sampling coordinate, within the optimisation bounds); the levels are every
+    combination when there are at most ``max_combinations``, else none (a term with many coefficients, such as
+    the statistical discrepancy, is centred on its baseline already).
+
+    Returns
+    -------
+    list of {name: physical value}, empty when the model samples no term parameter
+    """
+    pm = likelihood.parameters
+    names = [n for n in pm.names if n not in pm.noise_names and pm[n].baseline is not None
+             and n not in ("k_xf", "k_thetaM", "g_xf", "g_thetaM")]
+    if not names:
+        return []
+    axes = []
+    for n in names:
+        lo, hi = priors[n].optimisation_bounds()
+        axes.append([float(priors[n].to_physical(lo + q * (hi - lo))) for q in quantiles])
+    if math.prod(len(a) for a in axes) > max_combinations:
+        return []
+    grids = np.meshgrid(*axes, indexing="ij")
+    return [{n: float(g.flat[i]) for n, g in zip(names, grids)} for i in range(grids[0].size)]
 
 
 def profile_noise(likelihood: FRFLikelihood, priors: PriorSet, theta: np.ndarray, exact: bool = True) -> np.ndarray:
