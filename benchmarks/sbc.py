@@ -82,9 +82,9 @@ CONFIGS = {
     # realistic noise prior so that the known floor failure of the default one does not mask the term
     "statistical_discrepancy": {"lengths": (0.025,), "model": {"terms": ["statistical_discrepancy"]},
                                 "noise_scale": (1e-4, 0.3)},
-    # one model term under realistic noise: with noise above the signal (a fifth of the default prior) the five-
-    # parameter tip-mass posterior is a bent ridge that neither importance sampling nor the chain resolves within
-    # identify's limits (docs/calibration.md); last in the table so that the others' seed indices stay
+    # one model term under realistic noise, so that the noise-above-signal replicates of the default prior do not
+    # mask what the term does (docs/calibration.md: it does not pass yet); last in the table so that the
+    # others' seed indices stay
     "tip_mass_noise03": {"lengths": (0.025,), "model": {"terms": ["tip_mass"]}, "noise_scale": (1e-4, 0.3)},
 }
 N_DRAWS = 99  # posterior draws per replicate: ranks 0..99, 100 ECDF points
