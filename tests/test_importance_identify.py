@@ -224,7 +224,7 @@ def test_optimum_searches_the_model_terms_parameters_when_the_fit_stays_poor():
     """A 14 g tip mass at 7 mm, little noise (log10 sigma_0 = -3.24): the term-free grid (tip mass held at 0)
     finds the stiffnesses of another ridge, and its polish stopped at k_xf 1e9 with the noise scale on its bound
     0.3, 1,428 log units below the truth (SBC of ``tip_mass_noise03``, docs/calibration.md: every draw on one
-    side of such truths).  With the grid searched again at the tip mass's prior quartiles the optimum is the
+    side of such truths).  With the grid searched again at the tip mass's prior 10, 50 and 90 % points the optimum is the
     data's mode."""
     from bayes_rcsa.data import example_setup
     from bayes_rcsa.inference.problem import build_problem

@@ -295,7 +295,7 @@ def find_optimum(log_post: LogPosterior, n_candidates: int = 3, max_lines: int =
     below the mode that generated the data (simulation-based calibration,
     docs/calibration.md).  When the noise scale stays above that limit and
     the model samples a term's parameters (a tip mass), the grid is also
-    searched with those parameters at their prior's quartiles
+    searched with those parameters at their prior's 10, 50 and 90 % points
     (:func:`.search.term_levels`) and the best of those candidates are
     polished.
 
