@@ -248,3 +248,27 @@ def test_optimum_searches_the_model_terms_parameters_when_the_fit_stays_poor():
     # a maximum, so at least the truth's value (the truth is 6 log units below the mode with these data)
     assert optimum.log_posterior >= float(lp(truth[None])[0]), (optimum.x, optimum.message)
     np.testing.assert_allclose(optimum.x[:4], truth[:4], atol=0.05)
+
+
+@pytest.mark.parametrize("terms, expected", [
+    ((), []),
+    (("tip_mass",), [(m, e) for m in (0.002, 0.010, 0.018) for e in (-0.008, 0.0, 0.008)]),
+    (("statistical_discrepancy",), []),  # six coefficients: 729 combinations, more than the limit of 9
+])
+def test_term_levels_span_the_prior_box_of_at_most_two_term_parameters(terms, expected):
+    """The levels of the second grid search: every combination of each sampled term parameter at its prior's 10,
+    50 and 90 % points (uniform priors: tip mass on [0, 20] g, offset on [-10, 10] mm), none for many
+    coefficients or no term."""
+    from bayes_rcsa.data import example_setup
+    from bayes_rcsa.inference.problem import build_problem
+    from bayes_rcsa.inference.search import MAX_TERM_COMBINATIONS, term_levels
+
+    setup = load_setup(example_setup())
+    m = next(m for m in setup.measurements if m.configuration.direction == "x" and m.configuration.clamping_length == 0.025)
+    options = IdentificationOptions(lengths=(0.025,), band=(500.0, 2500.0), model={"terms": list(terms)})
+    problem = build_problem(setup.model(), [(m.configuration, m.frf)], setup.contact, options)
+    levels = term_levels(problem.likelihood, problem.priors)
+    assert len(levels) <= MAX_TERM_COMBINATIONS
+    got = [(lv["tip_mass_kg"], lv["tip_mass_offset_m"]) for lv in levels]
+    np.testing.assert_allclose(np.array(got).reshape(-1, 2), np.array(expected, dtype=float).reshape(-1, 2),
+                               atol=1e-12)
