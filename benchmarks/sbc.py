@@ -83,7 +83,7 @@ CONFIGS = {
     "statistical_discrepancy": {"lengths": (0.025,), "model": {"terms": ["statistical_discrepancy"]},
                                 "noise_scale": (1e-4, 0.3)},
     # one model term under realistic noise, so that the noise-above-signal replicates of the default prior do not
-    # mask what the term does (docs/calibration.md: it does not pass yet); last in the table so that the
+    # mask what the term does (docs/calibration.md); last in the table so that the
     # others' seed indices stay
     "tip_mass_noise03": {"lengths": (0.025,), "model": {"terms": ["tip_mass"]}, "noise_scale": (1e-4, 0.3)},
 }
