@@ -187,7 +187,10 @@ def test_a_setup_of_another_geometry_warns_in_the_result_and_the_file(fitted, tm
     text = edited.read_text()
     assert "youngs_modulus = 580000000000.0" in text
     edited.write_text(text.replace("youngs_modulus = 580000000000.0", "youngs_modulus = 600000000000.0"))
-    res = lobes(setup=edited, posterior=posterior, **POSTERIOR_KW)
+    from bayes_rcsa.errors import DataWarning
+
+    with pytest.warns(DataWarning, match="youngs_modulus"):  # raised to the caller too, not only recorded
+        res = lobes(setup=edited, posterior=posterior, **POSTERIOR_KW)
     line = [w for w in res.warnings if "youngs_modulus" in w]
     assert len(line) == 1 and "differs from" in line[0], res.warnings
     path = res.save(tmp_path / "out")
