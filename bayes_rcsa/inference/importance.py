@@ -213,9 +213,10 @@ def laplace_covariance(log_post, x: np.ndarray, bounds) -> tuple[np.ndarray, str
         if not np.all(np.isfinite(h)):
             h = np.where(np.isfinite(h), h, 0.0)
         hs = h * np.outer(width, width)  # Hessian in prior-width units
-        return np.linalg.eigh(0.5 * (hs + hs.T))
+        return 0.5 * (hs + hs.T)
 
-    lam, vec = curvature(FD_STEP_OF_WIDTH)
+    hs = curvature(FD_STEP_OF_WIDTH)
+    lam, vec = np.linalg.eigh(hs)
     lam_min, lam_max = MAX_SD_OF_WIDTH ** -2, FD_STEP_OF_WIDTH ** -2
     if lam.max() > lam_max:
         # A direction narrower than the step (a coefficient known to 1e-5 of its prior range at very low noise):
@@ -223,12 +224,11 @@ def laplace_covariance(log_post, x: np.ndarray, bounds) -> tuple[np.ndarray, str
         # sampling with Pareto k of 7-50 (docs/calibration.md).  Measured again per coordinate with the usual
         # finite-difference rule, step ~ 1/sqrt(curvature): a coordinate the data barely constrain keeps the
         # coarse step, whose curvature a small step would lose to round-off.
-        hs = (vec * lam) @ vec.T
         diag = np.diag(hs)
         fine = np.full(x.size, FD_STEP_OF_WIDTH)
         steep = diag > lam_max
         fine[steep] = np.maximum(FINE_STEP_OF_SD / np.sqrt(diag[steep]), MIN_SD_OF_WIDTH)
-        lam, vec = curvature(fine)
+        lam, vec = np.linalg.eigh(curvature(fine))
         lam_max = MIN_SD_OF_WIDTH ** -2
     clipped = int(np.sum((lam < lam_min) | (lam > lam_max)))
     lam = np.clip(lam, lam_min, lam_max)
