@@ -136,6 +136,11 @@ def template_problem(config: str, prior_sd_factor: float = 1.0):
     return problem
 
 
+def replicate_seed(config: str, seed: int, index: int) -> np.random.SeedSequence:
+    """Replicate ``index`` of ``config`` under the run's base ``seed``: the key both drivers below use."""
+    return np.random.SeedSequence([seed, list(CONFIGS).index(config), index])
+
+
 def run_replicate(args) -> dict:
     """One SBC replicate ``(config, seed, index, sampler, prior_sd_factor)``
     (:func:`bayes_rcsa.inference.sbc.sbc_replicate`)."""
@@ -143,7 +148,7 @@ def run_replicate(args) -> dict:
     from bayes_rcsa.inference.sbc import sbc_replicate
 
     config, seed, index, sampler, factor = args
-    ss = np.random.SeedSequence([seed, list(CONFIGS).index(config), index])
+    ss = replicate_seed(config, seed, index)
     row = sbc_replicate(_template(config, factor), ss, SamplerSettings(progress=False), N_DRAWS,
                         sampler=sampler).to_dict()
     return {"index": index, **row}
@@ -240,21 +245,20 @@ def importance_acceptance(config: str, seed: int, replicates: int, max_log10_noi
     one line per replicate and returns the counts (how often identify's default would fall back to the chain)."""
     from bayes_rcsa.inference.importance import importance_posterior
     from bayes_rcsa.inference.sampler import find_optimum
-    from bayes_rcsa.inference.sbc import MAX_DRAWS, simulate_problem
+    from bayes_rcsa.inference.sbc import MAX_DRAWS, replicate_streams, simulate_problem
 
     problem = _template(config)
     j = problem.parameters.names.index("sigma_0")
     accepted, times, n = 0, [], 0
     for r in range(replicates):
-        ss = np.random.SeedSequence([seed, list(CONFIGS).index(config), r])
-        rng_truth, rng_noise, _, _, _, rng_is = (np.random.default_rng(s) for s in ss.spawn(6))
-        truth = problem.priors.sample(rng_truth, 1)[0]
+        st = replicate_streams(replicate_seed(config, seed, r))
+        truth = problem.priors.sample(st.truth, 1)[0]
         if truth[j] > max_log10_noise:
             continue
-        lp = simulate_problem(problem, truth, rng_noise).log_posterior(1.0)
+        lp = simulate_problem(problem, truth, st.noise).log_posterior(1.0)
         optimum = find_optimum(lp)
         t0 = time.perf_counter()
-        imp = importance_posterior(lp, optimum.x, problem.priors.optimisation_bounds(), rng_is, MAX_DRAWS)
+        imp = importance_posterior(lp, optimum.x, problem.priors.optimisation_bounds(), st.importance, MAX_DRAWS)
         times.append(time.perf_counter() - t0)
         n += 1
         accepted += bool(imp.accepted)

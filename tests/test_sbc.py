@@ -191,6 +191,13 @@ def test_reduced_sbc_of_the_default_importance_sampler_passes(reduced_problem):
     assert all(r.min_ess >= 1000 for r in reps if r.sampler == "importance")
     assert all(np.isfinite(r.min_ess) and r.min_ess > 0 for r in reps), [r.min_ess for r in reps]
     assert all(r.to_dict()["min_ess"] == r.min_ess for r in reps)
+    # a script that needs a replicate's truth without its sampler (benchmarks/sbc.py --importance-only) reaches
+    # the same truth through the one stream layout
+    from bayes_rcsa.inference.sbc import replicate_streams
+
+    for r, rep in enumerate(reps[:3]):
+        truth = reduced_problem.priors.sample(replicate_streams(np.random.SeedSequence([4242, r])).truth, 1)[0]
+        np.testing.assert_array_equal(truth, rep.truth)
     exact = sbc_check(ranks, N_DRAWS, names, rng, alpha=0.01)
     assert exact.all_passed, (exact.p_ecdf, exact.p_chi2)
 

@@ -37,7 +37,8 @@ from .problem import Problem
 from .identify import MAX_DRAWS
 from .sampler import ChainResult, SamplerSettings, find_optimum, initial_ensemble, run_ensemble
 
-__all__ = ["simulate_problem", "nearly_independent_draws", "SbcReplicate", "sbc_replicate"]
+__all__ = ["simulate_problem", "nearly_independent_draws", "SbcReplicate", "ReplicateStreams", "replicate_streams",
+           "sbc_replicate"]
 
 
 def simulate_problem(problem: Problem, theta: np.ndarray, rng: np.random.Generator) -> Problem:
@@ -128,6 +129,29 @@ class SbcReplicate:
                 "min_ess": None if math.isnan(self.min_ess) else self.min_ess}
 
 
+@dataclass(frozen=True)
+class ReplicateStreams:
+    """The independent random streams of one SBC replicate (:func:`replicate_streams`)."""
+
+    truth: np.random.Generator
+    noise: np.random.Generator
+    init: np.random.Generator
+    mcmc: np.random.Generator
+    rank: np.random.Generator
+    importance: np.random.Generator
+
+
+def replicate_streams(seed_sequence: np.random.SeedSequence) -> ReplicateStreams:
+    """Spawn one replicate's streams from ``seed_sequence``: the one layout every SBC driver uses.
+
+    The truth, the noise, the walker start, emcee and the ranks took the first five children before importance
+    sampling existed (so chain replicates kept their numbers); importance sampling takes the sixth.  A script
+    that needs a replicate's truth or data without its sampler (``benchmarks/sbc.py --importance-only``) calls
+    this to reach the same numbers.
+    """
+    return ReplicateStreams(*(np.random.default_rng(s) for s in seed_sequence.spawn(6)))
+
+
 def sbc_replicate(problem: Problem, seed_sequence: np.random.SeedSequence, settings: SamplerSettings,
                   n_draws: int = 99, tempering: float = 1.0, sampler: str = "mcmc") -> SbcReplicate:
     """Truth from the prior, a simulated campaign, identify's sampler, the ranks of the truth.
@@ -151,9 +175,9 @@ def sbc_replicate(problem: Problem, seed_sequence: np.random.SeedSequence, setti
     if sampler not in ("mcmc", "auto"):
         raise SetupError(f"sampler {sampler!r}: expected 'mcmc' or 'auto'")
     t0 = time.perf_counter()
-    # five streams as before (mcmc replicates are unchanged); importance sampling takes a sixth
-    rng_truth, rng_noise, rng_init, rng_mcmc, rng_rank, rng_is = (
-        np.random.default_rng(s) for s in seed_sequence.spawn(6))
+    st = replicate_streams(seed_sequence)
+    rng_truth, rng_noise, rng_init, rng_mcmc, rng_rank, rng_is = (st.truth, st.noise, st.init, st.mcmc, st.rank,
+                                                                   st.importance)
     truth = problem.priors.sample(rng_truth, 1)[0]
     lp = simulate_problem(problem, truth, rng_noise).log_posterior(tempering)
     optimum = find_optimum(lp)
