@@ -272,7 +272,7 @@ def pile_up(fit, rel: float = 0.01, z_min: float = 2.0) -> list[str]:
     growth 0.45 against Q = 0.5, weakly identified for k_thetaM) puts the MAP
     on the bound without that pressure.
     """
-    from .fit import whitened_residuals
+    from .fit import model_floor, whitened_residuals
 
     pm = fit.problem.parameters
     bounds = fit.problem.priors.optimisation_bounds()
@@ -291,7 +291,7 @@ def pile_up(fit, rel: float = 0.01, z_min: float = 2.0) -> list[str]:
     pts = np.repeat(fit.theta[None], len(cand) + 1, axis=0)
     for k, (j, _, _) in enumerate(cand):
         pts[k + 1, j] += h[k]
-    z = whitened_residuals(fit.problem, pts)
+    z = whitened_residuals(fit.problem, pts, model_floor(fit.problem, fit.theta))
     out = []
     for k, (_, name, direction) in enumerate(cand):
         jac = (z[k + 1] - z[0]) / h[k]

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..inference.problem import Problem
-from .fit import ModelFit, whitened_residuals
+from .fit import ModelFit, model_floor, whitened_residuals
 
 __all__ = ["ScoreResult", "embed_baseline", "score_test"]
 
@@ -103,6 +103,7 @@ def score_test(baseline: ModelFit, problem: Problem, effect: str) -> ScoreResult
     names = pm.names
     beta = baseline.tempering
     theta0 = embed_baseline(baseline, problem)
+    floor = model_floor(problem, theta0)  # held at the baseline: every score is a derivative there
     bounds = np.array(problem.priors.optimisation_bounds(), dtype=float)
     width = bounds[:, 1] - bounds[:, 0]
     term_cols = [j for j, n in enumerate(names) if pm[n].term == effect]
@@ -117,7 +118,7 @@ def score_test(baseline: ModelFit, problem: Problem, effect: str) -> ScoreResult
         pts = np.repeat(theta[None], len(cols) + 1, axis=0)
         for k, j in enumerate(cols):
             pts[k + 1, j] += h[k]
-        z = whitened_residuals(problem, pts)
+        z = whitened_residuals(problem, pts, floor)
         return z[0], ((z[1:] - z[0]) / h[:, None]).T
 
     z0, jn = jac(theta0, nuis_cols, 1e-6)
@@ -139,12 +140,13 @@ def score_test(baseline: ModelFit, problem: Problem, effect: str) -> ScoreResult
     points = np.repeat(theta0[None], len(grid), axis=0)  # theta0 with the inactive parameters on the grid
     for i, g in enumerate(grid):
         points[i, inactive] = g
-    switched = _switch_jacobians(problem, effect, theta0, points, active, inactive, lambda t: steps(t, active, 1e-3))
+    switched = _switch_jacobians(problem, effect, theta0, points, active, inactive, lambda t: steps(t, active, 1e-3),
+                                 floor)
     gridded = None
     if switched is None and inactive:
         h_t = 1e-3 * width[term_cols]
         h_t = np.where(points[:, term_cols] + h_t > bounds[term_cols, 1], -h_t, h_t)  # as steps(), at every point
-        gridded = _grid_jacobians(problem, points, term_cols, h_t)
+        gridded = _grid_jacobians(problem, points, term_cols, h_t, floor)
     found = []
     for i, theta in enumerate(points):
         if switched is not None:
@@ -183,7 +185,8 @@ def score_test(baseline: ModelFit, problem: Problem, effect: str) -> ScoreResult
     return ScoreResult(effect, stat, max(dof, 1), float(chi2.sf(stat, max(dof, 1))), start, starts)
 
 
-def _grid_jacobians(problem: Problem, points: np.ndarray, cols: list[int], h: np.ndarray) -> np.ndarray:
+def _grid_jacobians(problem: Problem, points: np.ndarray, cols: list[int], h: np.ndarray,
+                    floor: np.ndarray | None = None) -> np.ndarray:
     """Forward-difference Jacobians in ``cols`` at every grid point, in batched model evaluations.
 
     One evaluation of ``_CHUNK`` sets instead of one small evaluation per point: a term without a switch (the
@@ -203,13 +206,14 @@ def _grid_jacobians(problem: Problem, points: np.ndarray, cols: list[int], h: np
     pts = np.repeat(points[:, None], k + 1, axis=1)  # (n_grid, k + 1, ndim): the point, then one step per column
     pts[:, 1 + np.arange(k), cols] += h
     flat = pts.reshape(-1, points.shape[1])
-    z = np.concatenate([whitened_residuals(problem, flat[a:a + _CHUNK]) for a in range(0, flat.shape[0], _CHUNK)])
+    z = np.concatenate([whitened_residuals(problem, flat[a:a + _CHUNK], floor)
+                        for a in range(0, flat.shape[0], _CHUNK)])
     z = z.reshape(n_grid, k + 1, -1)
     return np.swapaxes((z[:, 1:] - z[:, :1]) / h[:, :, None], 1, 2)
 
 
 def _switch_jacobians(problem: Problem, effect: str, theta0: np.ndarray, points: np.ndarray, active: list[int],
-                      inactive: list[int], step) -> list[np.ndarray] | None:
+                      inactive: list[int], step, floor: np.ndarray | None = None) -> list[np.ndarray] | None:
     """The term Jacobian at every grid point when only the term's switch is active (else ``None``).
 
     A term that declares a ``switch`` (:attr:`~bayes_rcsa.params.terms.base.ModelTerm.switch`: a mass of 0)
@@ -244,6 +248,6 @@ def _switch_jacobians(problem: Problem, effect: str, theta0: np.ndarray, points:
     out = []
     for a in range(0, len(thetas), _CHUNK):
         # the baseline set (switch at its baseline) evaluated with the chunk, on the same code path
-        z = whitened_residuals(problem, np.vstack([theta0[None], thetas[a:a + _CHUNK]]))
+        z = whitened_residuals(problem, np.vstack([theta0[None], thetas[a:a + _CHUNK]]), floor)
         out += [((z[j] - z[0]) / h)[:, None] for j in range(1, z.shape[0])]
     return out

@@ -77,6 +77,7 @@ from ..params.model import ParameterModel
 from .band import Band, MIN_LINES, band_mask
 
 __all__ = [
+    "band_floor",
     "noise_variance",
     "Observation",
     "NoiseModel",
@@ -176,7 +177,21 @@ class NoiseModel:
         return v
 
 
-def noise_variance(abs2: np.ndarray, coherence: np.ndarray, eps2: float, slices) -> np.ndarray:
+def band_floor(abs2: np.ndarray, eps2: float, slices) -> np.ndarray:
+    """The noise floor ``eps2 max_band |H|^2`` of every line, each measurement's own band maximum, (n, n_lines) (m/N)^2.
+
+    Parameters
+    ----------
+    abs2 : (n, n_lines) float, ``|H_model|^2`` (m/N)^2 of n parameter sets
+    eps2 : float, the squared relative noise floor
+    slices : sequence of slice, each measurement's lines (contiguous, in order, covering ``n_lines``)
+    """
+    starts = np.array([sl.start for sl in slices])
+    peak = np.maximum.reduceat(abs2, starts, axis=1)  # (n, n_meas): each measurement's band maximum
+    return eps2 * np.repeat(peak, [sl.stop - sl.start for sl in slices], axis=1)
+
+
+def noise_variance(abs2: np.ndarray, coherence: np.ndarray, eps2: float, slices, floor=None) -> np.ndarray:
     """The noise model's variance ``v_n = (|H_n|^2 + eps2 max_band |H|^2) / gamma_n`` on every line, (m/N)^2.
 
     The one formula of the likelihood's noise variance (the floor is each measurement's own band maximum of
@@ -188,14 +203,18 @@ def noise_variance(abs2: np.ndarray, coherence: np.ndarray, eps2: float, slices)
     coherence : (n_lines,) float in (0, 1]
     eps2 : float, the squared relative noise floor
     slices : sequence of slice, each measurement's lines (contiguous, in order, covering ``n_lines``)
+    floor : (1 or n, n_lines) float, optional
+        The floor held at a reference model (:func:`band_floor` of its ``|H|^2``) instead of each set's own:
+        a least-squares solver that linearises at a point keeps it fixed over its steps (see
+        :func:`bayes_rcsa.discrepancy.fit.whitened_residuals`).
 
     Returns
     -------
     (n, n_lines) float
     """
-    starts = np.array([sl.start for sl in slices])
-    peak = np.maximum.reduceat(abs2, starts, axis=1)  # (n, n_meas): each measurement's band maximum
-    return (abs2 + eps2 * np.repeat(peak, [sl.stop - sl.start for sl in slices], axis=1)) / coherence
+    if floor is None:
+        floor = band_floor(abs2, eps2, slices)
+    return (abs2 + floor) / coherence
 
 
 # The compiled terms are loaded on the first evaluation: importing numba costs 0.3-0.6 s that reading a setup or
@@ -306,15 +325,23 @@ class FRFLikelihood:
         peak = np.maximum.reduceat(abs2, self._starts, axis=1)  # (n, n_meas): each measurement's band maximum
         return self._floor_eps2 * peak[:, self.stack.index]
 
-    def variance_of(self, h: np.ndarray) -> np.ndarray:
+    def floor_of(self, h: np.ndarray) -> np.ndarray:
+        """The noise floor ``eps2 max_band |h|^2`` of model FRFs ``h`` (n, n_lines) complex m/N: (n, n_lines) (m/N)^2."""
+        return band_floor(np.abs(np.atleast_2d(h)) ** 2, self._floor_eps2, self.stack.slices)
+
+    def variance_of(self, h: np.ndarray, floor: np.ndarray | None = None) -> np.ndarray:
         """v_n of the noise model for model FRFs ``h`` (n, n_lines) complex m/N: (n, n_lines) in (m/N)^2.
+
+        ``floor`` (1 or n, n_lines), optional: the floor held at a reference model (:meth:`floor_of`), for a
+        least-squares solver; by default each set's own, as the likelihood has it.
 
         Raises
         ------
         DataError
             A zero variance (a model receptance of zero on a line with ``noise_floor = 0``).
         """
-        var = noise_variance(np.abs(np.atleast_2d(h)) ** 2, self.coherence, self._floor_eps2, self.stack.slices)
+        var = noise_variance(np.abs(np.atleast_2d(h)) ** 2, self.coherence, self._floor_eps2, self.stack.slices,
+                             floor)
         if not np.all(var > 0):
             raise DataError("noise_floor = 0 needs a non-zero model receptance everywhere; set a positive noise floor")
         return var
