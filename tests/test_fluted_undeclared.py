@@ -268,20 +268,20 @@ def test_the_screen_s_batched_flute_length_grid_is_the_point_by_point_score_test
     calls = []
     batched_grid = screen._grid_jacobians
 
-    def spy(problem, points, cols, h):
+    def spy(problem, points, cols, h, floor=None):
         calls.append(points.shape[0])
-        return batched_grid(problem, points, cols, h)
+        return batched_grid(problem, points, cols, h, floor)
 
     monkeypatch.setattr(screen, "_grid_jacobians", spy)
     fast = screen.score_test(baseline, term_problem, TERM)
     assert calls and calls[0] >= 100  # the grid path ran, over the fine grid of the fluted length
 
-    def point_by_point(problem, points, cols, h):
+    def point_by_point(problem, points, cols, h, floor=None):
         out = []
         for theta, hk in zip(points, h):
             pts = np.repeat(theta[None], len(cols) + 1, axis=0)
             pts[1 + np.arange(len(cols)), cols] += hk
-            z = whitened_residuals(problem, pts)
+            z = whitened_residuals(problem, pts, floor)
             out.append(((z[1:] - z[0]) / hk[:, None]).T)
         return np.array(out)
 
