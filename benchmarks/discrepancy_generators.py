@@ -231,8 +231,8 @@ def naming(gen: Generator, n: int, n_clean: int, root: Path, times: list, only=N
             halved += ok and r["gap_after"] <= 0.5 * r["gap_before"]
             named_as.append(str(r["named_effect"]))
             print(f"[{gen.name}] {label} seed {seed}: named {r['named_effect']} (confounded {r['confounded_with']}), "
-                  f"gap {r['gap_before']:.4f} -> {r['gap_after']:.4f}, usable {r['usable_for_prediction']} "
-                  f"({t:.1f} s)", flush=True)
+                  f"final {r['final_model']}, gap {r['gap_before']:.4f} -> {r['gap_after']:.4f}, usable "
+                  f"{r['usable_for_prediction']} ({t:.1f} s)", flush=True)
         rows.append(f"| `{label}` | {frac(hits, n)} | {halved}/{hits} | {', '.join(named_as)} |")
     null = 0
     for s in range(n_clean):
@@ -241,8 +241,8 @@ def naming(gen: Generator, n: int, n_clean: int, root: Path, times: list, only=N
         res, t = run(setup, seed)
         times.append(t)
         null += res.report["named_effect"] is None
-        print(f"[{gen.name}] clean seed {seed}: named {res.report['named_effect']}, adequate {res.report['adequate']}",
-              flush=True)
+        print(f"[{gen.name}] clean seed {seed}: named {res.report['named_effect']}, final {res.report['final_model']}, "
+              f"adequate {res.report['adequate']}", flush=True)
     label = "clean, tool one cylinder (nothing named)" if clean_overrides else "clean (nothing named)"
     rows.append(f"| {label} | {frac(null, n_clean)} | | |")
     return rows

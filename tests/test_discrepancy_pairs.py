@@ -68,3 +68,15 @@ def test_pair_lines_in_the_summary():
     assert len(lines) == 1  # a first half with no second candidate is no pair
     assert effect_name("extra_mode") in lines[0] and effect_name("tip_mass") in lines[0]
     assert "extra_mode" not in lines[0]  # printed names, never identifiers
+
+
+def test_a_second_round_follows_a_resolved_systematic_gap_even_with_short_residual_correlation():
+    from bayes_rcsa.discrepancy.workflow import leaves_misfit
+
+    # the project's bench, tip mass named with a spindle file 15 % stiffer left (seed 51300): 1.8 lines, but a
+    # gap well above its resolution -> a second round
+    ok, why = leaves_misfit(1.8, {"gap": 0.013, "resolution": 0.0079, "at_noise_floor": False})
+    assert ok and "0.013" in why and "1.8 lines" in why
+    # a gap at the noise floor is no misfit, however correlated the residuals
+    assert not leaves_misfit(5.0, {"gap": 0.0, "resolution": 0.008, "at_noise_floor": True})[0]
+    assert not leaves_misfit(5.0, {})[0]
