@@ -56,9 +56,11 @@ __all__ = ["SpindleIdentification", "identify_direction", "identify_directions",
 # that only matter inside flagged bands).
 _BOOTSTRAP_NFEV = 40
 _COMPONENT = {"h11": 0, "h12": 1, "h21": 1, "h22": 2}
-# CPU seconds per direction measured on the synthetic artifact (3801 lines, benchmarks/spindle.py): the
-# nominal fit, the bootstrap start fits (two larger mode counts), one replicate
-_COST_FIT, _COST_STARTS, _COST_SAMPLE = 7.0, 8.0, 0.5
+# CPU seconds per direction measured on the synthetic artifact (3801 lines, benchmarks/spindle.py, 2026-11-30 on
+# the 2-core development machine): the nominal fit (3.5), the bootstrap start fits (two larger mode counts,
+# 1.7), one replicate (0.18); `bayes-rcsa spindle --workers 1 --samples 50` took 28.2 s CPU for two directions,
+# this estimate 2 x 14.2 s.  (The former 7.0 / 8.0 / 0.5 predated the speed-ups of issue #41's rounds: 2.8x high.)
+_COST_FIT, _COST_STARTS, _COST_SAMPLE = 3.5, 1.7, 0.18
 
 
 def estimated_cpu_seconds(n_samples: int) -> float:
