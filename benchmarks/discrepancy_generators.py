@@ -388,7 +388,8 @@ def main() -> None:
             out += out_of_library(gen, n_named, root, times, NAMED_COVERAGE, base=1400) + [""]
         if "two" in parts:
             sets = tuple(float(v) for v in a.two_file_sets.split(",")) if a.two_file_sets else None
-            out += ["Two hidden effects at once (`tip_mass` + `spindle_error`):", ""] + two_effects(gen, a.two, root, times, sets) + [""]
+            out += ["Two hidden effects at once (`tip_mass` + `spindle_error`):", ""]
+            out += two_effects(gen, a.two, root, times, sets) + [""]
     if times:
         out.append(f"Whole loop: median {statistics.median(times):.1f} s, max {max(times):.1f} s over {len(times)} "
                    "campaigns (target <= 180 s).")

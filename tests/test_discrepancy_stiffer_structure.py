@@ -84,6 +84,21 @@ def test_stiffness_on_upper_bound_reads_the_map_against_each_prior():
     assert select.stiffness_held_on_upper_bound(complete, ["k_thetaM"]) == []
 
 
+def _rotor_check(cfg, seed: int, tmp_path):
+    """The discrepancy workflow on a rotor-bench campaign of ``cfg`` (noise seed ``seed``), 25 and 40 mm fitted."""
+    from bayes_rcsa.synthetic import rotor
+
+    path = rotor.write_rotor_campaign(rotor.generate_rotor_campaign(cfg, np.random.default_rng(seed)), tmp_path / "r")
+    return run_discrepancy(load_setup(path), DiscrepancyOptions(lengths=(0.025, 0.040), seed=seed))
+
+
+def _assert_tip_mass_and_spindle_file_named(r: dict) -> None:
+    """Both effects named (either first) and the systematic gap at least halved."""
+    assert {r["named_effect"], *r["also_named"]} == {"tip_mass", "spindle_error"}, (
+        r["named_effect"], r["also_named"], r["partially_explained_by"])
+    assert r["gap_after"] <= 0.5 * r["gap_before"], (r["gap_before"], r["gap_after"])
+
+
 @pytest.mark.slow
 def test_a_tool_stiffer_than_declared_is_not_named_on_the_rotor_bench(tmp_path):
     """Rotor bench, tool modulus 10 % above the declared one (no term represents it).  Before the rule the workflow
@@ -92,8 +107,7 @@ def test_a_tool_stiffer_than_declared_is_not_named_on_the_rotor_bench(tmp_path):
     from bayes_rcsa.synthetic import rotor
 
     cfg = rotor.rotor_bench_config(hidden_effects={"tool_modulus": 0.10})
-    path = rotor.write_rotor_campaign(rotor.generate_rotor_campaign(cfg, np.random.default_rng(58)), tmp_path / "r")
-    res = run_discrepancy(load_setup(path), DiscrepancyOptions(lengths=(0.025, 0.040), seed=58))
+    res = _rotor_check(cfg, 58, tmp_path)
     r = res.report
     assert r["named_effect"] is None, [(c["effect"], c["criterion"]) for c in r["candidates"]]
     assert r["final_model"] == "statistical_discrepancy"
@@ -120,12 +134,9 @@ def test_two_hidden_effects_at_once_are_both_named_on_the_rotor_bench(tmp_path):
     from bayes_rcsa.synthetic import rotor
 
     cfg = rotor.rotor_bench_config(hidden_effects={"tip_mass": True, "spindle_error": True}, frequency_step=4.0)
-    path = rotor.write_rotor_campaign(rotor.generate_rotor_campaign(cfg, np.random.default_rng(60)), tmp_path / "r")
-    res = run_discrepancy(load_setup(path), DiscrepancyOptions(lengths=(0.025, 0.040), seed=60))
+    res = _rotor_check(cfg, 60, tmp_path)
     r = res.report
-    assert {r["named_effect"], *r["also_named"]} == {"tip_mass", "spindle_error"}, (
-        r["named_effect"], r["also_named"], r["partially_explained_by"])
-    assert r["gap_after"] <= 0.5 * r["gap_before"], (r["gap_before"], r["gap_after"])
+    _assert_tip_mass_and_spindle_file_named(r)
     assert r["usable_for_prediction"]
     ev = res.evaluation["after"]
     covered = total = 0
@@ -155,12 +166,9 @@ def test_tip_mass_and_a_file_from_bearing_sets_15_percent_stiffer_are_named_as_a
 
     cfg = rotor.rotor_bench_config(hidden_effects={"tip_mass": True, "spindle_error": 0.15}, frequency_step=8.0,
                                    spindle_error_kind="bearing_sets", spindle_error_rear=0.15)
-    path = rotor.write_rotor_campaign(rotor.generate_rotor_campaign(cfg, np.random.default_rng(61)), tmp_path / "r")
-    res = run_discrepancy(load_setup(path), DiscrepancyOptions(lengths=(0.025, 0.040), seed=61))
+    res = _rotor_check(cfg, 61, tmp_path)
     r = res.report
-    assert {r["named_effect"], *r["also_named"]} == {"tip_mass", "spindle_error"}, (
-        r["named_effect"], r["also_named"], r["partially_explained_by"])
-    assert r["gap_after"] <= 0.5 * r["gap_before"], (r["gap_before"], r["gap_after"])
+    _assert_tip_mass_and_spindle_file_named(r)
     assert r["usable_for_prediction"] and not r["gap_grew"]
 
 
@@ -185,8 +193,7 @@ def test_a_decisive_candidate_on_its_prior_edge_is_paired_not_dropped(tmp_path, 
 
     monkeypatch.setattr(select, "edge_parameters", spindle_error_alone_on_edge)
     cfg = rotor.rotor_bench_config(hidden_effects={"tip_mass": True, "spindle_error": True}, frequency_step=8.0)
-    path = rotor.write_rotor_campaign(rotor.generate_rotor_campaign(cfg, np.random.default_rng(60)), tmp_path / "r")
-    res = run_discrepancy(load_setup(path), DiscrepancyOptions(lengths=(0.025, 0.040), seed=60))
+    res = _rotor_check(cfg, 60, tmp_path)
     r = res.report
     assert marked  # the single fit really was declared edge-bound
     # it was no partial candidate (the old first halves of a pair): the pair came from the edge-bound list

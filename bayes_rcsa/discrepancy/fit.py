@@ -38,8 +38,8 @@ from ..inference import search
 from ..inference.likelihood import residual_correlation_length
 from ..inference.problem import Problem
 
-__all__ = ["ModelFit", "fit_baseline", "fit_variant", "whitened_residuals", "model_floor", "profile_noise", "laplace_draws",
-           "cluster_robust_covariance", "sandwich_covariance", "loewner_max", "with_robust_covariance",
+__all__ = ["ModelFit", "fit_baseline", "fit_variant", "whitened_residuals", "model_floor", "profile_noise",
+           "laplace_draws", "cluster_robust_covariance", "sandwich_covariance", "loewner_max", "with_robust_covariance",
            "JOINT_STIFFNESSES", "joints_on_upper_bound", "rigid_side_columns", "truncated_by_prior"]
 
 

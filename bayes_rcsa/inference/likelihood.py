@@ -326,7 +326,10 @@ class FRFLikelihood:
         return self._floor_eps2 * peak[:, self.stack.index]
 
     def floor_of(self, h: np.ndarray) -> np.ndarray:
-        """The noise floor ``eps2 max_band |h|^2`` of model FRFs ``h`` (n, n_lines) complex m/N: (n, n_lines) (m/N)^2."""
+        """The noise floor ``eps2 max_band |h|^2`` of model FRFs ``h`` (n, n_lines) complex m/N.
+
+        Returns (n, n_lines) (m/N)^2.
+        """
         return band_floor(np.abs(np.atleast_2d(h)) ** 2, self._floor_eps2, self.stack.slices)
 
     def variance_of(self, h: np.ndarray, floor: np.ndarray | None = None) -> np.ndarray:
