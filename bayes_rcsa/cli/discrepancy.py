@@ -41,6 +41,11 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=nonnegative_int, default=0, help="random seed (default 0)")
     p.add_argument("--refit", type=positive_int, default=None, metavar="N",
                    help="refit only the N best candidates of the score test (default: refit every candidate)")
+    p.add_argument("--library", type=Path, default=None, metavar="FILE",
+                   help="population.nc of 'bayes-rcsa library': when nothing is named, the contact law's shape "
+                        "between the fitted lengths takes the library's prior for the setup's holder type and shank "
+                        "diameter instead of the whole range between the parallel and the series law "
+                        "(docs/discrepancy.md)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     add_force_argument(p)
     p.add_argument("--verbose", action="store_true", help="one progress line per step on stderr")
@@ -57,8 +62,9 @@ def run(args: argparse.Namespace) -> Summary:
         cands = [c.strip() for c in args.candidates.split(",") if c.strip()]
         if not cands:
             raise SetupError(f"--candidates {args.candidates!r}: expected a comma-separated list of effect names")
+    lib = {} if args.library is None else {"library": args.library}  # the call without --library is unchanged
     result = check_model(args.setup, lengths=lengths, candidates=cands, seed=args.seed, n_refit=args.refit,
-                         progress=args.verbose)
+                         progress=args.verbose, **lib)
     result.save(args.out, force=args.force, plots=not args.no_plots)
     data = {"out": str(args.out), "files": [str(f) for f in result.saved_files], **result.summary_data()}
     return Summary(result.summary_line(), data, result.warnings)

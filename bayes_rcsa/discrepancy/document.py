@@ -14,6 +14,7 @@ from ..params.terms import get_term
 from .evaluate import _quantiles, prediction_usability
 from .features import modes_near_features, unexplained_features
 from .fit import ModelFit, laplace_draws
+from .law_shape import law_shape_report
 from .mode_bias import BIAS_RULE
 from .mode_shift import SHIFT_RULE
 from .predictive_scan import predictive_misfit_scan
@@ -175,6 +176,9 @@ def build_report(res) -> dict:
         # details
         "final_model": res.final_label,
         "final_terms": [n for n in _term_names(res.final) if n not in _term_names(res.baseline)],
+        # the prior of the law's bend between the fitted lengths (the remainder's law_shape_uncertainty): a tool
+        # library's population or the physics envelope; None when the final model samples no bend
+        "law_shape_prior": law_shape_report(res.final, res.options.law_shape),
         # parameters of the final model whose MAP lies on a prior bound: their intervals, and every
         # prediction depending on them, are set by the bound
         "final_prior_bound_pile_up": [w.split(":")[0] for w in on_bounds],

@@ -13,7 +13,7 @@ from ..vocabulary import effect_name, effect_sentence, parameter_name
 from .document import MIN_LENGTHS_FOR_BEND
 from .select import LN_BF_NAME
 
-__all__ = ["summary_markdown", "summary_line", "HELD_OUT_GAP_NOTE"]
+__all__ = ["summary_markdown", "summary_line", "law_shape_lines", "HELD_OUT_GAP_NOTE"]
 
 
 #: Systematic gap at the setup's unfitted measurements above which summary.md and the command line say that
@@ -113,6 +113,7 @@ def summary_markdown(report: dict) -> str:
             lines += ["", "The mode frequencies carry the bias between model and measurement learned at the "
                       "measured clamping lengths; between them that bias is interpolated with its uncertainty, "
                       "so predictions at other clamping lengths are wider than the model alone would say. " + how]
+        lines += law_shape_lines(report.get("law_shape_prior"))
     missed = report.get("decisive_not_named", [])
     if missed:
         lines += ["", "Effects that fit decisively better than the model (criterion above ln 100) but are not named:"]
@@ -191,6 +192,27 @@ def summary_markdown(report: dict) -> str:
         lines.append(f"| {k} | {sci(q['q50'], 3, q['q05'], q['q95'], 'N/m')} | "
                      f"{sci(qa['q50'], 3, qa['q05'], qa['q95'], 'N/m')} |")
     return "\n".join(lines) + "\n"
+
+
+def law_shape_lines(entry: dict | None) -> list[str]:
+    """What summary.md says of the prior of the contact law's shape between the fitted lengths (none: no lines)."""
+    if not entry:
+        return []
+    scale = ("Between the measured clamping lengths the contact stiffness may follow anything from a straight line "
+             "(contact spread along the shank) to the law of two springs in series (collet and shank contact); on a "
+             "scale from 0 (straight) to 1 (two springs), ")
+    if entry["source"] == "library":
+        n = entry.get("n_combinations")
+        whose = f"the {n} tool-holder combinations" if n else "the combinations"
+        mean, sd, lo, hi = (num(entry[k], 2) for k in ("mean", "sd", "q05", "q95"))
+        text = (f"{whose} of holder type {entry['holder_type']} in the tool library put it at {mean} ± {sd} "
+                f"(90 % within {lo} to {hi}), and the predictions between and beyond the measured lengths use that.")
+    elif entry["source"] == "setup":
+        text = "the setup file's own prior for it is used."
+    else:
+        text = ("nothing here narrows where it lies, so the predictions at other lengths allow the whole range "
+                "between the two.")
+    return ["", scale + text]
 
 
 def pair_lines(report: dict) -> list[str]:

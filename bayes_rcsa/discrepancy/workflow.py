@@ -38,6 +38,7 @@ from .detect import Detection, detect_from_fit, transfer_failures
 from .document import build_report
 from .evaluate import _all_stack, evaluate, held_out_transfer, matched_head
 from .fit import ModelFit, fit_baseline, fit_variant, with_robust_covariance
+from .law_shape import LawShapePrior, law_shape_overrides
 from .screen import embed_baseline, score_test
 from .select import (LN_BF_NAME, MIN_SYSTEMATIC_REDUCTION, decide, edge_parameters, fitted_systematic_gap, gap,
                      outranked_key, pair_outranked, refit_candidate, stiffness_held_on_upper_bound,
@@ -68,6 +69,10 @@ class DiscrepancyOptions:
         233, once refitted), so it only orders the refits; a limit trades that safety for time.
     leave_one_out : bool
         Leave-one-length-out transfer check with three or more fitted lengths.
+    law_shape : LawShapePrior or None
+        A tool library's prior of the law bend ``law_shape_bend`` for the unexplained remainder (law_shape.py;
+        built from a population by :func:`bayes_rcsa.workflows.model_check.check_model`); None: the physics
+        envelope, uniform on [0, 1].
     """
 
     lengths: tuple | None = None
@@ -75,6 +80,7 @@ class DiscrepancyOptions:
     seed: int = 0
     n_refit: int | None = None
     leave_one_out: bool = True
+    law_shape: LawShapePrior | None = None
 
 
 @dataclass
@@ -126,8 +132,10 @@ def _options(setup, lengths) -> IdentificationOptions:
     return IdentificationOptions.from_setup(setup.extra, lengths=lengths)
 
 
-def _problem(setup, base: IdentificationOptions, extra_terms: Sequence[str]) -> Problem:
+def _problem(setup, base: IdentificationOptions, extra_terms: Sequence[str], law_shape: LawShapePrior | None = None
+             ) -> Problem:
     table = dict(getattr(setup, "model_table", None) or setup.extra.get("model") or {})
+    table.update(law_shape_overrides(law_shape, extra_terms, table))
     table["terms"] = list(table.get("terms", []) or []) + list(extra_terms)
     return build_problem_from_setup(setup, replace(base, model=table))
 
@@ -491,7 +499,7 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
         label = named if not win2 else f"{named}+{win2}"
     elif not detection.adequate:
         terms = remainder_terms(setup, problem)
-        p = _problem(setup, base_opts, terms)
+        p = _problem(setup, base_opts, terms, options.law_shape)
         final = fit_variant("statistical_discrepancy", p, embed_baseline(baseline, p)[None], baseline.tempering, 1)
         final = with_robust_covariance(final)
         label = "statistical_discrepancy"

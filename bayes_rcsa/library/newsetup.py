@@ -20,7 +20,7 @@ import numpy as np
 from ..errors import SetupError
 from ..params.growth import GrowthLaw
 from ..params.model import PARAMETER_MODEL_ATTR, ParameterModel, contact_parameter
-from .predictive import Population, predictive_draws, predictive_prior
+from .predictive import Population, contact_names, predictive_draws, predictive_prior
 from .population import from_coordinates
 from .stage1 import holder_type_of, shank_diameter
 
@@ -58,9 +58,15 @@ def check_setup(pop: Population, setup) -> tuple[str, float, GrowthLaw]:
 
 
 def library_options(pop: Population, setup, rng: np.random.Generator) -> tuple[dict, list[str]]:
-    """``IdentificationOptions`` keywords (``contact_prior``, ``contact_growth``) and warnings for a tap."""
+    """``IdentificationOptions`` keywords (``contact_prior``, ``contact_growth``) and warnings for a tap.
+
+    The contact prior is over the pooled contact parameters only (:func:`~.predictive.contact_names`): a
+    population that also pools the law's bend (``law_shape_bend``) gives the marginal of its moment-matched
+    joint normal over the contact (the joint prior of ``identify`` is a contact prior; the setup's own
+    ``law_shape_uncertainty`` term, if any, keeps its prior).
+    """
     htype, diameter, growth = check_setup(pop, setup)
-    joint, warns = predictive_prior(pop, htype, diameter, rng)
+    joint, warns = predictive_prior(pop, htype, diameter, rng, names=contact_names(pop))
     return {"contact_prior": joint, "contact_growth": growth}, warns
 
 
@@ -98,14 +104,16 @@ def write_zero_tap(out_dir, pop: Population, setup, rng: np.random.Generator, n_
     from ..store import write_posterior
 
     htype, diameter, growth = check_setup(pop, setup)
+    names = contact_names(pop)  # the zero-tap posterior is a contact law; a pooled law bend has no term here
     z, warns = predictive_draws(pop, htype, diameter, rng, n_draws)
-    joint, _ = predictive_prior(pop, htype, diameter, rng)
-    fixed = _fixed_contact(setup, pop.names)
-    params = [contact_parameter(n, prior=joint.member(n)) for n in pop.names]
+    z = z[:, [pop.names.index(n) for n in names]]
+    joint, _ = predictive_prior(pop, htype, diameter, rng, names=names)
+    fixed = _fixed_contact(setup, names)
+    params = [contact_parameter(n, prior=joint.member(n)) for n in names]
     params += [contact_parameter(n, value=v) for n, v in fixed.items()]
     pm = ParameterModel(params, growth, (), 0)
-    values = from_coordinates(pop.names, z)
-    post = {n: values[n][None, :] for n in pop.names}
+    values = from_coordinates(names, z)
+    post = {n: values[n][None, :] for n in names}
     lengths = np.array(sorted({round(m.clamping_length, 12) for m in setup.measurements})) if setup.measurements \
         else np.array([growth.l_a])
     full = {**values, **{n: np.full(z.shape[0], v) for n, v in fixed.items()}}
@@ -126,7 +134,7 @@ def write_zero_tap(out_dir, pop: Population, setup, rng: np.random.Generator, n_
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     write_posterior(idata, out / "posterior.nc")
-    q = {n: [float(v) for v in np.quantile(full[n], [0.05, 0.5, 0.95])] for n in pop.names}
+    q = {n: [float(v) for v in np.quantile(full[n], [0.05, 0.5, 0.95])] for n in names}
     summary = {"method": ZERO_TAP_METHOD, "converged": True, "holder_type": htype, "shank_diameter_m": diameter,
                "n_draws": int(z.shape[0]),
                "parameters": {n: {"q05": v[0], "q50": v[1], "q95": v[2], "unit": pm.unit(n)} for n, v in q.items()},

@@ -125,11 +125,15 @@ def read_population(path) -> Population:
         box = np.asarray(json.loads(attrs["box"]), dtype=float)
         diam = {t: tuple(v) for t, v in json.loads(attrs["diameters"]).items()}
         growth = (float(attrs["l_a"]), float(attrs["l_b"]), float(attrs["growth_bound"]))
+        const = getattr(idata, "constant_data", None)
+        setup_types = [str(v) for v in np.asarray(const["setup_holder_type"].values).ravel()] \
+            if const is not None and "setup_holder_type" in const else []
+        counts = {t: setup_types.count(t) for t in types} if setup_types else {}
     except (KeyError, ValueError, TypeError, IndexError) as exc:
         raise DataError(f"{path}: malformed population file ({type(exc).__name__}: {exc})") from None
     if box.shape != (len(names), 2) or not all(np.all(np.isfinite(v)) for v in draws.values()):
         raise DataError(f"{path}: malformed population file (box {box.shape}, {len(names)} coordinates)")
-    return Population(names, draws, box, growth, diam, str(version))
+    return Population(names, draws, box, growth, diam, str(version), counts)
 
 
 def law_table(pop: Population) -> list[dict]:

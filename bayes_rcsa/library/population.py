@@ -9,21 +9,28 @@ type), the contact law's parameters in their *population coordinates*
 with ``d_s`` the tool's shank diameter.  The coordinates are those in which
 the stage-1 prior of ``identify`` is flat:
 
-===========  ==================  ===========================
-parameter    coordinate z        unit of z
-===========  ==================  ===========================
-k_xf         log10 k(l_a)        log10(N/m)
-k_thetaM     log10 k(l_a)        log10(N m/rad)
-g_xf         g                   1
-g_thetaM     g                   1
-c_xf         log10 c             log10(N s/m)
-c_thetaM     log10 c             log10(N m s/rad)
-===========  ==================  ===========================
+==============  ==================  ===========================
+parameter       coordinate z        unit of z
+==============  ==================  ===========================
+k_xf            log10 k(l_a)        log10(N/m)
+k_thetaM        log10 k(l_a)        log10(N m/rad)
+g_xf            g                   1
+g_thetaM        g                   1
+c_xf            log10 c             log10(N s/m)
+c_thetaM        log10 c             log10(N m s/rad)
+law_shape_bend  u                   1
+==============  ==================  ===========================
 
 Only the parameters sampled in every stage-1 fit enter (a damping held fixed
-in the setups is not pooled).  The stiffness refers to the library's common
-reference length ``l_a`` (the short end of the clamping range shared by all
-setups).
+in the setups is not pooled).  ``law_shape_bend`` (the term
+``law_shape_uncertainty``: where the contact law lies between the parallel,
+``u = 0``, and the series two-spring law, ``u = 1``) enters only when every
+setup has the term in its ``[model]`` and was fitted at three or more
+clamping lengths: with two lengths ``u`` is not identified (its stage-1
+posterior is its prior), and pooling it would only return the prior;
+otherwise it is left out with a warning (stage1.py).  The stiffness refers
+to the library's common reference length ``l_a`` (the short end of the
+clamping range shared by all setups).
 
 Across holder types (one more level, model version 2) the diameter slope and
 the spread are partially pooled, per coordinate ``j``:
@@ -37,12 +44,17 @@ units of the setups:
 
 * ``a_tj ~ Normal((lo_j + hi_j) / 2, (hi_j - lo_j) / 2)`` per type
 * ``b0_j ~ Normal(0, B_j)``, ``B_j = 2`` decades per e-fold of diameter for
-  log10 coordinates (a stiffness ~ d^4 has b = 1.7), ``Q`` for growth
+  log10 coordinates (a stiffness ~ d^4 has b = 1.7), ``Q`` for growth,
+  the box width ``W`` for the law's bend (``W = 1`` for ``u`` in [0, 1]: the
+  bend may move through its whole range per e-fold of diameter; the growth
+  formula with ``Q = 1``)
 * ``tau_b,j ~ HalfNormal(B_j / 8)``: 0.25 decades per e-fold (exponents of
-  the stiffness-diameter law differing by ~0.6 between types), ``Q / 8``
+  the stiffness-diameter law differing by ~0.6 between types), ``Q / 8``,
+  ``W / 8``
 * ``ln sigma0_j ~ Normal(ln(S_j / 5), 1)``, ``S_j = 0.5`` decades for log10
   coordinates (median 0.1 decade = 26 % between combinations, 95 % within
-  0.014-0.7 decades), ``Q / 2`` for growth
+  0.014-0.7 decades), ``Q / 2`` for growth, ``W / 2`` for the law's bend
+  (median 0.1 of ``u`` between combinations)
 * ``tau_s,j ~ HalfNormal(0.5)`` (e-folds: types' spreads differing by a
   factor ~1.6 per sd)
 
@@ -62,20 +74,23 @@ import numpy as np
 
 from ..errors import SetupError
 
-__all__ = ["COORDINATES", "SCALES", "D_REF", "MODEL_VERSION", "Hyperprior", "covariate", "coordinate_units",
-           "to_coordinates", "from_coordinates"]
+__all__ = ["COORDINATES", "SHAPE_COORDINATES", "SCALES", "D_REF", "MODEL_VERSION", "Hyperprior", "covariate",
+           "coordinate_units", "to_coordinates", "from_coordinates"]
 
 #: Version of the population model and of population.nc; a file of another version is refused.
 MODEL_VERSION = "bayes_rcsa.library/2"
 #: m, reference shank diameter of the covariate ``x = ln(d / D_REF)``.
 D_REF = 0.010
-#: Contact parameters a population can pool, in vector order.
-COORDINATES = ("k_xf", "k_thetaM", "g_xf", "g_thetaM", "c_xf", "c_thetaM")
+#: Parameters a population can pool, in vector order: the contact's, then the law's bend (term
+#: ``law_shape_uncertainty``), last so that the contact coordinates keep their order.
+COORDINATES = ("k_xf", "k_thetaM", "g_xf", "g_thetaM", "c_xf", "c_thetaM", "law_shape_bend")
+#: Pooled coordinates that are not contact parameters (not part of a new setup's joint contact prior).
+SHAPE_COORDINATES = ("law_shape_bend",)
 #: Coordinate of each parameter: log10 of the value or the value itself.
 SCALES = {"k_xf": "log10", "k_thetaM": "log10", "g_xf": "linear", "g_thetaM": "linear", "c_xf": "log10",
-          "c_thetaM": "log10"}
+          "c_thetaM": "log10", "law_shape_bend": "linear"}
 _UNITS = {"k_xf": "N/m", "k_thetaM": "N m/rad", "g_xf": "1", "g_thetaM": "1", "c_xf": "N s/m",
-          "c_thetaM": "N m s/rad"}
+          "c_thetaM": "N m s/rad", "law_shape_bend": "1"}
 #: Plausible shank diameters (m); outside, the setup's units are wrong (e.g. mm written as m).
 DIAMETER_RANGE = (0.5e-3, 0.2)
 
@@ -149,14 +164,24 @@ class Hyperprior:
 
     @classmethod
     def from_box(cls, names, box: np.ndarray, growth_bound: float) -> "Hyperprior":
-        """The documented defaults for the stage-1 prior box (d, 2) in population coordinates."""
+        """The documented defaults for the stage-1 prior box (d, 2) in population coordinates.
+
+        Parameters
+        ----------
+        names : sequence of str, (d,) pooled coordinates
+        box : (d, 2) stage-1 prior box in population coordinates
+        growth_bound : float, the growth law's bound Q (1): the scale of the growth factors' slope and spread
+        """
         box = np.asarray(box, dtype=float)
         if box.shape != (len(names), 2) or not np.all(np.isfinite(box)) or np.any(box[:, 1] <= box[:, 0]):
             raise SetupError(f"stage-1 prior box {box.tolist()} of {list(names)}: expected finite lo < hi")
-        growth = np.array([SCALES[n] == "linear" for n in names])
+        shape = np.array([n in SHAPE_COORDINATES for n in names])
+        growth = np.array([SCALES[n] == "linear" for n in names]) & ~shape
         q = float(growth_bound) if growth_bound > 0 else 1.0
-        b_sd = np.where(growth, q, 2.0)
-        s_scale = np.where(growth, 0.5 * q, 0.5)
+        # the law's bend has no growth bound: its own range (the box width, 1 for u in [0, 1]) plays Q's part
+        width = box[:, 1] - box[:, 0]
+        b_sd = np.where(growth, q, np.where(shape, width, 2.0))
+        s_scale = np.where(growth, 0.5 * q, np.where(shape, 0.5 * width, 0.5))
         return cls(tuple(names), box.mean(axis=1), 0.5 * (box[:, 1] - box[:, 0]), b_sd, b_sd / 8.0,
                    np.log(s_scale / 5.0))
 

@@ -11,15 +11,15 @@ the stage-1 prior box) -- the population as the prior.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import SetupError
-from ..params.priors import JointNormal
-from .population import MODEL_VERSION, SCALES, covariate, from_coordinates
+from ..params.priors import JointNormal, Normal
+from .population import MODEL_VERSION, SCALES, SHAPE_COORDINATES, covariate, from_coordinates
 
-__all__ = ["Population", "predictive_draws", "predictive_prior"]
+__all__ = ["Population", "predictive_draws", "predictive_prior", "contact_names", "law_shape_prior", "LAW_SHAPE"]
 
 
 @dataclass
@@ -34,6 +34,7 @@ class Population:
     growth : (l_a, l_b, Q) the growth law the stiffness refers to
     diameters : dict holder type -> (min, max) m shank diameters of its combinations
     version : str, :data:`~.population.MODEL_VERSION` of the fit
+    counts : dict holder type -> number of its combinations pooled (empty when not recorded)
     """
 
     names: tuple
@@ -42,6 +43,7 @@ class Population:
     growth: tuple
     diameters: dict
     version: str = MODEL_VERSION
+    counts: dict = field(default_factory=dict)
 
     @property
     def holder_types(self) -> tuple:
@@ -103,20 +105,95 @@ def predictive_draws(pop: Population, holder_type: str, diameter: float, rng: np
     return out[:n], warns
 
 
+def contact_names(pop: Population) -> tuple:
+    """The pooled contact coordinates of ``pop`` (its names without the law's shape), in the population's order."""
+    return tuple(n for n in pop.names if n not in SHAPE_COORDINATES)
+
+
 def predictive_prior(pop: Population, holder_type: str, diameter: float, rng: np.random.Generator,
-                     n: int = 20000) -> tuple[JointNormal, list[str]]:
+                     n: int = 20000, names=None) -> tuple[JointNormal, list[str]]:
     """The joint-normal prior of a new combination's contact (moment-matched population predictive).
+
+    Parameters
+    ----------
+    pop, holder_type, diameter, rng : as :func:`predictive_draws`
+    n : int, predictive draws the moments are taken from
+    names : sequence of str or None
+        The coordinates of the prior, a subset of ``pop.names`` (default all).  The moments of a subset are
+        the rows and columns of the full ones: the marginal of the moment-matched normal.
 
     Returns
     -------
-    JointNormal over ``pop.names`` (log10 stiffness/damping, linear growth), truncated to the stage-1 box
+    JointNormal over ``names`` (log10 stiffness/damping, linear growth), truncated to the stage-1 box
     list of str, warnings
+
+    Raises
+    ------
+    SetupError
+        A name the population does not pool.
     """
+    names = pop.names if names is None else tuple(names)
+    missing = [n_ for n_ in names if n_ not in pop.names]
+    if missing or not names:
+        raise SetupError(f"predictive prior over {list(names)}: the population pools {list(pop.names)}")
     z, warns = predictive_draws(pop, holder_type, diameter, rng, n)
+    cols = [pop.names.index(n_) for n_ in names]
+    z = z[:, cols]
     cov = np.atleast_2d(np.cov(z, rowvar=False))
-    joint = JointNormal.from_arrays(pop.names, z.mean(axis=0), cov, [SCALES[n_] for n_ in pop.names],
-                                    pop.box[:, 0], pop.box[:, 1])
+    joint = JointNormal.from_arrays(names, z.mean(axis=0), cov, [SCALES[n_] for n_ in names],
+                                    pop.box[cols, 0], pop.box[cols, 1])
     return joint, warns
+
+
+#: The parameter of the law's shape (term ``law_shape_uncertainty``) and its physics envelope, u in [0, 1].
+LAW_SHAPE = "law_shape_bend"
+LAW_SHAPE_RANGE = (0.0, 1.0)
+
+
+def law_shape_prior(pop: Population, holder_type: str, diameter: float, rng: np.random.Generator,
+                    n: int = 20000) -> tuple[Normal | None, dict, list[str]]:
+    """The prior of a setup's law bend ``u`` (``law_shape_bend``) from a library's population.
+
+    The population-predictive draws of ``u`` for the holder type and shank diameter (inside [0, 1]: the
+    predictive is truncated to the stage-1 box) give the mean and sd of a normal truncated to [0, 1], as
+    :func:`predictive_prior` moment-matches the contact (the truncation to [0, 1] narrows it slightly where the
+    predictive reaches an end).
+
+    Parameters
+    ----------
+    pop : Population
+    holder_type : str
+    diameter : float, m, shank diameter
+    rng : numpy Generator
+    n : int, predictive draws
+
+    Returns
+    -------
+    prior : :class:`~bayes_rcsa.params.priors.Normal` on [0, 1], or None when ``pop`` does not pool the bend
+    info : dict
+        ``source`` (``"library"``, or ``"envelope"`` with ``reason`` when ``prior`` is None), ``holder_type``,
+        ``shank_diameter_m``, ``n_combinations`` (of that holder type in the library; None when not recorded),
+        ``mean``, ``sd``, ``q05``, ``q95`` of the predictive (1)
+    warnings : list of str (e.g. the diameter outside the type's fitted range)
+
+    Raises
+    ------
+    SetupError
+        A holder type the population does not know, an implausible diameter.
+    """
+    pop.check_type(holder_type, "law shape prior")
+    if LAW_SHAPE not in pop.names:
+        return None, {"source": "envelope", "reason": (f"the library does not pool {LAW_SHAPE} (its setups lack the "
+                                                       "term law_shape_uncertainty or were fitted at fewer than three "
+                                                       "clamping lengths)")}, []
+    z, warns = predictive_draws(pop, holder_type, diameter, rng, n)
+    u = z[:, pop.names.index(LAW_SHAPE)]
+    mean, sd = float(np.mean(u)), float(np.std(u, ddof=1))
+    q05, q95 = (float(v) for v in np.quantile(u, [0.05, 0.95]))
+    lo, hi = LAW_SHAPE_RANGE
+    info = {"source": "library", "holder_type": holder_type, "shank_diameter_m": float(diameter),
+            "n_combinations": pop.counts.get(holder_type), "mean": mean, "sd": sd, "q05": q05, "q95": q95}
+    return Normal(mean, sd, lo, hi), info, warns
 
 
 def physical(pop: Population, z: np.ndarray) -> dict[str, np.ndarray]:

@@ -18,11 +18,11 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..errors import DataError, SetupError
-from .population import COORDINATES, SCALES, covariate, to_coordinates
+from .population import COORDINATES, SCALES, SHAPE_COORDINATES, covariate, to_coordinates
 from .stage2 import SetupDraws
 
-__all__ = ["identify_only", "check_setups", "run_stage1", "collect", "holder_type_of", "shank_diameter", "stage1_prior",
-           "Stage1"]
+__all__ = ["identify_only", "check_setups", "run_stage1", "collect", "pooled_shape_coordinates", "MIN_SHAPE_LENGTHS",
+           "holder_type_of", "shank_diameter", "stage1_prior", "Stage1"]
 
 _LN10 = math.log(10.0)
 
@@ -243,6 +243,44 @@ def _tail_corrected(job, folder: Path, draws, rng: np.random.Generator):
         f"{check['pareto_k']:.2f}, ESS {check['ess']:.0f}): {check['reason']}")
 
 
+#: Fewest fitted clamping lengths at which a stage-1 fit identifies the law's bend (two fix only its ends).
+MIN_SHAPE_LENGTHS = 3
+
+
+def pooled_shape_coordinates(fits) -> tuple[tuple, list[str]]:
+    """The law-shape coordinates (:data:`~.population.SHAPE_COORDINATES`) the library pools, and why not the others.
+
+    A coordinate is pooled when every stage-1 fit samples it at :data:`MIN_SHAPE_LENGTHS` or more clamping lengths.
+    A library that samples it nowhere is the common case and passes silently; one that samples it in some setups,
+    or only at two lengths (where the bend is its uniform prior and pooling returns that prior), leaves it out with
+    a warning rather than refusing: the contact coordinates are still pooled as before.
+
+    Parameters
+    ----------
+    fits : sequence of (setup name, PosteriorDraws)
+
+    Returns
+    -------
+    (names, warnings)
+    """
+    names, warns = [], []
+    for n in SHAPE_COORDINATES:
+        having = [name for name, d in fits if n in d.parameters.names]
+        if not having:
+            continue
+        short = [f"{name} ({len(d.fit_lengths)})" for name, d in fits
+                 if n in d.parameters.names and len(d.fit_lengths) < MIN_SHAPE_LENGTHS]
+        if len(having) < len(fits):
+            warns.append(f"{n} is sampled by {len(having)} of {len(fits)} setups; not pooled (give every setup "
+                         "[model] terms = [\"law_shape_uncertainty\"] to pool the law's shape)")
+        elif short:
+            warns.append(f"{n} is not identified at fewer than {MIN_SHAPE_LENGTHS} fitted clamping lengths "
+                         f"(setups {', '.join(short)}); not pooled")
+        else:
+            names.append(n)
+    return tuple(names), warns
+
+
 def collect(jobs, out_dir, rows: Sequence[dict] | None = None, tail_correct: bool = False,
             rng: np.random.Generator | None = None) -> Stage1:
     """Read every finished setup's posterior into population coordinates.
@@ -265,7 +303,8 @@ def collect(jobs, out_dir, rows: Sequence[dict] | None = None, tail_correct: boo
         A setup without ``[holder] type``, with several tools, an implausible
         shank diameter (mixed units), a growth law or set of sampled contact
         parameters that differs from the others, or fewer than two usable
-        setups.
+        setups.  The law's bend (``law_shape_bend``) is not refused when it
+        differs: it is then left out with a warning (:func:`pooled_shape_coordinates`).
     """
     from ..posterior.draws import load_posterior
 
@@ -297,7 +336,8 @@ def collect(jobs, out_dir, rows: Sequence[dict] | None = None, tail_correct: boo
     if len(entries) < 2:
         raise SetupError(f"a library needs at least two usable combinations to estimate a population; got "
                          f"{len(entries)}")
-    names_of = {e[0]: tuple(n for n in COORDINATES if n in e[3].parameters.names) for e in entries}
+    names_of = {e[0]: tuple(n for n in COORDINATES if n in e[3].parameters.names and n not in SHAPE_COORDINATES)
+                for e in entries}
     ref_name, ref = entries[0][0], names_of[entries[0][0]]
     g0 = entries[0][3].parameters.growth
     for name, _, _, draws in entries:
@@ -314,6 +354,9 @@ def collect(jobs, out_dir, rows: Sequence[dict] | None = None, tail_correct: boo
                              "contact.clamping_range and growth_bound")
     if not ref:
         raise SetupError("no contact parameter is sampled in the stage-1 fits; nothing to pool")
+    shape, notes = pooled_shape_coordinates([(e[0], e[3]) for e in entries])
+    ref += shape
+    warns += notes
     setups = []
     for name, htype, diameter, draws in entries:
         mean, prec, box = stage1_prior(draws.parameters, ref, f"setup {name}")

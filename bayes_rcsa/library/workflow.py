@@ -105,7 +105,9 @@ def fit_library(stage1: Stage1, rng: np.random.Generator, settings: Stage2Settin
                                                "refit_converged", "refit_steps", "refit_rhat_max")}})
     diameters = {t: (min(s.diameter for s in stage1.setups if s.holder_type == t),
                      max(s.diameter for s in stage1.setups if s.holder_type == t)) for t in types}
-    pop = Population(stage1.names, {t: res.types[t].flat for t in types}, stage1.box, stage1.growth, diameters)
+    counts = {t: sum(s.holder_type == t for s in stage1.setups) for t in types}
+    pop = Population(stage1.names, {t: res.types[t].flat for t in types}, stage1.box, stage1.growth, diameters,
+                     counts=counts)
     return LibraryFit(pop, res, rows, list(dict.fromkeys(warns)))
 
 

@@ -361,8 +361,50 @@ class ModelCheck(Result):
                    amended_setup=load_document(amended) if amended.exists() else None)
 
 
+def _library_law_shape(library, setup, seed: int) -> tuple:
+    """The law-shape prior of a tool library for ``setup`` (docs/discrepancy.md, "A tool library's law shape").
+
+    Parameters
+    ----------
+    library : path of population.nc, a Population, or None
+    setup : Setup (its ``[holder] type`` and the tool's shank diameter choose the population predictive)
+    seed : int, seed of the predictive draws
+
+    Returns
+    -------
+    (LawShapePrior or None, reason the library gives no prior or None, warnings)
+
+    Raises
+    ------
+    DataError
+        A missing or unreadable population file (read by :func:`bayes_rcsa.library.outputs.read_population`).
+    SetupError
+        A setup without a holder type, or one the library does not know; several tools; an implausible diameter.
+    """
+    if library is None:
+        return None, None, []
+    import numpy as np
+
+    from ..discrepancy.law_shape import LawShapePrior
+    from ..library.predictive import law_shape_prior
+    from ..library.stage1 import holder_type_of, shank_diameter
+
+    if isinstance(library, (str, Path)):
+        from ..library.outputs import read_population
+
+        library = read_population(library)
+    where = f"--library: {getattr(setup, 'path', 'setup')}"
+    htype = library.check_type(holder_type_of(setup), where)
+    # its own stream: the workflow's draws (seeded by the same seed) stay those of a run without a library
+    rng = np.random.default_rng([int(seed), 43])
+    prior, info, warns = law_shape_prior(library, htype, shank_diameter(setup), rng)
+    if prior is None:
+        return None, info["reason"], []
+    return LawShapePrior.from_library(prior, info), None, [f"--library: {w}" for w in warns]
+
+
 def check_model(setup, *, lengths: Sequence[float] | None = None, candidates: Sequence[str] | None = None,
-                seed: int = 0, n_refit: int | None = None, leave_one_out: bool = True,
+                seed: int = 0, n_refit: int | None = None, leave_one_out: bool = True, library=None,
                 progress: bool | Callable[[str], None] = False) -> ModelCheck:
     """Check the setup's model against its measurements: detect, name the missing effect, add it.
 
@@ -381,6 +423,10 @@ def check_model(setup, *, lengths: Sequence[float] | None = None, candidates: Se
         Refit only the ``n_refit`` best candidates of the score test (default: every candidate).
     leave_one_out : bool
         The leave-one-length-out transfer check with three or more fitted lengths.
+    library : path of population.nc (``bayes-rcsa library``), a Population, or None
+        A tool library whose population gives the unexplained remainder's law shape between the fitted lengths
+        its prior (for the setup's holder type and shank diameter; docs/discrepancy.md, "A tool library's law
+        shape").  A library that does not pool the law's shape leaves the physics envelope, with a warning.
     progress : bool or callable(str)
         ``True`` prints one line per step on stderr (as ``--verbose``); a callable receives the lines.
 
@@ -391,9 +437,10 @@ def check_model(setup, *, lengths: Sequence[float] | None = None, candidates: Se
     Raises
     ------
     SetupError
-        An unknown or duplicate candidate, one already in the setup's ``[model]``, no candidate left.
+        An unknown or duplicate candidate, one already in the setup's ``[model]``, no candidate left; with
+        ``library``, a setup whose holder type the library does not know (or without one).
     DataError
-        Too few fitted lines for the model comparison.
+        Too few fitted lines for the model comparison; a missing or unreadable population file.
     """
     from ..discrepancy.render import summary_markdown
     from ..discrepancy.workflow import DiscrepancyOptions, run_discrepancy
@@ -402,8 +449,6 @@ def check_model(setup, *, lengths: Sequence[float] | None = None, candidates: Se
         candidates = tuple(candidates)
         if not candidates:
             raise SetupError("--candidates: expected at least one effect name")
-    options = DiscrepancyOptions(lengths=tuple(float(x) for x in lengths) if lengths is not None else None,
-                                 candidates=candidates, seed=int(seed), n_refit=n_refit, leave_one_out=leave_one_out)
     if progress is True:
         say = lambda line: print(PROGRESS_PREFIX + line, file=sys.stderr)  # noqa: E731
     else:
@@ -413,7 +458,19 @@ def check_model(setup, *, lengths: Sequence[float] | None = None, candidates: Se
             from ..io.setup import load_setup
 
             setup = load_setup(setup)
+        law_shape, not_used, lib_warnings = _library_law_shape(library, setup, seed)
+        options = DiscrepancyOptions(lengths=tuple(float(x) for x in lengths) if lengths is not None else None,
+                                     candidates=candidates, seed=int(seed), n_refit=n_refit,
+                                     leave_one_out=leave_one_out, law_shape=law_shape)
         res = run_discrepancy(setup, options, progress=say)
-    warnings = tuple(merge_warnings(log, res.report["warnings"]))
-    report = dict(res.report, warnings=list(warnings))
+    report = dict(res.report)
+    entry = report.get("law_shape_prior")
+    if not_used and entry is not None and entry["source"] == "envelope":
+        report["law_shape_prior"] = dict(entry, library_not_used=not_used)
+        lib_warnings = lib_warnings + [f"--library: {not_used}; the law's shape between the fitted lengths keeps "
+                                       "the physics envelope"]
+    elif entry is None:
+        lib_warnings = []  # nothing used the library's law shape: its notes (e.g. diameter range) do not apply
+    warnings = tuple(merge_warnings(log, list(res.report["warnings"]) + lib_warnings))
+    report["warnings"] = list(warnings)
     return ModelCheck(report, summary_markdown(report), setup=setup, warnings=warnings, computation=res)
