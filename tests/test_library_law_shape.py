@@ -163,3 +163,16 @@ def test_discrepancy_library_bad_input_is_one_line_and_exit_2(example, tmp_path,
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "none.nc" in err[0] and "not found" in err[0], err
     assert not (tmp_path / "o").exists()
+
+
+def test_the_html_report_says_which_law_shape_the_remainder_used(remainder, tmp_path):
+    import json
+
+    from bayes_rcsa.report import write_report_html
+
+    res, _ = remainder
+    folder = tmp_path / "discrepancy"
+    folder.mkdir()
+    (folder / "discrepancy.json").write_text(json.dumps(res.report, default=float), encoding="utf-8")
+    page = write_report_html([folder], tmp_path / "r.html").read_text(encoding="utf-8")
+    assert 'id="discrepancy-law-shape-1"' in page and "holder type ER32 in the tool library" in page

@@ -296,6 +296,8 @@ def _identifiability_section(run: RunDir) -> dict:
 
 
 def _discrepancy_section(run: RunDir) -> dict:
+    from ..discrepancy.render import law_shape_lines
+
     d = run.document
     rows = [{"key": k, "before": num(v, 3), "after": num((d.get("frequency_error_pct_after") or {}).get(k), 3)}
             for k, v in (d.get("frequency_error_pct_before") or {}).items()]
@@ -310,6 +312,8 @@ def _discrepancy_section(run: RunDir) -> dict:
             "not_named": [f"{effect_name(m['effect'])} (criterion {m['criterion']:+.1f}): {m['reason']}. "
                           f"To decide: {m['deciding_test']}." for m in d.get("decisive_not_named") or []],
             "grew": bool(d.get("gap_grew")),
+            # the unexplained remainder's law shape between the fitted lengths: a tool library's or the envelope
+            "law_shape": " ".join(law_shape_lines(d.get("law_shape_prior"))).strip(),
             "images": _images(run, ("frf_before_after.png", "frequency_errors.png", "stiffness_before_after.png"))}
 
 
