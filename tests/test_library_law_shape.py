@@ -176,3 +176,22 @@ def test_the_html_report_says_which_law_shape_the_remainder_used(remainder, tmp_
     (folder / "discrepancy.json").write_text(json.dumps(res.report, default=float), encoding="utf-8")
     page = write_report_html([folder], tmp_path / "r.html").read_text(encoding="utf-8")
     assert 'id="discrepancy-law-shape-1"' in page and "holder type ER32 in the tool library" in page
+
+
+def test_discrepancy_library_of_another_holder_type_is_refused_before_fitting(example, pop_quarter, tmp_path, capsys):
+    from bayes_rcsa.library.outputs import read_population, write_population
+
+    path = tmp_path / "population.nc"
+    rows = [{"name": "c0", "holder_type": "ER32", "diameter_m": 0.008, "ess": 500.0, "p_value": 0.5,
+             "outlier": False, **{f"{c}_own": [0.0, 0.1, 0.2] for c in NAMES}}]
+    write_population(path, pop_quarter, rows, Hyperprior.from_box(NAMES, BOX, 0.5).describe())
+    back = read_population(path)
+    assert back.names == NAMES and back.counts == {"ER32": 1}  # the combinations of each type, from the file
+    for holder, expected in (("", "no [holder] type"), ('type = "BT40"\n', "'BT40' is not in the library")):
+        example.write_text(example.read_text(encoding="utf-8").replace("\n[holder]\n", f"\n[holder]\n{holder}", 1),
+                           encoding="utf-8")
+        out = tmp_path / f"o{len(holder)}"
+        code = main(["discrepancy", str(example), "--out", str(out), "--library", str(path)])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and len(err) == 1 and expected in err[0], err
+        assert not out.exists()
