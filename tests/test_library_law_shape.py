@@ -195,3 +195,20 @@ def test_discrepancy_library_of_another_holder_type_is_refused_before_fitting(ex
         err = capsys.readouterr().err.strip().splitlines()
         assert code == 2 and len(err) == 1 and expected in err[0], err
         assert not out.exists()
+
+
+def test_a_library_without_the_bend_leaves_the_envelope_and_says_why(remainder, pop_quarter):
+    from bayes_rcsa.workflows.model_check import check_model
+
+    res, _ = remainder
+    path = Path(res.setup.path)
+    path.write_text(path.read_text(encoding="utf-8").replace("\n[holder]\n", '\n[holder]\ntype = "ER32"\n', 1),
+                    encoding="utf-8")
+    contact_only = Population(("k_xf",), {"ER32": pop_quarter.draws["ER32"][:, [0, 2, 4]]}, BOX[:1],
+                              pop_quarter.growth, {"ER32": (0.006, 0.016)})
+    check = check_model(path, lengths=(0.025, 0.040), candidates=["tip_mass"], n_refit=1, leave_one_out=False,
+                        library=contact_only)
+    entry = check.report["law_shape_prior"]
+    assert entry["source"] == "envelope" and "does not pool law_shape_bend" in entry["library_not_used"]
+    assert check.computation.final.problem.parameters["law_shape_bend"].prior.describe()["distribution"] == "uniform"
+    assert any(w.startswith("--library: the library does not pool law_shape_bend") for w in check.warnings)
