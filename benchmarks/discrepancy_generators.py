@@ -214,11 +214,12 @@ def mode_coverage(gen: Generator, cfg, res) -> dict:
 
 def naming(gen: Generator, n: int, n_clean: int, root: Path, times: list, only=None,
            clean_overrides: dict | None = None) -> list[str]:
-    rows = ["| effect | named (or confounded) | gap halved when named | named as (per campaign) |", "|---|---|---|---|"]
+    rows = ["| effect | named (or confounded) | gap halved when named | decided by the held-out lengths "
+            "| named as (per campaign) |", "|---|---|---|---|---|"]
     for k, (label, effect, effects, overrides) in enumerate(CANONICAL):
         if (overrides and gen.name not in overrides) or (only and not any(o in label for o in only)):
             continue
-        hits = halved = 0
+        hits = halved = decided = 0
         named_as = []
         for s in range(n):
             seed = SEED_OFFSET + (1000 + 10 * k if k < 10 else LATER_ROWS_BASE + 10 * (k - 10)) + s
@@ -232,8 +233,11 @@ def naming(gen: Generator, n: int, n_clean: int, root: Path, times: list, only=N
             named_as.append(str(r["named_effect"]))
             print(f"[{gen.name}] {label} seed {seed}: named {r['named_effect']} (confounded {r['confounded_with']}), "
                   f"final {r['final_model']}, gap {r['gap_before']:.4f} -> {r['gap_after']:.4f}, usable "
-                  f"{r['usable_for_prediction']} ({t:.1f} s)", flush=True)
-        rows.append(f"| `{label}` | {frac(hits, n)} | {halved}/{hits} | {', '.join(named_as)} |")
+                  f"{r['usable_for_prediction']} ({t:.1f} s)"
+                  + (f"; held-out lengths decided it over {r['held_out_decided']['instead_of']}"
+                     if r.get("held_out_decided") else ""), flush=True)
+            decided += bool(r.get("held_out_decided"))
+        rows.append(f"| `{label}` | {frac(hits, n)} | {halved}/{hits} | {decided}/{n} | {', '.join(named_as)} |")
     null = 0
     for s in range(n_clean):
         seed = SEED_OFFSET + 1100 + s
@@ -244,7 +248,7 @@ def naming(gen: Generator, n: int, n_clean: int, root: Path, times: list, only=N
         print(f"[{gen.name}] clean seed {seed}: named {res.report['named_effect']}, final {res.report['final_model']}, "
               f"adequate {res.report['adequate']}", flush=True)
     label = "clean, tool one cylinder (nothing named)" if clean_overrides else "clean (nothing named)"
-    rows.append(f"| {label} | {frac(null, n_clean)} | | |")
+    rows.append(f"| {label} | {frac(null, n_clean)} | | | |")
     return rows
 
 

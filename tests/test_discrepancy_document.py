@@ -60,3 +60,33 @@ def test_a_named_effect_is_not_listed_and_the_others_are_told_apart_from_it():
     from bayes_rcsa.discrepancy.select import separating_test
 
     assert out[0]["deciding_test"] == separating_test("spindle_error", "extra_mode")
+
+
+def test_a_second_effect_the_criterion_does_not_separate_from_a_partial_one_names_both_in_the_summary():
+    # the second round named fluted_section (criterion 12.2, removes 58 % of what the first effect left); tip_mass
+    # stood within ln 10 (11.9) but removed only 42 %: the rules name the flute, the summary must say the tip mass
+    # explains it almost as well and how to tell them apart (rotor bench, tip mass + opposite-direction file)
+    from types import SimpleNamespace
+
+    from bayes_rcsa.discrepancy.document import _second_round_report
+    from bayes_rcsa.discrepancy.render import second_effect_lines
+    from bayes_rcsa.discrepancy.select import separating_test
+    from bayes_rcsa.vocabulary import effect_name
+
+    def refit(e, c):
+        return SimpleNamespace(effect=e, criterion=c, score=SimpleNamespace(statistic=1.0), systematic={"gap": 0.01})
+
+    far = refit("contact_damping", 9.0)  # decisive but 3.2 behind: the criterion separates it
+    dec = {"ranked": [refit("fluted_section", 12.2), refit("tip_mass", 11.9), far], "confounded_with": [],
+           "partial": [{"effect": "tip_mass", "criterion": 11.9, "systematic_gap_ratio": 0.58},
+                       {"effect": "contact_damping", "criterion": 9.0, "systematic_gap_ratio": 0.9}]}
+    out = _second_round_report({"ran": True, "reason": "r", "named": "fluted_section", "decision": dec})
+    assert [q["effect"] for q in out["almost_as_well"]] == ["tip_mass"]
+    assert out["almost_as_well"][0]["deciding_test"] == separating_test("fluted_section", "tip_mass")
+    lines = second_effect_lines({"named_effect": "spindle_error", "also_named": ["fluted_section"],
+                                 "second_round": out})
+    text = "\n".join(lines)
+    assert f"{effect_name('tip_mass')} explains it almost as well (criterion +11.9, removing 42 % of what was left)" in text
+    assert "accelerometer moved" in text
+    # nothing named in the second round: nothing to be almost as good as
+    assert _second_round_report({"ran": True, "reason": "r", "named": None, "decision": dec})["almost_as_well"] == []

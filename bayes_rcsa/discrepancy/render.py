@@ -13,7 +13,7 @@ from ..vocabulary import effect_name, effect_sentence, parameter_name
 from .document import MIN_LENGTHS_FOR_BEND
 from .select import LN_BF_NAME
 
-__all__ = ["summary_markdown", "summary_line", "law_shape_lines", "HELD_OUT_GAP_NOTE"]
+__all__ = ["summary_markdown", "summary_line", "law_shape_lines", "second_effect_lines", "HELD_OUT_GAP_NOTE"]
 
 
 #: Systematic gap at the setup's unfitted measurements above which summary.md and the command line say that
@@ -39,16 +39,23 @@ def summary_markdown(report: dict) -> str:
         params = next((c["parameters"] for c in report["candidates"] if c["effect"] == named), {})
         for n, q in params.items():
             lines.append(f"- {parameter_name(n)}: {num(q['q50'])} (90 % interval {num(q['q05'])} to {num(q['q95'])})")
+        decided = report.get("held_out_decided")
+        if decided:
+            lines.append("")
+            lines.append(f"{effect_name(decided['instead_of'])} fits the measured clamping lengths about as well, but "
+                         f"the clamping lengths that were not fitted decide: {effect_name(named)} carries to them "
+                         f"(remaining mismatch there {percent(decided['held_out_gap_named'], 3)}), "
+                         f"{effect_name(decided['instead_of'])} does not as well "
+                         f"({percent(decided['held_out_gap_instead_of'], 3)}).  Those measurements chose the name; "
+                         "the model's parameters are still fitted to the fitted lengths only.")
         if report["confounded_with"]:
             lines.append("")
             lines.append(f"The data explain this equally well by: {_effects(report['confounded_with'])}. "
                          "To tell them apart: " + "; ".join(report["separating_test"].values()) + ".")
-        elif report["runner_up"]:
+        elif report["runner_up"] and not decided:
             lines.append(f"Next best explanation: {effect_name(report['runner_up'])} (behind by "
                          f"{report['margin']:.1f} log units).")
-        for also in report.get("also_named", []):
-            lines += ["", f"**A second effect was found with it: {effect_name(also)}** — {effect_sentence(also)} "
-                      f"(second round, with {effect_name(named)} in the model)."]
+        lines += second_effect_lines(report)
         lines.append("")
         lines.append("`setup.amended.toml` adds " + ("them" if report.get("also_named") else "it")
                      + " to the model; use it for the next `bayes-rcsa identify`.")
@@ -213,6 +220,21 @@ def law_shape_lines(entry: dict | None) -> list[str]:
         text = ("nothing here narrows where it lies, so the predictions at other lengths allow the whole range "
                 "between the two.")
     return ["", scale + text]
+
+
+def second_effect_lines(report: dict) -> list[str]:
+    """summary.md's lines on a second effect named with the first, and on any that explains it almost as well."""
+    lines = []
+    named = report["named_effect"]
+    for also in report.get("also_named", []):
+        lines += ["", f"**A second effect was found with it: {effect_name(also)}** — {effect_sentence(also)} "
+                  f"(second round, with {effect_name(named)} in the model)."]
+        for q in (report.get("second_round") or {}).get("almost_as_well", []):
+            share = q.get("systematic_gap_ratio")
+            part = f", removing {100 * (1 - share):.0f} % of what was left" if share is not None else ""
+            lines.append(f"{effect_name(q['effect'])} explains it almost as well (criterion {q['criterion']:+.1f}"
+                         f"{part}). To tell them apart: {q['deciding_test']}.")
+    return lines
 
 
 def pair_lines(report: dict) -> list[str]:

@@ -62,6 +62,11 @@ Decision
   the winner's and that are supported themselves are *confounded* with it:
   the data cannot tell them apart, and :func:`separating_test` names a
   measurement that would.
+* A supported rival within ``LN_BF_NAME`` of the winner is not decisively
+  worse on the fitted lengths; when the setup has measurements that were
+  not fitted, the one that carries resolvedly better to them is named
+  instead (:func:`~.evaluate.held_out_decides`; the workflow applies it
+  after :func:`decide`, which reports the candidates it supports).
 """
 
 from __future__ import annotations
@@ -461,7 +466,7 @@ def decide(refits: list[Refit], gap_before: float, systematic_before: dict | Non
         return {"named": None, "runner_up": best.effect if best else None,
                 "margin": None, "confounded_with": [], "ranked": ranked, "edge_parameters": edges,
                 "implausible": implausible, "partial": partial, "contact_held_on_upper_bound": held,
-                "range_limits_reached": limits, "edge_bound": edge_bound}
+                "range_limits_reached": limits, "edge_bound": edge_bound, "supported": []}
     win = supported[0]
     others = [r for r in ranked if r is not win]
     runner = others[0] if others else None
@@ -470,7 +475,7 @@ def decide(refits: list[Refit], gap_before: float, systematic_before: dict | Non
             "margin": (win.criterion - runner.criterion) if runner else None,
             "confounded_with": confounded, "ranked": ranked, "edge_parameters": edges, "implausible": implausible,
             "partial": partial, "contact_held_on_upper_bound": held, "range_limits_reached": limits,
-            "edge_bound": edge_bound}
+            "edge_bound": edge_bound, "supported": [r.effect for r in supported]}
 
 
 #: What separates two kinds of explanation (by the kinds of the two terms).

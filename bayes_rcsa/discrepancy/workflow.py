@@ -36,7 +36,7 @@ from ..params.forward import ForwardModel
 from ..params.terms import get_term, known_terms
 from .detect import Detection, detect_from_fit, transfer_failures
 from .document import build_report
-from .evaluate import _all_stack, evaluate, held_out_transfer, matched_head
+from .evaluate import _all_stack, evaluate, held_out_decides, held_out_transfer, matched_head
 from .fit import ModelFit, fit_baseline, fit_variant, with_robust_covariance
 from .law_shape import LawShapePrior, law_shape_overrides
 from .screen import embed_baseline, score_test
@@ -429,6 +429,19 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
     named = decision["named"]
     say("criterion: " + ", ".join(f"{r.effect} {r.criterion:+.1f}" for r in decision["ranked"])
         + f" -> named: {named}")
+    if named is not None:
+        # the fitted lengths do not separate the winner from a rival within ln 100: the lengths not fitted do
+        decided = held_out_decides(decision, refits)
+        if decided:
+            decision["held_out_compared"] = decided["compared"]
+        if decided and decided.get("named"):
+            say(f"held-out lengths decide: {decided['named']} (held-out systematic gap "
+                f"{decided['held_out_gap_named']:.4f}) instead of {named} ({decided['held_out_gap_instead_of']:.4f})")
+            decision["held_out_decided"] = {k: v for k, v in decided.items() if k not in ("compared", "confounded_with")}
+            decision["runner_up"] = named
+            decision["margin"] = decided["criterion_named"] - decided["criterion_instead_of"]
+            decision["named"] = named = decided["named"]
+            decision["confounded_with"] = decided["confounded_with"]
 
     t0 = time.perf_counter()
     transfer_check = {}

@@ -310,7 +310,9 @@ def _discrepancy_section(run: RunDir) -> dict:
             "reasons": [in_words(str(r)) for r in ((d.get("detection") or {}).get("reasons") or [])],
             # decisive candidates not named, each with why and the test that decides it (issue #43: none in silence)
             "not_named": [f"{effect_name(m['effect'])} (criterion {m['criterion']:+.1f}): {m['reason']}. "
-                          f"To decide: {m['deciding_test']}." for m in d.get("decisive_not_named") or []],
+                          f"To decide: {m['deciding_test']}." for m in d.get("decisive_not_named") or []]
+            + [f"{effect_name(q['effect'])} (criterion {q['criterion']:+.1f}) explains the second effect almost as "
+               f"well. To decide: {q['deciding_test']}." for q in (d.get("second_round") or {}).get("almost_as_well", [])],
             "grew": bool(d.get("gap_grew")),
             # the unexplained remainder's law shape between the fitted lengths: a tool library's or the envelope
             "law_shape": " ".join(law_shape_lines(d.get("law_shape_prior"))).strip(),

@@ -258,6 +258,10 @@ class ModelCheck(Result):
             rows.append(("Missing effect", " + ".join(effect_name(t) for t in (named, *self.also_named))))
             if self.confounded_with:
                 rows.append(("Explains the data as well", ", ".join(map(effect_name, self.confounded_with))))
+            decided = self.report.get("held_out_decided")
+            if decided:
+                rows.append(("Chosen over", f"{effect_name(decided['instead_of'])}, which fits the measured lengths "
+                                            "about as well but carries worse to the lengths not fitted"))
             labels = self._parameter_labels()
             for c in self.report["candidates"]:
                 if c["effect"] == named:
