@@ -141,6 +141,7 @@ rotor, file both sets +10 %                44540-44544     5/5, 0.036-0.040 -> 0
 bench, file all bearings +10 %             44560-44564     5/5, 0.006-0.010 -> 0-0.002   --
 bench, file all bearings +30 %             44570-44574     5/5, 0.029-0.031 -> 0-0.004   --
 rotor, tip mass + file both sets +15 %     49300-49304     5/5 as the pair with tip_mass, 0.056-0.059 -> 0.012-0.016   --
+  with the coupling                        65300-65304     5/5 as the pair with tip_mass, 0.054-0.057 -> 0.018-0.022   --
 rotor, tip mass + file front +20, rear -10 44600-4, 45600-4 0/5 twice; with the coupling 63300-63304: spindle_error + fluted_section 4/5 (see Cannot represent)   --
 =========================================  ==============  ====================  ==================
 
