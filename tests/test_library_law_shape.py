@@ -212,3 +212,37 @@ def test_a_library_without_the_bend_leaves_the_envelope_and_says_why(remainder, 
     assert entry["source"] == "envelope" and "does not pool law_shape_bend" in entry["library_not_used"]
     assert check.computation.final.problem.parameters["law_shape_bend"].prior.describe()["distribution"] == "uniform"
     assert any(w.startswith("--library: the library does not pool law_shape_bend") for w in check.warnings)
+
+
+def test_identify_of_a_new_setup_with_the_law_shape_term_takes_the_library_s_bend(example, pop_quarter):
+    # a new combination fitted with law_shape_uncertainty in its model: one or two taps do not place the law between
+    # the lengths, the library's combinations at three or more did; its bend prior is the population's (near 0.25)
+    from bayes_rcsa.inference.problem import IdentificationOptions, build_problem_from_setup
+
+    text = example.read_text(encoding="utf-8").replace("\n[holder]\n", '\n[holder]\ntype = "ER32"\n', 1)
+    example.write_text(text + '\n[model]\nterms = ["law_shape_uncertainty"]\n', encoding="utf-8")
+    setup = load_setup(example)
+    kw, warns = library_options(pop_quarter, setup, np.random.default_rng(4))
+    assert kw["contact_prior"].names == ("k_xf",)
+    entry = kw["model"]["law_shape_bend"]
+    assert entry["distribution"] == "normal" and (entry["lo"], entry["hi"]) == (0.0, 1.0)
+    # the pooled bend is 0.25 with a population spread of 0.03 (the stand-ins above): tolerances of 2 spreads
+    assert abs(entry["mu"] - 0.25) < 0.06 and entry["sigma"] < 0.5 * UNIFORM_SD
+    problem = build_problem_from_setup(setup, IdentificationOptions.from_setup(setup.extra, **kw))
+    prior = problem.parameters["law_shape_bend"].prior
+    assert isinstance(prior, Normal) and prior.mu == entry["mu"] and prior.sigma == entry["sigma"]
+    # the setup's own prior of the bend wins
+    example.write_text(text + '\n[model]\nterms = ["law_shape_uncertainty"]\nlaw_shape_bend = {distribution = '
+                       '"uniform", lo = 0.0, hi = 1.0}\n', encoding="utf-8")
+    kw2, _ = library_options(pop_quarter, load_setup(example), np.random.default_rng(4))
+    assert "model" not in kw2
+
+
+def test_identify_with_a_library_that_does_not_pool_the_bend_keeps_the_term_s_prior_and_says_so(example, pop_quarter):
+    text = example.read_text(encoding="utf-8").replace("\n[holder]\n", '\n[holder]\ntype = "ER32"\n', 1)
+    example.write_text(text + '\n[model]\nterms = ["law_shape_uncertainty"]\n', encoding="utf-8")
+    contact_only = Population(("k_xf",), {"ER32": pop_quarter.draws["ER32"][:, [0, 2, 4]]}, BOX[:1],
+                              pop_quarter.growth, pop_quarter.diameters)
+    kw, warns = library_options(contact_only, load_setup(example), np.random.default_rng(4))
+    assert "model" not in kw
+    assert any("does not pool law_shape_bend" in w and "keeps its prior" in w for w in warns), warns

@@ -20,7 +20,7 @@ import numpy as np
 from ..errors import SetupError
 from ..params.growth import GrowthLaw
 from ..params.model import PARAMETER_MODEL_ATTR, ParameterModel, contact_parameter
-from .predictive import Population, contact_names, predictive_draws, predictive_prior
+from .predictive import LAW_SHAPE, Population, contact_names, law_shape_prior, predictive_draws, predictive_prior
 from .population import from_coordinates
 from .stage1 import holder_type_of, shank_diameter
 
@@ -28,6 +28,8 @@ __all__ = ["library_options", "write_zero_tap", "check_setup", "ZERO_TAP_METHOD"
 
 #: ``method`` recorded in a zero-tap posterior.
 ZERO_TAP_METHOD = "library-predictive"
+#: The model term whose one parameter (:data:`~.predictive.LAW_SHAPE`) a population may pool.
+LAW_SHAPE_TERM = "law_shape_uncertainty"
 
 
 def check_setup(pop: Population, setup) -> tuple[str, float, GrowthLaw]:
@@ -58,16 +60,30 @@ def check_setup(pop: Population, setup) -> tuple[str, float, GrowthLaw]:
 
 
 def library_options(pop: Population, setup, rng: np.random.Generator) -> tuple[dict, list[str]]:
-    """``IdentificationOptions`` keywords (``contact_prior``, ``contact_growth``) and warnings for a tap.
+    """``IdentificationOptions`` keywords (``contact_prior``, ``contact_growth`` and, for a setup with the
+    law-shape term, ``model``) and warnings for a tap.
 
     The contact prior is over the pooled contact parameters only (:func:`~.predictive.contact_names`): a
     population that also pools the law's bend (``law_shape_bend``) gives the marginal of its moment-matched
-    joint normal over the contact (the joint prior of ``identify`` is a contact prior; the setup's own
-    ``law_shape_uncertainty`` term, if any, keeps its prior).
+    joint normal over the contact (the joint prior of ``identify`` is a contact prior).  A setup whose
+    ``[model]`` has ``law_shape_uncertainty`` gets the population's bend as that parameter's prior
+    (:func:`~.predictive.law_shape_prior`: one or two taps do not identify where the law lies between the
+    lengths, the library's combinations at three or more do), through its ``[model]`` table, unless the table
+    gives ``law_shape_bend`` a prior itself.
     """
     htype, diameter, growth = check_setup(pop, setup)
     joint, warns = predictive_prior(pop, htype, diameter, rng, names=contact_names(pop))
-    return {"contact_prior": joint, "contact_growth": growth}, warns
+    kw = {"contact_prior": joint, "contact_growth": growth}
+    table = dict(getattr(setup, "model_table", None) or setup.extra.get("model") or {})
+    if LAW_SHAPE_TERM in (table.get("terms") or []) and LAW_SHAPE not in table:
+        prior, info, more = law_shape_prior(pop, htype, diameter, rng)
+        warns = warns + more
+        if prior is None:
+            warns.append(f"[model] {LAW_SHAPE_TERM}: {info['reason']}; {LAW_SHAPE} keeps its prior (the whole range "
+                         "between the parallel and the series law)")
+        else:
+            kw["model"] = {**table, LAW_SHAPE: prior.describe()}
+    return kw, warns
 
 
 def _fixed_contact(setup, names) -> dict[str, float]:
