@@ -7,7 +7,6 @@ paired comparison stubbed, and the case that motivated it on the independent rot
 
 from __future__ import annotations
 
-import math
 from types import SimpleNamespace
 
 import numpy as np
@@ -110,32 +109,3 @@ def test_a_spindle_file_from_other_bearings_is_named_by_what_carries_to_the_held
     text = summary_markdown(r)
     assert f"the clamping lengths that were not fitted decide: {effect_name('spindle_error')}" in text
     assert "behind by -" not in text  # the runner-up line is not printed with a negative margin
-
-
-def test_in_the_second_round_a_partial_candidate_within_ln10_is_a_rival_too(monkeypatch):
-    # rotor bench, tip mass + a file whose front and rear sets changed in opposite directions (development seed
-    # 44601): with the spindle term named, the flute (12.2, removing 58 % of what was left) won over the tip mass
-    # (11.9, 42 %: partial); the flute carried nothing to 30/35 mm (0.045), the tip mass did (0.013)
-    refits = [_refit("fluted_section", 12.2), _refit("tip_mass", 11.9), _refit("contact_damping", -2.8)]
-    _stub(monkeypatch, {"fluted_section": 0.0446, "tip_mass": 0.0126, "contact_damping": 0.0})
-    dec = {"named": "fluted_section", "supported": ["fluted_section"], "confounded_with": [],
-           "partial": [{"effect": "tip_mass", "criterion": 11.9, "systematic_gap_ratio": 0.58}]}
-    assert evaluate.held_out_decides(dec, refits) is None  # the first round's rule: supported rivals only
-    out = evaluate.held_out_decides(dec, refits, partial_within=math.log(10.0))
-    assert out["named"] == "tip_mass" and out["instead_of"] == "fluted_section"
-    # a partial candidate further behind than ln 10 is not a rival
-    far = [_refit("fluted_section", 12.2), _refit("tip_mass", 9.8)]
-    dec["partial"][0]["criterion"] = 9.8
-    assert evaluate.held_out_decides(dec, far, partial_within=math.log(10.0)) is None
-
-
-def test_the_summary_says_the_held_out_lengths_chose_the_second_effect():
-    from bayes_rcsa.discrepancy.render import second_effect_lines
-
-    second = {"named": "tip_mass", "almost_as_well": [],
-              "held_out_decided": {"named": "tip_mass", "instead_of": "fluted_section", "held_out_gap_named": 0.0126,
-                                   "held_out_gap_instead_of": 0.0446}}
-    text = "\n".join(second_effect_lines({"named_effect": "spindle_error", "also_named": ["tip_mass"],
-                                          "second_round": second}))
-    assert (f"{effect_name('fluted_section')} fits what {effect_name('spindle_error')} left about as well, but the "
-            f"clamping lengths that were not fitted decide: {effect_name('tip_mass')} carries to them") in text

@@ -65,10 +65,7 @@ def _second_round_report(second: dict) -> dict:
             {"effect": q["effect"], "criterion": q["criterion"], "systematic_gap_ratio": q.get("systematic_gap_ratio"),
              "deciding_test": separating_test(named, q["effect"])}
             for q in dec.get("partial", [])
-            if win is not None and win.criterion - q["criterion"] < LN_BF_CONFOUNDED
-            and not q.get("carries_worse_to_held_out")] if named else []
-        # the held-out lengths chose the second effect among candidates the fitted ones did not separate
-        out["held_out_decided"] = dec.get("held_out_decided")
+            if win is not None and win.criterion - q["criterion"] < LN_BF_CONFOUNDED] if named else []
     return out
 
 

@@ -366,7 +366,7 @@ def held_out_transfer(baseline: ModelFit, named: ModelFit) -> dict:
 
 
 
-def held_out_decides(decision: dict, refits: list, partial_within: float | None = None) -> dict | None:
+def held_out_decides(decision: dict, refits: list) -> dict | None:
     """Let the measurements not fitted decide between candidates the fitted ones do not separate decisively.
 
     Two supported candidates whose criteria differ by less than ``ln 100`` (:data:`~.select.LN_BF_NAME`) are
@@ -386,12 +386,6 @@ def held_out_decides(decision: dict, refits: list, partial_within: float | None 
     ----------
     decision : dict of :func:`~.select.decide` with a winner (``named``) and ``supported``
     refits : list of :class:`~.select.Refit`
-    partial_within : float or None
-        Also compare the partial candidates (``decision["partial"]``) whose criterion is within this margin of the
-        winner's (the second round: a second effect that removes a little less than half of what the first left,
-        with a criterion the fitted lengths do not separate from the winner's; a tip mass beside a flute that
-        fits the fitted lengths by bending, rotor bench, development seeds 44601-44602: held-out gaps 0.013-0.016
-        against 0.036-0.045).
 
     Returns
     -------
@@ -404,9 +398,6 @@ def held_out_decides(decision: dict, refits: list, partial_within: float | None 
     by = {r.effect: r for r in refits}
     win = by[decision["named"]]
     rivals = [by[e] for e in decision.get("supported", []) if e != win.effect and win.criterion - by[e].criterion < LN_BF_NAME]
-    if partial_within is not None:
-        rivals += [by[q["effect"]] for q in decision.get("partial", [])
-                   if q["effect"] in by and win.criterion - q["criterion"] < partial_within]
     if not rivals:
         return None
     compared = {}

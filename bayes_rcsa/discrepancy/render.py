@@ -229,12 +229,6 @@ def second_effect_lines(report: dict) -> list[str]:
     for also in report.get("also_named", []):
         lines += ["", f"**A second effect was found with it: {effect_name(also)}** — {effect_sentence(also)} "
                   f"(second round, with {effect_name(named)} in the model)."]
-        decided = (report.get("second_round") or {}).get("held_out_decided")
-        if decided:
-            lines.append(f"{effect_name(decided['instead_of'])} fits what {effect_name(named)} left about as well, "
-                         f"but the clamping lengths that were not fitted decide: {effect_name(also)} carries to them "
-                         f"(remaining mismatch there {percent(decided['held_out_gap_named'], 3)} against "
-                         f"{percent(decided['held_out_gap_instead_of'], 3)}).")
         for q in (report.get("second_round") or {}).get("almost_as_well", []):
             share = q.get("systematic_gap_ratio")
             part = f", removing {100 * (1 - share):.0f} % of what was left" if share is not None else ""

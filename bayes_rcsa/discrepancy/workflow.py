@@ -40,9 +40,9 @@ from .evaluate import _all_stack, evaluate, held_out_decides, held_out_transfer,
 from .fit import ModelFit, fit_baseline, fit_variant, with_robust_covariance
 from .law_shape import LawShapePrior, law_shape_overrides
 from .screen import embed_baseline, score_test
-from .select import (LN_BF_CONFOUNDED, LN_BF_NAME, MIN_SYSTEMATIC_REDUCTION, decide, edge_parameters,
-                     fitted_systematic_gap, gap, outranked_key, pair_outranked, refit_candidate,
-                     stiffness_held_on_upper_bound, stiffness_on_upper_bound)
+from .select import (LN_BF_NAME, MIN_SYSTEMATIC_REDUCTION, decide, edge_parameters, fitted_systematic_gap, gap,
+                     outranked_key, pair_outranked, refit_candidate, stiffness_held_on_upper_bound,
+                     stiffness_on_upper_bound)
 
 __all__ = ["DiscrepancyOptions", "DiscrepancyResult", "run_discrepancy", "validate", "default_candidates",
            "remainder_terms", "REMAINDER_TERMS", "MIN_LINES_PER_PARAMETER", "leaves_misfit"]
@@ -283,23 +283,6 @@ def _second_effect(setup, base_opts, first, cands, decision, options, say, requi
                  stiffness_on_upper_bound(fit))
     say(f"second round (with {first.effect}): " + ", ".join(f"{r.effect} {r.criterion:+.1f}" for r in dec["ranked"])
         + f" -> named: {dec['named']}")
-    if dec["named"] is not None:
-        # as in the first round, and with the partial candidates the criterion does not separate (within ln 10):
-        # what the first effect leaves is close to the noise, where the halving rule's line is itself uncertain
-        decided = held_out_decides(dec, refits, partial_within=LN_BF_CONFOUNDED)
-        if decided:
-            dec["held_out_compared"] = decided["compared"]
-        if decided and decided.get("named"):
-            say(f"second round, held-out lengths decide: {decided['named']} (held-out systematic gap "
-                f"{decided['held_out_gap_named']:.4f}) instead of {dec['named']} "
-                f"({decided['held_out_gap_instead_of']:.4f})")
-            dec["held_out_decided"] = {k: v for k, v in decided.items() if k not in ("compared", "confounded_with")}
-            old = dec["named"]
-            dec["partial"] = ([q for q in dec["partial"] if q["effect"] != decided["named"]]
-                              + [{"effect": old, "criterion": decided["criterion_instead_of"],
-                                  "systematic_gap_ratio": None, "carries_worse_to_held_out": True}])
-            dec["named"] = decided["named"]
-            dec["confounded_with"] = decided["confounded_with"]
     return {"ran": True, "reason": f"the named model leaves a systematic misfit ({why})", "scores": scores,
             "refits": refits, "decision": dec, "named": dec["named"]}
 
