@@ -25,7 +25,7 @@ def _refit(effect: str, criterion: float):
 def _stub(monkeypatch, held_out_gap: dict, se: float = 1e-4, nothing_held: bool = False):
     """``held_out_transfer(a, b)`` from per-effect held-out gaps: the paired change is the difference of squares."""
 
-    def fake(a, b):
+    def fake(a, b, cache=None):
         if nothing_held:
             return {}
         ga, gb = held_out_gap[a.label], held_out_gap[b.label]

@@ -260,10 +260,10 @@ def decisive_not_named(report: dict) -> list[dict]:
         p = partial.get(e, {})
         decided = report.get("held_out_decided") or {}
         if e == decided.get("instead_of"):
-            reason = (f"fits the fitted clamping lengths about as well (criterion {decided['criterion_instead_of']:+.1f} "
-                      f"against {decided['criterion_named']:+.1f}) but carries worse to the clamping lengths not fitted "
-                      f"(systematic gap {decided['held_out_gap_instead_of']:.3f} against "
-                      f"{decided['held_out_gap_named']:.3f} there)")
+            reason = (f"fits the fitted clamping lengths about as well (criterion "
+                      f"{decided['criterion_instead_of']:+.1f} against {decided['criterion_named']:+.1f}) but carries "
+                      f"worse to the clamping lengths not fitted (systematic gap "
+                      f"{decided['held_out_gap_instead_of']:.3f} against {decided['held_out_gap_named']:.3f} there)")
         elif e in confounded:
             reason = "explains the data as well as the named effect"
         elif edge:

@@ -27,8 +27,8 @@ from .noise import relative_noise_scale
 from .predictive_scan import predictive_window_statistic, predictive_z2
 from .select import LN_BF_CONFOUNDED, LN_BF_NAME, gap, systematic_gap, systematic_gap_change
 
-__all__ = ["evaluate", "mode_entries", "prediction_usability", "held_out_transfer", "held_out_decides", "matched_head",
-           "NOISE_REPLICATES", "MAX_USABLE_GAP", "NAMED_MISS_SD"]
+__all__ = ["evaluate", "mode_entries", "prediction_usability", "held_out_transfer", "held_out_decides",
+           "matched_head", "NOISE_REPLICATES", "MAX_USABLE_GAP", "NAMED_MISS_SD"]
 
 #: Noise realisations per posterior draw in :func:`evaluate`'s predictive draws.  The measured peak's scatter is the
 #: 90 % range of the tracked peak of (draw + noise); with one realisation per draw (200) that range scatters by
@@ -338,32 +338,43 @@ def matched_head(f: np.ndarray, measured: np.ndarray, model: np.ndarray) -> tupl
 
 
 
-def held_out_transfer(baseline: ModelFit, named: ModelFit) -> dict:
+def _held_out(fit: ModelFit) -> tuple[list, list] | None:
+    """(measured, predicted at the MAP) at the setup's measurements not fitted, one array each; None if none."""
+    prob = fit.problem
+    used = {(o.configuration, o.source) for o in prob.observations}
+    held = [j for j, (cfg, frf) in enumerate(prob.all_measurements) if (cfg, frf.source) not in used]
+    if not held:
+        return None
+    stack, measured, _ = _all_stack(prob)
+    fwd = ForwardModel(prob.parameters, stack, prob.model)
+    parts = stack.split(fwd.frf(prob.parameters.values(fit.theta[None]))[0])
+    return [measured[j] for j in held], [parts[j] for j in held]
+
+
+def held_out_transfer(baseline: ModelFit, named: ModelFit, cache: dict | None = None) -> dict:
     """Systematic gap at the setup's measurements that were *not* fitted, at the MAP of two fits.
+
+    ``cache`` (optional, ``id(fit) -> held-out predictions``) keeps each fit's predictions for further
+    comparisons (:func:`held_out_decides` compares one winner with several rivals).
 
     Returns
     -------
     dict with ``baseline`` and ``named`` gaps, ``resolution`` and ``grew`` (the named model's gap exceeds the
     baseline's by more than the resolution), or an empty dict when every measurement was fitted.
     """
-    out, preds = {}, {}
-    for key, fit in (("baseline", baseline), ("named", named)):
-        prob = fit.problem
-        used = {(o.configuration, o.source) for o in prob.observations}
-        held = [j for j, (cfg, frf) in enumerate(prob.all_measurements) if (cfg, frf.source) not in used]
-        if not held:
-            return {}
-        stack, measured, _ = _all_stack(prob)
-        fwd = ForwardModel(prob.parameters, stack, prob.model)
-        parts = stack.split(fwd.frf(prob.parameters.values(fit.theta[None]))[0])
-        preds[key] = [parts[j] for j in held]
-        data = [measured[j] for j in held]
-        out[key] = systematic_gap(data, preds[key])["gap"]
-    change = systematic_gap_change(data, preds["baseline"], preds["named"])
+    cache = {} if cache is None else cache
+    for fit in (baseline, named):
+        if id(fit) not in cache:
+            cache[id(fit)] = _held_out(fit)
+    a, b = cache[id(baseline)], cache[id(named)]
+    if a is None or b is None:
+        return {}
+    data = a[0]
+    out = {"baseline": systematic_gap(data, a[1])["gap"], "named": systematic_gap(data, b[1])["gap"]}
+    change = systematic_gap_change(data, a[1], b[1])
     out.update(change)
     out["grew"] = bool(change["grew"] and out["named"] > out["baseline"])
     return out
-
 
 
 def held_out_decides(decision: dict, refits: list) -> dict | None:
@@ -397,12 +408,13 @@ def held_out_decides(decision: dict, refits: list) -> dict | None:
     """
     by = {r.effect: r for r in refits}
     win = by[decision["named"]]
-    rivals = [by[e] for e in decision.get("supported", []) if e != win.effect and win.criterion - by[e].criterion < LN_BF_NAME]
+    rivals = [by[e] for e in decision.get("supported", [])
+              if e != win.effect and win.criterion - by[e].criterion < LN_BF_NAME]
     if not rivals:
         return None
-    compared = {}
+    compared, cache = {}, {}
     for r in rivals:
-        c = held_out_transfer(win.fit, r.fit)
+        c = held_out_transfer(win.fit, r.fit, cache=cache)
         if not c:
             return None  # every measurement was fitted
         compared[r.effect] = {k: c[k] for k in ("baseline", "named", "delta_squared", "se")}
@@ -416,7 +428,7 @@ def held_out_decides(decision: dict, refits: list) -> dict | None:
     for e in [*decision.get("confounded_with", []), *better]:
         if e in (new, win.effect) or e in confounded or abs(by[e].criterion - by[new].criterion) >= LN_BF_CONFOUNDED:
             continue
-        ce = held_out_transfer(by[new].fit, by[e].fit)
+        ce = held_out_transfer(by[new].fit, by[e].fit, cache=cache)
         if not ce["delta_squared"] > 3.0 * ce["se"]:
             confounded.append(e)
     return out | {"named": new, "instead_of": win.effect, "criterion_named": by[new].criterion,

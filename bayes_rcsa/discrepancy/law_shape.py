@@ -20,12 +20,13 @@ from dataclasses import dataclass
 
 from ..errors import SetupError
 from ..params.priors import Normal
+from ..params.terms.law_shape_uncertainty import BEND, LawShapeUncertainty
 
 __all__ = ["LawShapePrior", "LAW_SHAPE_TERM", "LAW_SHAPE_PARAMETER", "law_shape_overrides", "law_shape_report"]
 
 #: The remainder's law-shape term and its one parameter.
-LAW_SHAPE_TERM = "law_shape_uncertainty"
-LAW_SHAPE_PARAMETER = "law_shape_bend"
+LAW_SHAPE_TERM = LawShapeUncertainty.name
+LAW_SHAPE_PARAMETER = BEND
 
 #: What the report says of the envelope (no library, or a library that does not pool the bend).
 ENVELOPE_TEXT = "the physics envelope, uniform between the parallel and the series law"

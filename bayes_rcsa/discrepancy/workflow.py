@@ -437,7 +437,8 @@ def run_discrepancy(setup, options: DiscrepancyOptions = DiscrepancyOptions(), p
         if decided and decided.get("named"):
             say(f"held-out lengths decide: {decided['named']} (held-out systematic gap "
                 f"{decided['held_out_gap_named']:.4f}) instead of {named} ({decided['held_out_gap_instead_of']:.4f})")
-            decision["held_out_decided"] = {k: v for k, v in decided.items() if k not in ("compared", "confounded_with")}
+            decision["held_out_decided"] = {k: v for k, v in decided.items()
+                                            if k not in ("compared", "confounded_with")}
             decision["runner_up"] = named
             decision["margin"] = decided["criterion_named"] - decided["criterion_instead_of"]
             decision["named"] = named = decided["named"]

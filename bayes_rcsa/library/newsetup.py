@@ -20,6 +20,7 @@ import numpy as np
 from ..errors import SetupError
 from ..params.growth import GrowthLaw
 from ..params.model import PARAMETER_MODEL_ATTR, ParameterModel, contact_parameter
+from ..params.terms.law_shape_uncertainty import LawShapeUncertainty
 from .predictive import LAW_SHAPE, Population, contact_names, law_shape_prior, predictive_draws, predictive_prior
 from .population import from_coordinates
 from .stage1 import holder_type_of, shank_diameter
@@ -29,7 +30,7 @@ __all__ = ["library_options", "write_zero_tap", "check_setup", "ZERO_TAP_METHOD"
 #: ``method`` recorded in a zero-tap posterior.
 ZERO_TAP_METHOD = "library-predictive"
 #: The model term whose one parameter (:data:`~.predictive.LAW_SHAPE`) a population may pool.
-LAW_SHAPE_TERM = "law_shape_uncertainty"
+LAW_SHAPE_TERM = LawShapeUncertainty.name
 
 
 def check_setup(pop: Population, setup) -> tuple[str, float, GrowthLaw]:

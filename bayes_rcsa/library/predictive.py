@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import SetupError
 from ..params.priors import JointNormal, Normal
+from ..params.terms.law_shape_uncertainty import BEND
 from .population import MODEL_VERSION, SCALES, SHAPE_COORDINATES, covariate, from_coordinates
 
 __all__ = ["Population", "predictive_draws", "predictive_prior", "contact_names", "law_shape_prior", "LAW_SHAPE"]
@@ -146,7 +147,7 @@ def predictive_prior(pop: Population, holder_type: str, diameter: float, rng: np
 
 
 #: The parameter of the law's shape (term ``law_shape_uncertainty``) and its physics envelope, u in [0, 1].
-LAW_SHAPE = "law_shape_bend"
+LAW_SHAPE = BEND
 LAW_SHAPE_RANGE = (0.0, 1.0)
 
 

@@ -74,7 +74,10 @@ from ..priors import Uniform
 from . import register_term
 from .base import Contact, ModelTerm
 
-__all__ = ["LawShapeUncertainty", "two_spring_limit", "series_law_shape"]
+__all__ = ["LawShapeUncertainty", "two_spring_limit", "series_law_shape", "BEND"]
+
+#: The term's one parameter, ``u`` (pooled by a tool library, given a prior by the discrepancy workflow).
+BEND = "law_shape_bend"
 
 
 def two_spring_limit(x: np.ndarray, ratio: float) -> np.ndarray:
@@ -134,7 +137,7 @@ class LawShapeUncertainty(ModelTerm):
 
     def parameters(self, model) -> tuple[Parameter, ...]:
         return (
-            Parameter("law_shape_bend", unit="1", role="discrepancy", prior=Uniform(0.0, 1.0),
+            Parameter(BEND, unit="1", role="discrepancy", prior=Uniform(0.0, 1.0),
                       label="law bend u", baseline=0.0, term=self.name,
                       description="position of the law between the parallel (0) and the series (1) interface law"),
         )
@@ -151,10 +154,10 @@ class LawShapeUncertainty(ModelTerm):
         """
         if not l_b > l_a:
             return contact  # one clamping length: no law between lengths to bend
-        missing = [n for n in ("law_shape_bend", "k_xf", "k_thetaM", "g_xf", "g_thetaM") if n not in values]
+        missing = [n for n in (BEND, "k_xf", "k_thetaM", "g_xf", "g_thetaM") if n not in values]
         if missing:
             raise ModelError(f"model term {self.name}: needs {missing} in its values")
-        u = np.asarray(values["law_shape_bend"], dtype=float)[:, None]
+        u = np.asarray(values[BEND], dtype=float)[:, None]
         x = ((np.asarray(lengths, dtype=float) - l_a) / (l_b - l_a))[None, :]
         fields = {}
         # each coordinate has its own growth and hence its own series law through its own ends

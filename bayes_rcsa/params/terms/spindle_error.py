@@ -406,7 +406,8 @@ class SpindleError(ModelTerm):
                                  description=f"relative change of the modal stiffness (and squared frequency) of "
                                              f"the spindle's flange mode at {fr:.0f} Hz from the spindle file to the "
                                              f"real spindle; negative: the real bearings are softer"))
-        for (a, b), name in zip(_pairs(modes, idx), _coupling_names(_pairs(modes, idx))):
+        pairs = _pairs(modes, idx)
+        for (a, b), name in zip(pairs, _coupling_names(pairs)):
             fa, fb = (ref.omega[idx[k]] / (2 * np.pi) for k in (a, b))
             out.append(Parameter(name, unit="1", role="term", prior=COUPLING_PRIOR, baseline=0.0, term=self.name,
                                  label=f"coupling change of the {fa:.0f} and {fb:.0f} Hz spindle modes",
